@@ -1,0 +1,91 @@
+"""Reading frames from a video file or an image folder, as RGB numpy arrays."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm")
+
+
+class FrameSourceError(ValueError):
+    """A path that is not a readable video or image folder."""
+
+
+@dataclass(frozen=True, slots=True)
+class FrameSource:
+    """Frames of one video or image sequence.
+
+    Attributes
+    ----------
+    path:
+        The video file or image folder.
+    frame_count:
+        Number of frames (as the container reports it for videos; may be approximate).
+    fps:
+        Frame rate, or ``None`` when unknown (image folders).
+    """
+
+    path: Path
+    frame_count: int
+    fps: float | None
+    _images: tuple[Path, ...] = ()
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        """RGB uint8 frames ``(H, W, 3)``, in order."""
+        if self._images:
+            for image_path in self._images:
+                yield read_image(image_path)
+            return
+        capture = cv2.VideoCapture(str(self.path))
+        try:
+            while True:
+                ok, bgr = capture.read()
+                if not ok:
+                    break
+                yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+        finally:
+            capture.release()
+
+
+def read_image(path: Path) -> np.ndarray:
+    """One image file as RGB uint8; a clear error if it cannot be decoded."""
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise FrameSourceError(f"cannot decode image {path}")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def open_frames(path: str | Path) -> FrameSource:
+    """Open a video file, a folder of images, or an OTB sequence folder (its ``img/``).
+
+    Raises
+    ------
+    FrameSourceError
+        If the path does not exist, holds no images, or is not a decodable video.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FrameSourceError(f"no such file or folder: {path}")
+    if path.is_dir():
+        folder = path / "img" if (path / "img").is_dir() else path
+        images = tuple(
+            sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        )
+        if not images:
+            raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
+        return FrameSource(path, len(images), None, images)
+    capture = cv2.VideoCapture(str(path))
+    try:
+        ok, _ = capture.read() if capture.isOpened() else (False, None)
+        if not ok:
+            raise FrameSourceError(f"{path} is not a video OpenCV can decode")
+        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
+    finally:
+        capture.release()
+    return FrameSource(path, max(count, 0), fps)

@@ -1,0 +1,174 @@
+"""Behaviour of the single-target trackers: synthetic scenes, a real sequence, bad input."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from tracking.correlation import PRESETS, CorrelationConfig, CorrelationTracker, ScaleConfig
+from tracking.evaluation.metrics import center_location_error, success_auc
+from tracking.evaluation.otb import load_otb_sequence, read_frame
+from tracking.types import Box, Tracker
+
+
+def textured(rng, shape, sigma):
+    """Smoothed colour noise stretched to 0..255."""
+    noise = ndimage.gaussian_filter(rng.standard_normal(shape), (sigma, sigma, 0))
+    noise -= noise.min()
+    return (255 * noise / noise.max()).astype(np.uint8)
+
+
+def moving_target_scene(frames=50, size=(48, 36), scale_per_frame=1.0, seed=0):
+    """A colourful textured target moving diagonally over a textured background.
+
+    Returns the frames and the true boxes. The target's texture is resampled when it grows, so
+    its appearance is the same object at another size, as a camera would see it.
+    """
+    rng = np.random.default_rng(seed)
+    height, width = 240, 320
+    background = textured(rng, (height, width, 3), 3.0)
+    target = textured(rng, (96, 72, 3), 2.0)
+    target[..., 0] = np.clip(target[..., 0].astype(int) + 60, 0, 255)  # redder than the scene
+    images, boxes = [], []
+    for t in range(frames):
+        w = size[0] * scale_per_frame**t
+        h = size[1] * scale_per_frame**t
+        x, y = 60 + 2.5 * t, 50 + 1.5 * t
+        frame = background.copy()
+        sprite = ndimage.zoom(target, (h / 96, w / 72, 1), order=1)
+        sh, sw = sprite.shape[:2]
+        frame[int(y) : int(y) + sh, int(x) : int(x) + sw] = sprite
+        images.append(frame)
+        boxes.append((int(x), int(y), sw, sh))
+    return images, np.array(boxes, dtype=float)
+
+
+def run(tracker, images, first_box):
+    tracker.initialize(images[0], Box(*first_box))
+    return np.array([first_box] + [tracker.update(f).box.as_array() for f in images[1:]])
+
+
+@pytest.mark.parametrize(
+    "preset",
+    [
+        "mosse_gray",  # eq. 2.4, linear, one filter per channel
+        "csk_gray",  # eq. 2.10, Gaussian kernel, interpolated coefficients
+        "rcsk_gray",  # eq. 2.21, the proposed learning
+        "rcsk_cn",  # gray + Color Names, the thesis's proposed tracker
+        "rcsk_cn_pca2",  # Algorithm 4.2: 11 dimensions adaptively reduced to 2
+        "rcsk_opponent",  # a pixel-wise colour space
+        "rcsk_hue",  # a histogram representation
+        "best",  # HOG + Color Names on cells, with scale adaptation
+    ],
+)
+def test_tracker_follows_a_moving_textured_target(preset):
+    images, truth = moving_target_scene()
+    boxes = run(CorrelationTracker(PRESETS[preset]), images, truth[0])
+    errors = center_location_error(boxes, truth)
+    assert errors.max() < 6.0, f"{preset} drifted: max centre error {errors.max():.1f} px"
+
+
+@pytest.mark.parametrize("kernel", ["linear", "polynomial", "gaussian"])
+def test_every_kernel_tracks(kernel):
+    images, truth = moving_target_scene(frames=30)
+    tracker = CorrelationTracker(CorrelationConfig(kernel=kernel, feature="gray+cn"))
+    errors = center_location_error(run(tracker, images, truth[0]), truth)
+    assert errors.max() < 6.0
+
+
+def test_scale_mode_follows_a_growing_target():
+    images, truth = moving_target_scene(frames=40, size=(40, 30), scale_per_frame=1.015)
+    fixed = run(CorrelationTracker(CorrelationConfig(feature="gray+cn")), images, truth[0])
+    adaptive_config = CorrelationConfig(feature="gray+cn", scale=ScaleConfig())
+    adaptive = run(CorrelationTracker(adaptive_config), images, truth[0])
+    # The target grows by 1.015^39 = 1.79; the scale mode must follow most of that.
+    assert adaptive[-1, 2] / truth[0, 2] == pytest.approx(truth[-1, 2] / truth[0, 2], rel=0.12)
+    assert success_auc(adaptive, truth) > success_auc(fixed, truth) + 0.05
+
+
+def test_tracker_meets_the_protocol():
+    assert isinstance(CorrelationTracker(), Tracker)
+
+
+def test_reset_forgets_the_target():
+    images, truth = moving_target_scene(frames=3)
+    tracker = CorrelationTracker()
+    tracker.initialize(images[0], Box(*truth[0]))
+    tracker.reset()
+    with pytest.raises(RuntimeError, match="initialize"):
+        tracker.update(images[1])
+
+
+@pytest.mark.slow
+def test_rcsk_with_color_names_stays_on_a_real_target(shared_data):
+    """Skating1 (400 frames, a skater under changing stage light): with the w2c table the
+    thesis's RCSK + Color Names tracker keeps the skater over the first 150 frames."""
+    sequence = load_otb_sequence(shared_data / "otb" / "Skating1")
+    config = dataclasses.replace(
+        PRESETS["rcsk_cn"], color_names_path=str(shared_data / "colornames" / "w2c.mat")
+    )
+    tracker = CorrelationTracker(config)
+    frames = [read_frame(p) for p in sequence.frame_paths[:150]]
+    boxes = run(tracker, frames, sequence.ground_truth[0])
+    errors = center_location_error(boxes, sequence.ground_truth[:150])
+    assert np.median(errors) < 10.0
+    assert np.mean(errors <= 20.0) > 0.9
+
+
+# -- bad input -------------------------------------------------------------------------------
+
+FRAME = np.zeros((120, 160, 3), np.uint8)
+
+
+@pytest.mark.parametrize(
+    ("frame", "box", "message"),
+    [
+        (np.zeros((0, 0, 3), np.uint8), Box(1, 1, 5, 5), "empty"),  # empty frame
+        (np.zeros((10, 10, 4), np.uint8), Box(1, 1, 5, 5), r"\(H, W, 3\)"),  # RGBA
+        ([[1, 2], [3, 4]], Box(0, 0, 1, 1), "numpy array"),  # not an array
+        (FRAME, Box(10, 10, 0, 20), "at least 1x1"),  # zero width
+        (FRAME, Box(500, 10, 20, 20), "outside"),  # box right of the frame
+        (FRAME, Box(-50, -50, 20, 20), "outside"),  # box above-left of the frame
+        (FRAME, Box(np.nan, 10, 20, 20), "finite"),  # NaN coordinate
+        (np.zeros((120, 160), np.uint8), Box(10, 10, 20, 20), "needs an RGB frame"),  # cn on gray
+    ],
+)
+def test_bad_input_raises_a_clear_error(frame, box, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        CorrelationTracker(PRESETS["rcsk_cn"]).initialize(frame, box)
+
+
+def test_gray_features_accept_a_grayscale_frame():
+    images, truth = moving_target_scene(frames=5)
+    gray = [f.mean(axis=2).astype(np.uint8) for f in images]
+    boxes = run(CorrelationTracker(PRESETS["rcsk_gray"]), gray, truth[0])
+    assert center_location_error(boxes, truth).max() < 6.0
+
+
+def test_frame_of_another_shape_mid_sequence_still_tracks_or_raises_clearly():
+    images, truth = moving_target_scene(frames=3)
+    tracker = CorrelationTracker(PRESETS["rcsk_cn"])
+    tracker.initialize(images[0], Box(*truth[0]))
+    with pytest.raises(ValueError, match="needs an RGB frame"):
+        tracker.update(images[1][..., 0])
+
+
+@pytest.mark.parametrize(
+    "fields",
+    [
+        {"learning_rate": 0.0},  # gamma outside (0, 1]
+        {"learner": "kcf"},  # unknown learner
+        {"kernel": "laplacian"},  # unknown kernel
+        {"learner": "mosse", "compressed_dim": 2},  # reduction needs a kernel learner
+        {"cell_size": 0},
+    ],
+)
+def test_bad_configuration_is_refused(fields):
+    with pytest.raises(ValueError):
+        CorrelationConfig(**fields)
+
+
+def test_unknown_feature_is_refused():
+    with pytest.raises(ValueError, match="unknown feature"):
+        CorrelationTracker(CorrelationConfig(feature="gray+sift"))

@@ -1,0 +1,57 @@
+"""Named configurations: the thesis's tracker variants and our best one.
+
+Every preset is a :class:`CorrelationConfig`; change a field with :func:`dataclasses.replace`.
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+from tracking.correlation.config import CorrelationConfig, ScaleConfig
+
+# The colour representations of §3.1, each evaluated with the proposed RCSK (§5.3).
+COLOR_FEATURES = (
+    "gray",
+    "rgb",
+    "lab",
+    "ycbcr",
+    "rg",
+    "hsv",
+    "opponent",
+    "c",
+    "hue",
+    "opp_angle",
+    "so",
+    "cn",
+)
+
+
+def _presets() -> dict[str, CorrelationConfig]:
+    presets = {
+        # §5.2: the learning schemes on grayscale and on grayscale + Color Names.
+        "mosse_gray": CorrelationConfig(learner="mosse", feature="gray"),
+        "csk_gray": CorrelationConfig(learner="csk", feature="gray"),
+        "rcsk_gray": CorrelationConfig(learner="rcsk", feature="gray"),
+        "csk_cn": CorrelationConfig(learner="csk", feature="gray+cn"),
+        "rcsk_cn": CorrelationConfig(learner="rcsk", feature="gray+cn"),
+        # §5.4: the adaptive dimensionality reduction of gray + Color Names to 2 dimensions.
+        "rcsk_cn_pca2": CorrelationConfig(learner="rcsk", feature="gray+cn", compressed_dim=2),
+    }
+    for feature in COLOR_FEATURES:
+        presets.setdefault(f"rcsk_{feature}", CorrelationConfig(learner="rcsk", feature=feature))
+    # Ours, beyond the thesis: HOG beside Color Names, on 4-pixel cells, with scale adaptation.
+    presets["best"] = CorrelationConfig(
+        learner="rcsk",
+        feature="hog+cn",
+        cell_size=4,
+        padding=1.5,
+        learning_rate=0.02,
+        label_sigma=0.1,
+        kernel_sigma=0.5,
+        scale=ScaleConfig(),
+    )
+    return presets
+
+
+PRESETS = MappingProxyType(_presets())
+"""Read-only mapping from preset name to configuration."""

@@ -1,0 +1,98 @@
+"""Scale estimation with a one-dimensional correlation filter over a scale pyramid.
+
+Beyond the thesis: the discriminative scale-space filter of Danelljan, Häger, Khan and Felsberg
+(BMVC 2014). Around the current position, ``S`` patches of the target size times
+``a^n`` (``n = -(S-1)/2 .. (S-1)/2``) are resampled to one small size; their feature vectors form
+the ``S`` samples of a one-dimensional signal of ``d``-dimensional features, and a MOSSE filter
+(eq. 2.4 with the multi-channel form of eq. 2.12) over that signal finds the best scale.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import fft
+
+from tracking.correlation.config import ScaleConfig
+from tracking.correlation.patches import extract_patch
+from tracking.correlation.signals import gaussian_label_1d
+from tracking.features.maps import FeatureMap
+
+# Per-pixel features are pooled over cells this large for the scale samples: the scale filter
+# needs the coarse shape of the target, and pooling keeps d small.
+_SCALE_CELL = 4
+
+
+class ScaleFilter:
+    """Finds the relative scale change of a target from frame to frame.
+
+    Parameters
+    ----------
+    config:
+        Scale pyramid and filter parameters.
+    base_target:
+        ``(w, h)`` of the target at scale 1, pixels.
+    features:
+        The tracker's feature map; the scale filter uses the same features on coarser cells.
+    """
+
+    def __init__(
+        self, config: ScaleConfig, base_target: tuple[float, float], features: FeatureMap
+    ) -> None:
+        self._config = config
+        self._base_target = base_target
+        self._features = features.with_cell_size(max(features.cell_size, _SCALE_CELL))
+        count = config.num_scales
+        exponents = np.arange(count) - count // 2
+        self._factors = config.scale_step**exponents
+        label = gaussian_label_1d(count, math.sqrt(count) * config.label_sigma_factor)
+        self._label_hat = fft.fft(label)
+        self._window = np.hanning(count + 2)[1:-1, None].astype(np.float32)
+        w, h = base_target
+        shrink = min(1.0, math.sqrt(config.model_max_area / (w * h)))
+        cell = self._features.cell_size
+        self._model_size = (
+            max(int(round(w * shrink / cell)), 1) * cell,
+            max(int(round(h * shrink / cell)), 1) * cell,
+        )
+        # A target must keep a few pixels per side, whatever the scale bounds say.
+        self._min_scale = max(config.min_scale_factor, 6.0 / min(w, h))
+        self._max_scale = config.max_scale_factor
+        self._numerator: np.ndarray | None = None
+        self._denominator: np.ndarray | None = None
+
+    def _spectrum(self, frame: np.ndarray, center: tuple[float, float], scale: float):
+        w, h = self._base_target
+        samples = np.stack(
+            [
+                self._features(
+                    extract_patch(frame, center, (w * scale * f, h * scale * f), self._model_size)
+                ).ravel()
+                for f in self._factors
+            ]
+        )
+        return fft.fft(samples * self._window, axis=0)  # (S, d)
+
+    def _terms(self, frame, center, scale) -> tuple[np.ndarray, np.ndarray]:
+        x_hat = self._spectrum(frame, center, scale)
+        numerator = self._label_hat[:, None] * np.conj(x_hat)  # Y conj(X^d)
+        denominator = np.einsum("sd,sd->s", x_hat, np.conj(x_hat)).real  # sum_d |X^d|^2
+        return numerator, denominator
+
+    def initialize(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> None:
+        self._numerator, self._denominator = self._terms(frame, center, scale)
+
+    def update(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> None:
+        numerator, denominator = self._terms(frame, center, scale)
+        g = self._config.learning_rate
+        self._numerator = (1 - g) * self._numerator + g * numerator  # eq. 2.4a
+        self._denominator = (1 - g) * self._denominator + g * denominator  # eq. 2.4b
+
+    def estimate(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> float:
+        """The new scale: the current one times the factor with the strongest response."""
+        z_hat = self._spectrum(frame, center, scale)
+        product = np.einsum("sd,sd->s", self._numerator, z_hat)
+        response = fft.ifft(product / (self._denominator + self._config.regularization)).real
+        best = int(np.argmax(response))
+        return float(np.clip(scale * self._factors[best], self._min_scale, self._max_scale))

@@ -1,0 +1,159 @@
+"""The circulant-structure single-target tracker (thesis Algorithms 2.1 and 4.2)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from tracking.correlation.config import CorrelationConfig
+from tracking.correlation.learning import CorrelationFilter, make_filter
+from tracking.correlation.patches import extract_patch
+from tracking.correlation.scale import ScaleFilter
+from tracking.correlation.signals import peak_to_sidelobe_ratio, subpixel_peak
+from tracking.features.maps import FeatureMap
+from tracking.types import Box, TrackerOutput, validate_box, validate_frame
+
+
+@dataclass(slots=True)
+class _Geometry:
+    """Fixed at initialisation: how image pixels map onto the feature grid."""
+
+    base_target: tuple[float, float]  # (w, h) of the target at scale 1, pixels
+    base_patch: tuple[float, float]  # (w, h) of the padded patch at scale 1, pixels
+    model_pixels: tuple[int, int]  # (w, h) the patch is resampled to, a multiple of the cell
+    grid: tuple[int, int]  # (M, N) = rows, columns of the feature grid
+
+    def pixels_per_cell(self, scale: float) -> tuple[float, float]:
+        """Image pixels per grid cell along (x, y) at the given scale."""
+        return (
+            self.base_patch[0] * scale / self.grid[1],
+            self.base_patch[1] * scale / self.grid[0],
+        )
+
+
+class CorrelationTracker:
+    """MOSSE, CSK or RCSK on any feature representation, with optional scale adaptation.
+
+    One instance follows one target (see :class:`tracking.types.Tracker`). Per frame it samples
+    a ``(1 + eta)``-times padded patch at the previous position, finds the correlation peak
+    (Algorithm 2.1 lines 6-9), moves there, re-samples and learns (lines 10-12).
+
+    Parameters
+    ----------
+    config:
+        Every tunable number; defaults are the thesis's (Table 2.1).
+    features:
+        A ready feature map, to share one Color Names table between many trackers. Built from
+        ``config`` when omitted.
+    """
+
+    def __init__(
+        self, config: CorrelationConfig | None = None, *, features: FeatureMap | None = None
+    ) -> None:
+        self.config = config or CorrelationConfig()
+        self._features = features or FeatureMap.from_config(self.config)
+        self._filter: CorrelationFilter | None = None
+        self._scale_filter: ScaleFilter | None = None
+        self._geometry: _Geometry | None = None
+        self._center = (0.0, 0.0)
+        self._scale = 1.0
+
+    @property
+    def feature_map(self) -> FeatureMap:
+        return self._features
+
+    def reset(self) -> None:
+        self._filter = None
+        self._scale_filter = None
+        self._geometry = None
+
+    def initialize(self, frame: np.ndarray, box: Box) -> None:
+        """Learn the target in ``box`` of ``frame`` (Algorithm 2.1, lines 1-4).
+
+        Raises
+        ------
+        ValueError
+            For an empty or wrongly shaped frame, a box of zero size or outside the frame, or
+            colour features on a grayscale frame.
+        """
+        frame = validate_frame(frame)
+        validate_box(box, frame.shape)
+        self._features.check_frame(frame)
+        self._geometry = self._plan_geometry(box)
+        self._center = box.center
+        self._scale = 1.0
+        g = self._geometry
+        cell = self.config.cell_size
+        target_in_cells = (
+            box.h * g.model_pixels[1] / g.base_patch[1] / cell,
+            box.w * g.model_pixels[0] / g.base_patch[0] / cell,
+        )
+        self._filter = make_filter(g.grid, target_in_cells, self.config)
+        self._filter.initialize(self._sample(frame))
+        self._scale_filter = None
+        if self.config.scale is not None:
+            self._scale_filter = ScaleFilter(self.config.scale, g.base_target, self._features)
+            self._scale_filter.initialize(frame, self._center, self._scale)
+
+    def update(self, frame: np.ndarray) -> TrackerOutput:
+        """Locate the target in ``frame`` and learn from it (Algorithm 2.1, lines 6-12)."""
+        if self._filter is None or self._geometry is None:
+            raise RuntimeError("initialize() must be called before update()")
+        frame = validate_frame(frame)
+        self._features.check_frame(frame)
+        response = self._filter.response(self._sample(frame))
+        row, col, peak = subpixel_peak(response)
+        if not self.config.subpixel:
+            row, col = float(peak[0]), float(peak[1])
+        rows, cols = response.shape
+        # The label peaks at (M//2, N//2): the peak's offset from there is the target's motion.
+        # Offsets past half the patch wrap around (the response is periodic).
+        d_row = (row - rows // 2 + rows / 2) % rows - rows / 2
+        d_col = (col - cols // 2 + cols / 2) % cols - cols / 2
+        step_x, step_y = self._geometry.pixels_per_cell(self._scale)
+        height, width = frame.shape[:2]
+        self._center = (
+            float(np.clip(self._center[0] + d_col * step_x, 0, width - 1)),
+            float(np.clip(self._center[1] + d_row * step_y, 0, height - 1)),
+        )
+        if self._scale_filter is not None:
+            self._scale = self._scale_filter.estimate(frame, self._center, self._scale)
+        self._filter.update(self._sample(frame))
+        if self._scale_filter is not None:
+            self._scale_filter.update(frame, self._center, self._scale)
+        return TrackerOutput(
+            box=self.box,
+            peak=float(response[peak]),
+            psr=peak_to_sidelobe_ratio(response, peak),
+        )
+
+    @property
+    def box(self) -> Box:
+        """The current target box."""
+        if self._geometry is None:
+            raise RuntimeError("the tracker has no target; call initialize()")
+        w, h = self._geometry.base_target
+        return Box.from_center(*self._center, w * self._scale, h * self._scale)
+
+    def _sample(self, frame: np.ndarray) -> np.ndarray:
+        g = self._geometry
+        size = (g.base_patch[0] * self._scale, g.base_patch[1] * self._scale)
+        return self._features(extract_patch(frame, self._center, size, g.model_pixels))
+
+    def _plan_geometry(self, box: Box) -> _Geometry:
+        """Patch size ``(M, N) = (1 + eta) s`` (§2.4.1), resampled down if above the area cap,
+        and rounded to whole feature cells."""
+        c = self.config
+        patch_w = max(box.w * (1.0 + c.padding), 2.0 * c.cell_size)
+        patch_h = max(box.h * (1.0 + c.padding), 2.0 * c.cell_size)
+        resample = 1.0
+        if c.max_patch_area is not None and patch_w * patch_h > c.max_patch_area:
+            resample = math.sqrt(c.max_patch_area / (patch_w * patch_h))
+        cols = max(int(round(patch_w * resample / c.cell_size)), 2)
+        rows = max(int(round(patch_h * resample / c.cell_size)), 2)
+        # Keep the resampling isotropic: the patch in the image is exactly the model grid scaled.
+        model = (cols * c.cell_size, rows * c.cell_size)
+        base_patch = (model[0] / resample, model[1] / resample)
+        return _Geometry((box.w, box.h), base_patch, model, (rows, cols))

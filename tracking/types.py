@@ -1,0 +1,115 @@
+"""Plain types shared by every tracker: boxes, per-frame outputs and the `Tracker` contract.
+
+Frames are numpy arrays in RGB order, ``uint8``, shape ``(H, W, 3)``, or grayscale ``(H, W)``.
+Boxes are axis-aligned, in pixels, with a 0-based top-left corner: ``(x, y, w, h)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    """An axis-aligned box: top-left corner ``(x, y)`` and size ``(w, h)`` in pixels."""
+
+    x: float
+    y: float
+    w: float
+    h: float
+
+    @property
+    def center(self) -> tuple[float, float]:
+        """Centre ``(cx, cy)`` in pixels."""
+        return self.x + self.w / 2.0, self.y + self.h / 2.0
+
+    @classmethod
+    def from_center(cls, cx: float, cy: float, w: float, h: float) -> Box:
+        return cls(cx - w / 2.0, cy - h / 2.0, w, h)
+
+    def as_array(self) -> np.ndarray:
+        """The box as a float64 array ``[x, y, w, h]``."""
+        return np.array([self.x, self.y, self.w, self.h], dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class TrackerOutput:
+    """What a tracker says about one frame.
+
+    Attributes
+    ----------
+    box:
+        Estimated target box.
+    peak:
+        Maximum of the correlation response (about 1 for a perfect match, near 0 for none).
+    psr:
+        Peak-to-sidelobe ratio of the response: ``(peak - mean) / std`` of the response outside
+        a small window around the peak. Above about 8 the detection is confident; below about 5
+        the target is probably lost or occluded.
+    """
+
+    box: Box
+    peak: float
+    psr: float
+
+
+@runtime_checkable
+class Tracker(Protocol):
+    """The contract every single-target tracker keeps.
+
+    State lives on the instance; two instances never share anything, so one tracker per target
+    or per camera is always safe.
+    """
+
+    def initialize(self, frame: np.ndarray, box: Box) -> None:
+        """Learn the target's appearance from ``frame`` inside ``box``."""
+        ...
+
+    def update(self, frame: np.ndarray) -> TrackerOutput:
+        """Find the target in the next ``frame``, learn from it and return its box."""
+        ...
+
+    def reset(self) -> None:
+        """Forget the target; :meth:`initialize` must be called again before :meth:`update`."""
+        ...
+
+
+def validate_frame(frame: object) -> np.ndarray:
+    """Check that ``frame`` is a non-empty image: ``(H, W)`` or ``(H, W, 3)``.
+
+    Raises
+    ------
+    TypeError
+        If ``frame`` is not a numpy array.
+    ValueError
+        If it has the wrong shape or is empty.
+    """
+    if not isinstance(frame, np.ndarray):
+        raise TypeError(f"frame must be a numpy array, got {type(frame).__name__}")
+    if frame.ndim not in (2, 3) or (frame.ndim == 3 and frame.shape[2] != 3):
+        raise ValueError(f"frame must have shape (H, W) or (H, W, 3), got {frame.shape}")
+    if frame.shape[0] < 2 or frame.shape[1] < 2:
+        raise ValueError(f"frame is empty or too small: shape {frame.shape}")
+    return frame
+
+
+def validate_box(box: Box, frame_shape: tuple[int, ...]) -> Box:
+    """Check that ``box`` has a positive size and overlaps a frame of ``frame_shape``.
+
+    Raises
+    ------
+    ValueError
+        If the box has a non-positive or non-finite size or lies entirely outside the frame.
+    """
+    values = (box.x, box.y, box.w, box.h)
+    if not all(np.isfinite(v) for v in values):
+        raise ValueError(f"box must have finite coordinates, got {box}")
+    if box.w < 1 or box.h < 1:
+        raise ValueError(f"box must be at least 1x1 pixel, got size {box.w}x{box.h}")
+    height, width = frame_shape[:2]
+    if box.x >= width or box.y >= height or box.x + box.w <= 0 or box.y + box.h <= 0:
+        raise ValueError(f"box {box} lies entirely outside the {width}x{height} frame")
+    return box
