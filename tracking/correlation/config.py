@@ -36,6 +36,10 @@ class ScaleConfig:
         Pixels of the resampled target patch used as one scale sample (bounds the cost).
     min_scale_factor, max_scale_factor:
         Bounds on the scale relative to the first frame.
+    feature:
+        Features of the scale samples (same syntax as ``CorrelationConfig.feature``), pooled
+        on 4-pixel cells; ``None`` uses the tracker's own. Cheap per-pixel features keep the
+        ``2 S`` samples per frame affordable.
     """
 
     num_scales: int = 17
@@ -46,6 +50,7 @@ class ScaleConfig:
     model_max_area: int = 512
     min_scale_factor: float = 0.2
     max_scale_factor: float = 5.0
+    feature: str | None = None
 
     def __post_init__(self) -> None:
         if self.num_scales < 3 or self.num_scales % 2 == 0:

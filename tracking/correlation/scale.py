@@ -42,7 +42,7 @@ class ScaleFilter:
     ) -> None:
         self._config = config
         self._base_target = base_target
-        self._features = features.with_cell_size(max(features.cell_size, _SCALE_CELL))
+        self._features = features.derived(config.feature, max(features.cell_size, _SCALE_CELL))
         count = config.num_scales
         exponents = np.arange(count) - count // 2
         self._factors = config.scale_step**exponents

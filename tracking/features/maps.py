@@ -79,9 +79,13 @@ class FeatureMap:
             color_names = shared_color_names(config.color_names_path)
         return cls(config.feature, config.cell_size, color_names)
 
-    def with_cell_size(self, cell_size: int) -> FeatureMap:
-        """The same features on another cell size, sharing the Color Names table."""
-        return FeatureMap(self.spec, cell_size, self._color_names)
+    def derived(self, spec: str | None, cell_size: int) -> FeatureMap:
+        """Other features (``None``: the same) on another cell size, sharing the Color Names
+        table."""
+        color_names = self._color_names
+        if color_names is None and spec is not None and "cn" in spec.split("+"):
+            color_names = shared_color_names(None)
+        return FeatureMap(spec or self.spec, cell_size, color_names)
 
     def check_frame(self, frame: np.ndarray) -> None:
         """Raise ``ValueError`` when colour features meet a grayscale frame."""
