@@ -73,9 +73,7 @@ def open_frames(path: str | Path) -> FrameSource:
         raise FrameSourceError(f"no such file or folder: {path}")
     if path.is_dir():
         folder = path / "img" if (path / "img").is_dir() else path
-        images = tuple(
-            sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        )
+        images = tuple(sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
         if not images:
             raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
         return FrameSource(path, len(images), None, images)

@@ -71,4 +71,3 @@ def kernel_correlation_spectrum(
         distance = np.maximum(float(np.vdot(f, f)) + float(np.vdot(g, g)) - 2.0 * inner, 0.0)
         return fft.rfft2(np.exp(-distance * (scale / sigma**2)))
     raise ValueError(f"unknown kernel {kernel!r}")
-

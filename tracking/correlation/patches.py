@@ -32,8 +32,8 @@ def extract_patch(
         nearest border pixel, which keeps the periodic extension of the patch free of the
         artificial edges a constant fill would add.
     """
-    width = max(int(round(size[0])), 1)
-    height = max(int(round(size[1])), 1)
+    width = max(round(size[0]), 1)
+    height = max(round(size[1]), 1)
     left = int(np.floor(center[0] - width / 2.0 + 0.5))
     top = int(np.floor(center[1] - height / 2.0 + 0.5))
     rows = np.clip(np.arange(top, top + height), 0, frame.shape[0] - 1)
@@ -45,5 +45,7 @@ def extract_patch(
     if (width, height) != tuple(out_size):
         shrinking = width * height > out_size[0] * out_size[1]
         interpolation = cv2.INTER_AREA if shrinking else cv2.INTER_LINEAR
-        patch = cv2.resize(np.ascontiguousarray(patch), tuple(out_size), interpolation=interpolation)
+        patch = cv2.resize(
+            np.ascontiguousarray(patch), tuple(out_size), interpolation=interpolation
+        )
     return patch

@@ -53,8 +53,8 @@ class ScaleFilter:
         shrink = min(1.0, math.sqrt(config.model_max_area / (w * h)))
         cell = self._features.cell_size
         self._model_size = (
-            max(int(round(w * shrink / cell)), 1) * cell,
-            max(int(round(h * shrink / cell)), 1) * cell,
+            max(round(w * shrink / cell), 1) * cell,
+            max(round(h * shrink / cell), 1) * cell,
         )
         # A target must keep a few pixels per side, whatever the scale bounds say.
         self._min_scale = max(config.min_scale_factor, 6.0 / min(w, h))

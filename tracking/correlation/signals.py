@@ -91,7 +91,11 @@ def subpixel_peak(response: np.ndarray) -> tuple[float, float, tuple[int, int]]:
         # Vertex of the parabola through (-1, before), (0, centre), (1, after).
         curvature = before - 2.0 * centre + after
         offsets.append(0.0 if curvature >= 0 else 0.5 * (before - after) / curvature)
-    return r + float(np.clip(offsets[0], -0.5, 0.5)), c + float(np.clip(offsets[1], -0.5, 0.5)), (
-        int(r),
-        int(c),
+    return (
+        r + float(np.clip(offsets[0], -0.5, 0.5)),
+        c + float(np.clip(offsets[1], -0.5, 0.5)),
+        (
+            int(r),
+            int(c),
+        ),
     )

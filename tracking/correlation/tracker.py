@@ -151,8 +151,8 @@ class CorrelationTracker:
         resample = 1.0
         if c.max_patch_area is not None and patch_w * patch_h > c.max_patch_area:
             resample = math.sqrt(c.max_patch_area / (patch_w * patch_h))
-        cols = max(int(round(patch_w * resample / c.cell_size)), 2)
-        rows = max(int(round(patch_h * resample / c.cell_size)), 2)
+        cols = max(round(patch_w * resample / c.cell_size), 2)
+        rows = max(round(patch_h * resample / c.cell_size), 2)
         # Keep the resampling isotropic: the patch in the image is exactly the model grid scaled.
         model = (cols * c.cell_size, rows * c.cell_size)
         base_patch = (model[0] / resample, model[1] / resample)
