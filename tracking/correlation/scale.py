@@ -61,6 +61,9 @@ class ScaleFilter:
         self._max_scale = config.max_scale_factor
         self._numerator: np.ndarray | None = None
         self._denominator: np.ndarray | None = None
+        # The last estimate's samples: when the scale does not change (most frames), the update
+        # samples exactly the same patches, so they are reused instead of extracted again.
+        self._last: tuple[np.ndarray, tuple[float, float], float, np.ndarray] | None = None
 
     def _spectrum(self, frame: np.ndarray, center: tuple[float, float], scale: float):
         w, h = self._base_target
@@ -75,16 +78,22 @@ class ScaleFilter:
         return fft.fft(samples * self._window, axis=0)  # (S, d)
 
     def _terms(self, frame, center, scale) -> tuple[np.ndarray, np.ndarray]:
-        x_hat = self._spectrum(frame, center, scale)
+        last = self._last
+        if last is not None and last[0] is frame and last[1] == center and last[2] == scale:
+            x_hat = last[3]
+        else:
+            x_hat = self._spectrum(frame, center, scale)
         numerator = self._label_hat[:, None] * np.conj(x_hat)  # Y conj(X^d)
         denominator = np.einsum("sd,sd->s", x_hat, np.conj(x_hat)).real  # sum_d |X^d|^2
         return numerator, denominator
 
     def initialize(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> None:
+        self._last = None
         self._numerator, self._denominator = self._terms(frame, center, scale)
 
     def update(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> None:
         numerator, denominator = self._terms(frame, center, scale)
+        self._last = None
         g = self._config.learning_rate
         self._numerator = (1 - g) * self._numerator + g * numerator  # eq. 2.4a
         self._denominator = (1 - g) * self._denominator + g * denominator  # eq. 2.4b
@@ -92,6 +101,7 @@ class ScaleFilter:
     def estimate(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> float:
         """The new scale: the current one times the factor with the strongest response."""
         z_hat = self._spectrum(frame, center, scale)
+        self._last = (frame, center, scale, z_hat)
         product = np.einsum("sd,sd->s", self._numerator, z_hat)
         response = fft.ifft(product / (self._denominator + self._config.regularization)).real
         best = int(np.argmax(response))

@@ -1,0 +1,102 @@
+"""The `vtrack track` command, run as a user runs it: a subprocess on real files."""
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.correlation.test_tracker import moving_target_scene
+
+
+def vtrack(*args, check=False):
+    return subprocess.run(
+        [sys.executable, "-m", "service.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=check,
+    )
+
+
+@pytest.fixture(scope="module")
+def scene_video(tmp_path_factory):
+    """An MJPG AVI of the synthetic moving target, and its true boxes."""
+    images, truth = moving_target_scene(frames=30)
+    path = tmp_path_factory.mktemp("video") / "scene.avi"
+    height, width = images[0].shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (width, height))
+    for image in images:
+        writer.write(cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    writer.release()
+    return path, truth
+
+
+def test_tracks_a_video_file_and_writes_csv(scene_video, tmp_path):
+    path, truth = scene_video
+    out = tmp_path / "boxes.csv"
+    box = ",".join(str(int(v)) for v in truth[0])
+    result = vtrack("track", path, "--box", box, "--out", out, "--preset", "rcsk_cn")
+    assert result.returncode == 0, result.stderr
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert rows.shape == (30, 7)
+    np.testing.assert_array_equal(rows[:, 0], np.arange(1, 31))
+    centres = rows[:, 1:3] + rows[:, 3:5] / 2
+    true_centres = truth[:, :2] + truth[:, 2:] / 2
+    assert np.abs(centres - true_centres).max() < 6.0
+
+
+def test_otb_folder_takes_its_first_ground_truth_box_and_prints_json(shared_data, tmp_path):
+    # A 15-frame cut of Crossing, in OTB layout, in a temporary folder.
+    source = shared_data / "otb" / "Crossing"
+    cut = tmp_path / "Crossing"
+    (cut / "img").mkdir(parents=True)
+    for index in range(1, 16):
+        name = f"{index:04d}.jpg"
+        (cut / "img" / name).write_bytes((source / "img" / name).read_bytes())
+    lines = (source / "groundtruth_rect.txt").read_text().splitlines()[:15]
+    (cut / "groundtruth_rect.txt").write_text("\n".join(lines) + "\n")
+    result = vtrack("track", cut, "--format", "json", "--quiet")
+    assert result.returncode == 0, result.stderr
+    records = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [r["frame"] for r in records] == list(range(1, 16))
+    first = [float(v) for v in lines[0].split()]
+    assert records[0]["box"] == [first[0] - 1, first[1] - 1, first[2], first[3]]
+
+
+@pytest.mark.parametrize(
+    ("make_source", "extra", "message"),
+    [
+        (lambda d: d / "missing.avi", ["--box", "1,1,5,5"], "no such file"),
+        (
+            lambda d: _write(d / "junk.avi", b"\x00not a video" * 100),
+            ["--box", "1,1,5,5"],
+            "not a video",
+        ),
+        (lambda d: d, ["--box", "1,1,5,5"], "no image files"),  # an empty folder
+        (lambda d: _write(d / "clip.avi", b""), ["--box", "1,2,3"], "four numbers"),  # bad --box
+    ],
+)
+def test_bad_input_exits_with_a_clear_message(tmp_path, make_source, extra, message):
+    result = vtrack("track", make_source(tmp_path), *extra)
+    assert result.returncode == 2
+    assert message in result.stderr
+
+
+def test_video_without_box_asks_for_one(scene_video):
+    result = vtrack("track", scene_video[0])
+    assert result.returncode == 2
+    assert "--box" in result.stderr
+
+
+def test_box_outside_the_frame_is_reported(scene_video):
+    result = vtrack("track", scene_video[0], "--box", "5000,10,20,20")
+    assert result.returncode == 2
+    assert "outside" in result.stderr
+
+
+def _write(path, data):
+    path.write_bytes(data)
+    return path
