@@ -43,6 +43,13 @@ class ScaleFilter:
         self._config = config
         self._base_target = base_target
         self._features = features.derived(config.feature, max(features.cell_size, _SCALE_CELL))
+        # Per-pixel features can be computed once on a canvas holding every sample and averaged
+        # over each sample's cells through an integral image; HOG needs the per-sample path.
+        self._pixel_features = (
+            None
+            if "hog" in self._features.spec.split("+")
+            else features.derived(self._features.spec, 1)
+        )
         count = config.num_scales
         exponents = np.arange(count) - count // 2
         self._factors = config.scale_step**exponents
@@ -66,16 +73,54 @@ class ScaleFilter:
         self._last: tuple[np.ndarray, tuple[float, float], float, np.ndarray] | None = None
 
     def _spectrum(self, frame: np.ndarray, center: tuple[float, float], scale: float):
+        """FFT over the scale axis of the windowed samples, ``(S, d)``."""
+        if self._pixel_features is None:
+            w, h = self._base_target
+            samples = np.stack(
+                [
+                    self._features(
+                        extract_patch(
+                            frame, center, (w * scale * f, h * scale * f), self._model_size
+                        )
+                    ).ravel()
+                    for f in self._factors
+                ]
+            )
+        else:
+            samples = self._pooled_samples(frame, center, scale)
+        return fft.fft(samples * self._window, axis=0)
+
+    def _pooled_samples(self, frame: np.ndarray, center: tuple[float, float], scale: float):
+        """All ``S`` samples at once: per-pixel features on one canvas covering the largest
+        sample, then the mean over every cell of every sample from an integral image.
+
+        Cell borders fall between canvas pixels; the integral image of piecewise-constant
+        pixels is bilinear inside each pixel, so reading it bilinearly at the fractional
+        borders gives exact areas. (Rounding the borders instead stamps the same pattern on
+        every frame's samples, which the filter then learns to match at the unchanged scale.)
+        """
+        cell = self._features.cell_size
+        cols, rows = self._model_size[0] // cell, self._model_size[1] // cell
+        factors = self._factors
         w, h = self._base_target
-        samples = np.stack(
-            [
-                self._features(
-                    extract_patch(frame, center, (w * scale * f, h * scale * f), self._model_size)
-                ).ravel()
-                for f in self._factors
-            ]
+        # Canvas pixels per image pixel: the smallest sample spans 2 * model_size pixels.
+        density = 2.0 * self._model_size[0] / (w * scale * factors[0])
+        extent = (w * scale * factors[-1], h * scale * factors[-1])
+        canvas_size = (max(round(extent[0] * density), 2), max(round(extent[1] * density), 2))
+        canvas = self._pixel_features(extract_patch(frame, center, extent, canvas_size))
+        height, width = canvas.shape[:2]
+        integral = np.zeros((height + 1, width + 1, canvas.shape[2]))
+        integral[1:, 1:] = canvas.cumsum(0).cumsum(1)
+        # Cell borders of every sample in canvas pixels: (S, cols + 1) and (S, rows + 1).
+        xs = width / 2 + (w * scale * density * factors)[:, None] * np.linspace(-0.5, 0.5, cols + 1)
+        ys = height / 2 + (h * scale * density * factors)[:, None] * np.linspace(
+            -0.5, 0.5, rows + 1
         )
-        return fft.fft(samples * self._window, axis=0)  # (S, d)
+        corners = _bilinear(integral, np.clip(ys, 0, height), np.clip(xs, 0, width))
+        # Sum over each cell from its four corners: (S, rows, cols, D).
+        sums = corners[:, 1:, 1:] - corners[:, :-1, 1:] - corners[:, 1:, :-1] + corners[:, :-1, :-1]
+        area = np.diff(ys, axis=1)[:, :, None] * np.diff(xs, axis=1)[:, None, :]
+        return (sums / area[..., None]).reshape(len(factors), -1).astype(np.float32)
 
     def _terms(self, frame, center, scale) -> tuple[np.ndarray, np.ndarray]:
         last = self._last
@@ -106,3 +151,17 @@ class ScaleFilter:
         response = fft.ifft(product / (self._denominator + self._config.regularization)).real
         best = int(np.argmax(response))
         return float(np.clip(scale * self._factors[best], self._min_scale, self._max_scale))
+
+
+def _bilinear(table: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """``table`` (``(H + 1, W + 1, D)``) read bilinearly at every pair of ``ys`` ``(S, R)`` and
+    ``xs`` ``(S, C)`` of the same sample: ``(S, R, C, D)``."""
+    y0 = np.minimum(np.floor(ys).astype(int), table.shape[0] - 2)
+    x0 = np.minimum(np.floor(xs).astype(int), table.shape[1] - 2)
+    wy = (ys - y0)[:, :, None, None]
+    wx = (xs - x0)[:, None, :, None]
+    r0, r1 = y0[:, :, None], y0[:, :, None] + 1
+    c0, c1 = x0[:, None, :], x0[:, None, :] + 1
+    top = table[r0, c0] * (1 - wx) + table[r0, c1] * wx
+    bottom = table[r1, c0] * (1 - wx) + table[r1, c1] * wx
+    return top * (1 - wy) + bottom * wy

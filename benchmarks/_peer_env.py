@@ -1,0 +1,135 @@
+"""The separate virtual environment the OpenCV peer trackers run in.
+
+OpenCV's KCF and CSRT live in ``opencv-contrib-python-headless``, which cannot be installed next
+to the project's ``opencv-python-headless`` (both provide the ``cv2`` package). The benchmark
+therefore keeps a second environment at ``<repo>/.venv-peers`` with the contrib build of exactly
+the OpenCV version installed here, and runs ``benchmarks/peers/opencv_trackers.py`` with its
+interpreter. The environment is created once and reused while its requirements stay the same.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import logging
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+logger = logging.getLogger(__name__)
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_PEER_ENV = REPO_ROOT / ".venv-peers"
+MARKER_FILE = "vtrack-peer-env.json"
+PIP_TIMEOUT_SECONDS = 900.0
+
+_CHECK_SNIPPET = (
+    "import cv2, numpy; cv2.TrackerKCF.create; cv2.TrackerCSRT.create; print(cv2.__version__)"
+)
+
+
+class PeerEnvError(RuntimeError):
+    """The peer environment could not be created or does not work."""
+
+
+def peer_requirements() -> list[str]:
+    """Pinned requirements: the contrib build of this environment's OpenCV, and its NumPy.
+
+    Raises
+    ------
+    PeerEnvError
+        If ``opencv-python-headless`` is not installed in the running environment.
+    """
+    try:
+        opencv = importlib.metadata.version("opencv-python-headless")
+    except importlib.metadata.PackageNotFoundError as exc:
+        raise PeerEnvError(
+            "opencv-python-headless is not installed here, so the OpenCV version to pin for the "
+            "peer environment is unknown"
+        ) from exc
+    numpy = importlib.metadata.version("numpy")
+    return [f"opencv-contrib-python-headless=={opencv}", f"numpy=={numpy}"]
+
+
+def env_python(env_dir: Path) -> Path:
+    """The interpreter of the virtual environment at ``env_dir``."""
+    if os.name == "nt":
+        return env_dir / "Scripts" / "python.exe"
+    return env_dir / "bin" / "python"
+
+
+def _run(command: list[str], timeout: float) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(command, capture_output=True, text=True, timeout=timeout, check=False)
+
+
+def _works(python: Path) -> bool:
+    if not python.is_file():
+        return False
+    try:
+        return _run([str(python), "-c", _CHECK_SNIPPET], timeout=120.0).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+
+
+def _tail(text: str, lines: int = 15) -> str:
+    return "\n".join(text.strip().splitlines()[-lines:])
+
+
+def ensure_peer_env(env_dir: Path = DEFAULT_PEER_ENV) -> Path:
+    """Create the peer environment if needed and return its Python interpreter.
+
+    An existing environment is reused when its marker file lists the same requirements and it
+    imports ``cv2`` with KCF and CSRT; otherwise it is rebuilt (``venv --clear``) and the
+    requirements are installed with pip.
+
+    Raises
+    ------
+    PeerEnvError
+        If the environment cannot be created or pip cannot install the requirements (for
+        example without network access); the message carries pip's last lines.
+    """
+    requirements = peer_requirements()
+    python = env_python(env_dir)
+    marker = env_dir / MARKER_FILE
+    try:
+        recorded = json.loads(marker.read_text())
+    except (OSError, ValueError):
+        recorded = None
+    if recorded == {"requirements": requirements} and _works(python):
+        return python
+
+    logger.info("creating the peer environment %s with %s", env_dir, " ".join(requirements))
+    marker.unlink(missing_ok=True)
+    try:
+        created = _run([sys.executable, "-m", "venv", "--clear", str(env_dir)], timeout=300.0)
+        if created.returncode != 0:
+            raise PeerEnvError(
+                f"could not create a virtual environment at {env_dir}:\n{_tail(created.stderr)}"
+            )
+        installed = _run(
+            [
+                str(python),
+                "-m",
+                "pip",
+                "install",
+                "--disable-pip-version-check",
+                "--no-input",
+                "--quiet",
+                *requirements,
+            ],
+            timeout=PIP_TIMEOUT_SECONDS,
+        )
+    except subprocess.TimeoutExpired as exc:
+        raise PeerEnvError(f"creating the peer environment took over {exc.timeout:.0f} s") from exc
+    except OSError as exc:
+        raise PeerEnvError(f"could not run {exc.filename}: {exc.strerror}") from exc
+    if installed.returncode != 0:
+        raise PeerEnvError(
+            f"pip could not install {' '.join(requirements)} into {env_dir} (no network, or no "
+            f"wheel for this platform?):\n{_tail(installed.stderr or installed.stdout)}"
+        )
+    if not _works(python):
+        raise PeerEnvError(f"{python} cannot import cv2 with TrackerKCF and TrackerCSRT")
+    marker.write_text(json.dumps({"requirements": requirements}))
+    return python
