@@ -33,13 +33,14 @@ def _first_box_from_groundtruth(folder: Path) -> Box | None:
     return Box(x - 1, y - 1, w, h)
 
 
-def _format_row(index: int, out: TrackerOutput, fmt: str) -> str:
-    b = out.box
+def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> str:
+    """One output row; the first frame (the given box) has no peak or PSR."""
+    peak, psr = (out.peak, out.psr) if out is not None else (None, None)
     if fmt == "json":
-        return json.dumps(
-            {"frame": index, "box": [b.x, b.y, b.w, b.h], "peak": out.peak, "psr": out.psr}
-        )
-    return f"{index},{b.x:.2f},{b.y:.2f},{b.w:.2f},{b.h:.2f},{out.peak:.4f},{out.psr:.2f}"
+        record = {"frame": index, "box": [box.x, box.y, box.w, box.h], "peak": peak, "psr": psr}
+        return json.dumps(record)
+    scores = f"{peak:.4f},{psr:.2f}" if out is not None else ","
+    return f"{index},{box.x:.2f},{box.y:.2f},{box.w:.2f},{box.h:.2f},{scores}"
 
 
 def _track(args: argparse.Namespace) -> int:
@@ -64,10 +65,10 @@ def _track(args: argparse.Namespace) -> int:
         for index, frame in enumerate(frames, start=1):
             if index == 1:
                 tracker.initialize(frame, box)
-                output = TrackerOutput(box, 1.0, float("inf"))
+                print(_format_row(index, box, None, args.format), file=out_file)
             else:
                 output = tracker.update(frame)
-            print(_format_row(index, output, args.format), file=out_file)
+                print(_format_row(index, output.box, output, args.format), file=out_file)
     except ValueError as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2

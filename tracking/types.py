@@ -47,8 +47,8 @@ class TrackerOutput:
         Maximum of the correlation response (about 1 for a perfect match, near 0 for none).
     psr:
         Peak-to-sidelobe ratio of the response: ``(peak - mean) / std`` of the response outside
-        a small window around the peak. Above about 8 the detection is confident; below about 5
-        the target is probably lost or occluded.
+        a small window around the peak (Bolme et al. 2010). Higher is more confident; a sudden
+        drop signals occlusion or a lost target. Its scale depends on the feature grid.
     """
 
     box: Box

@@ -40,7 +40,7 @@ def test_tracks_a_video_file_and_writes_csv(scene_video, tmp_path):
     box = ",".join(str(int(v)) for v in truth[0])
     result = vtrack("track", path, "--box", box, "--out", out, "--preset", "rcsk_cn")
     assert result.returncode == 0, result.stderr
-    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    rows = np.genfromtxt(out, delimiter=",", skip_header=1)
     assert rows.shape == (30, 7)
     np.testing.assert_array_equal(rows[:, 0], np.arange(1, 31))
     centres = rows[:, 1:3] + rows[:, 3:5] / 2
@@ -64,6 +64,7 @@ def test_otb_folder_takes_its_first_ground_truth_box_and_prints_json(shared_data
     assert [r["frame"] for r in records] == list(range(1, 16))
     first = [float(v) for v in lines[0].split()]
     assert records[0]["box"] == [first[0] - 1, first[1] - 1, first[2], first[3]]
+    assert records[0]["psr"] is None and records[1]["psr"] > 0
 
 
 @pytest.mark.parametrize(
