@@ -9,7 +9,9 @@ from types import MappingProxyType
 
 from tracking.correlation.config import CorrelationConfig, ScaleConfig
 
-# The colour representations of §3.1, each evaluated with the proposed RCSK (§5.3).
+# The colour representations of §3.1, each evaluated with the proposed RCSK (§5.3). Each one is
+# used beside grayscale, as the proposed tracker uses Color Names ("gray+cn"), so that the
+# comparison isolates what the colour representation adds.
 COLOR_FEATURES = (
     "gray",
     "rgb",
@@ -37,8 +39,9 @@ def _presets() -> dict[str, CorrelationConfig]:
         # §5.4: the adaptive dimensionality reduction of gray + Color Names to 2 dimensions.
         "rcsk_cn_pca2": CorrelationConfig(learner="rcsk", feature="gray+cn", compressed_dim=2),
     }
-    for feature in COLOR_FEATURES:
-        presets.setdefault(f"rcsk_{feature}", CorrelationConfig(learner="rcsk", feature=feature))
+    for colour in COLOR_FEATURES:
+        feature = "gray" if colour == "gray" else f"gray+{colour}"
+        presets.setdefault(f"rcsk_{colour}", CorrelationConfig(learner="rcsk", feature=feature))
     # Ours, beyond the thesis: HOG beside Color Names on 4-pixel cells, the patch capped at
     # 6400 pixels (at most 20 x 20 cells, so the cost no longer grows with the target), and the
     # scale filter on cheap grayscale samples. Chosen on temporal-robustness runs (each OTB

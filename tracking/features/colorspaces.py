@@ -349,9 +349,12 @@ def so_features(image: np.ndarray) -> np.ndarray:
     O3 of eq. (3.1), half-wave rectified into ON (``max(DoG, 0)``) and OFF (``max(-DoG, 0)``)
     responses. Channel order: for each scale, for each of O1, O2, O3, ON then OFF.
 
-    Normalisation (§3.2.1, range centring): a DoG of a channel with range width R lies within
-    ±P R, with P ≈ 0.675 the positive mass of the DoG kernel, so each rectified response in
-    [0, P R] is mapped to ``x / (P R) - 0.5`` in [-0.5, 0.5] (flat regions give -0.5).
+    Normalisation (§2.4.3: subtract an a priori mean feature value): a DoG of a channel with
+    range width R lies within ±P R, with P ≈ 0.675 the positive mass of the DoG kernel, so each
+    rectified response is scaled by ``1 / (P R)`` into [0, 1]. Centre-surround responses of
+    natural images are zero-mean and mostly small, so the a priori mean of a rectified one is
+    close to 0 and nothing is subtracted: centring the theoretical range instead (``- 0.5``)
+    turns flat regions into a large constant that the window then shapes into false structure.
     """
     opp = _opponent(_unit_rgb(image, "so"))
     height, width = opp.shape[:2]
@@ -365,5 +368,4 @@ def so_features(image: np.ndarray) -> np.ndarray:
         dog = (centre - surround).reshape(height, width, 3) * inverse_bound
         out[..., 6 * i : 6 * i + 6 : 2] = np.maximum(dog, 0)  # ON
         out[..., 6 * i + 1 : 6 * i + 6 : 2] = np.maximum(-dog, 0)  # OFF
-    out -= np.float32(0.5)
     return out
