@@ -335,3 +335,84 @@ def test_bad_input_raises(image, cell, message):
         fhog(image, cell)
     with pytest.raises(ValueError, match=message):
         hog_feature_map(image, cell)
+
+
+def _padded(image: np.ndarray, pad: int) -> np.ndarray:
+    """``image`` as ``(H, W, 3)`` float64, edge-padded by ``pad`` pixels on every side."""
+    rgb = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
+    return np.pad(rgb.astype(np.float64), ((pad, pad), (pad, pad), (0, 0)), mode="edge")
+
+
+@pytest.mark.parametrize(
+    ("shape", "sbin", "kind"),
+    [
+        ((28, 20, 3), 4, "uint8"),  # a tracker patch: whole cells, no clamping
+        ((30, 30, 3), 4, "uint8"),  # 38 / 4 = 9.5 cells round up: rows and columns clamp
+        ((18, 13, 3), 4, "uint8"),  # 4.5 rows of cells round up, 3.25 columns round down
+        ((17, 22), 3, "uint8"),  # grayscale 8-bit: one channel, no channel selection
+        ((21, 26, 3), 5, "smooth"),  # float patch, odd cell
+        ((5, 5, 3), 4, "uint8"),  # a single cell
+    ],
+)
+def test_hog_feature_map_single_pass_matches_scalar_port(monkeypatch, shape, sbin, kind):
+    # Small patches take the single-pass path (padding built into the gradient planes, cached
+    # index and weight arrays, table look-up for 8-bit images); the map must be features.cc of
+    # the edge-padded patch, and agree with the strip path of the explicitly padded patch.
+    rng = np.random.default_rng(sum(shape) + sbin)
+    if kind == "uint8":
+        image = rng.integers(0, 256, size=shape, dtype=np.uint8)
+    else:
+        image = _smooth_image(rng, shape).astype(np.float32)
+
+    expected = reference_features(_padded(image, sbin), sbin)[..., :31]
+    got = hog_feature_map(image, sbin)
+    assert got.dtype == np.float32 and got.flags.c_contiguous
+    assert got.shape == expected.shape
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(hog_feature_map(image, sbin), got)  # cached layouts reused
+
+    monkeypatch.setattr(hog, "_STRIP_PIXELS", 1)
+    np.testing.assert_allclose(hog_feature_map(image, sbin), got, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("shape", [(44, 36, 3), (30, 30, 3), (40, 28)])
+def test_uint8_table_path_equals_the_float_path(shape):
+    # uint8 images use int32 gradients and the orientation table; the float path computes the
+    # same float32 decisions and magnitudes, so the features are identical, ties included.
+    rng = np.random.default_rng(11)
+    image = rng.integers(0, 256, size=shape, dtype=np.uint8)
+    if len(shape) == 3:
+        image[: shape[0] // 2, :, 1] = image[: shape[0] // 2, :, 0]  # channel ties
+    as_float = image.astype(np.float64)
+    np.testing.assert_array_equal(hog_feature_map(image, 4), hog_feature_map(as_float, 4))
+    np.testing.assert_array_equal(fhog(image, 4), fhog(as_float, 4))
+
+
+def _double_precision_orientations(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """features.cc's "if (dot > best) ... else if (-dot > best)" chain in float64."""
+    best = np.zeros(dx.shape)
+    orient = np.zeros(dx.shape, dtype=np.int64)
+    for o in range(9):
+        dot = UU[o] * dx + VV[o] * dy
+        positive = dot > best
+        best = np.where(positive, dot, best)
+        orient = np.where(positive, o, orient)
+        negative = ~positive & (-dot > best)
+        best = np.where(negative, -dot, best)
+        orient = np.where(negative, o + 9, orient)
+    return orient
+
+
+def test_single_precision_orientations_are_exact_for_integer_gradients():
+    # The module docstring's claim: float32 orientation decisions agree with double precision
+    # for every integer gradient up to +-510; the 8-bit table holds the same decisions.
+    span = np.arange(-510, 511)
+    dx, dy = (a.ravel() for a in np.meshgrid(span, span, indexing="ij"))
+    expected = _double_precision_orientations(dx.astype(np.float64), dy.astype(np.float64))
+    got = hog._orientations(dx.astype(np.float32), dy.astype(np.float32))
+    np.testing.assert_array_equal(got, expected)
+
+    small = (np.abs(dx) <= 255) & (np.abs(dy) <= 255)
+    table = hog._orientation_table()
+    assert not table.flags.writeable
+    np.testing.assert_array_equal(table[511 * dx[small] + dy[small]], expected[small])
