@@ -56,7 +56,7 @@ DEFAULT_VARIANTS = (
     "csk_cn",
     "rcsk_cn",
     "rcsk_cn_pca2",
-    "best",
+    "hog_cn_scale",
 )
 TABLE_SUFFIX = "_table"
 

@@ -59,7 +59,7 @@ def run(tracker, images, first_box):
         "rcsk_cn_pca2",  # Algorithm 4.2: 11 dimensions adaptively reduced to 2
         "rcsk_opponent",  # a pixel-wise colour space
         "rcsk_hue",  # a histogram representation
-        "best",  # HOG + Color Names on cells, with scale adaptation
+        "hog_cn_scale",  # HOG + Color Names on cells, with scale adaptation
     ],
 )
 def test_tracker_follows_a_moving_textured_target(preset):

@@ -45,7 +45,9 @@ class MosseFilter:
     weighs against the mean squared feature value, as in the kernels' ``MND`` normalisation.
     """
 
-    def __init__(self, shape: tuple[int, int], target_size: tuple[float, float], config):
+    def __init__(
+        self, shape: tuple[int, int], target_size: tuple[float, float], config: CorrelationConfig
+    ) -> None:
         self._shape = shape
         self._window = hann_window(shape)[:, :, None]
         self._label_hat = spectrum(gaussian_label(shape, target_size, config.label_sigma))
@@ -53,6 +55,7 @@ class MosseFilter:
         self._lambda = config.regularization
         self._numerator: np.ndarray | None = None
         self._denominator: np.ndarray | None = None
+        self._lambda_scaled = 0.0
 
     def _terms(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x_hat = spectrum(x * self._window)

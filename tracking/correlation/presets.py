@@ -1,4 +1,4 @@
-"""Named configurations: the thesis's tracker variants and our best one.
+"""Named configurations: the thesis's tracker variants and ours for embedded defaults.
 
 Every preset is a :class:`CorrelationConfig`; change a field with :func:`dataclasses.replace`.
 """
@@ -47,7 +47,7 @@ def _presets() -> dict[str, CorrelationConfig]:
     # scale filter on cheap grayscale samples. Chosen on temporal-robustness runs (each OTB
     # sequence started at 0, 1/3 and 2/3) rather than on single runs, whose AUC swings by 0.2
     # when one track is lost; see docs/benchmarks.md.
-    presets["best"] = CorrelationConfig(
+    presets["hog_cn_scale"] = CorrelationConfig(
         learner="rcsk",
         feature="hog+cn",
         cell_size=4,
