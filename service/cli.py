@@ -94,7 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
         type=_parse_box,
         help="first-frame box x,y,w,h in pixels, 0-based (default: an OTB folder's ground truth)",
     )
-    track.add_argument("--preset", default="hog_cn_scale", choices=sorted(PRESETS), help="tracker variant")
+    track.add_argument(
+        "--preset", default="hog_cn_scale", choices=sorted(PRESETS), help="tracker variant"
+    )
     track.add_argument("--w2c", type=Path, help="van de Weijer w2c.mat Color Names table")
     track.add_argument("--out", type=Path, help="write the boxes here instead of stdout")
     track.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
