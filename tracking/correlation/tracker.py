@@ -33,6 +33,42 @@ class _Geometry:
         )
 
 
+@dataclass(frozen=True, slots=True)
+class ResponseMap:
+    """A correlation response over a search patch, located in the image.
+
+    Attributes
+    ----------
+    response:
+        ``(M, N)`` correlation output ``y_hat``; element ``(M // 2, N // 2)`` lies at ``center``.
+    center:
+        ``(x, y)`` image position the patch was sampled around.
+    step:
+        ``(sx, sy)`` image pixels per response element.
+    """
+
+    response: np.ndarray
+    center: tuple[float, float]
+    step: tuple[float, float]
+
+    def at(self, points: np.ndarray) -> np.ndarray:
+        """The response at image positions ``points`` ``(K, 2)`` (x, y), bilinearly
+        interpolated; positions outside the patch get the response's minimum."""
+        rows, cols = self.response.shape
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        c = (points[:, 0] - self.center[0]) / self.step[0] + cols // 2
+        r = (points[:, 1] - self.center[1]) / self.step[1] + rows // 2
+        inside = (c >= 0) & (c <= cols - 1) & (r >= 0) & (r <= rows - 1)
+        c0 = np.clip(np.floor(c).astype(int), 0, cols - 2)
+        r0 = np.clip(np.floor(r).astype(int), 0, rows - 2)
+        fc, fr = np.clip(c - c0, 0, 1), np.clip(r - r0, 0, 1)
+        y = self.response
+        top = y[r0, c0] * (1 - fc) + y[r0, c0 + 1] * fc
+        bottom = y[r0 + 1, c0] * (1 - fc) + y[r0 + 1, c0 + 1] * fc
+        values = top * (1 - fr) + bottom * fr
+        return np.where(inside, values, float(y.min()))
+
+
 class CorrelationTracker:
     """MOSSE, CSK or RCSK on any feature representation, with optional scale adaptation.
 
@@ -91,7 +127,7 @@ class CorrelationTracker:
             box.w * g.model_pixels[0] / g.base_patch[0] / cell,
         )
         self._filter = make_filter(g.grid, target_in_cells, self.config)
-        self._filter.initialize(self._sample(frame))
+        self._filter.initialize(self._sample(frame, self._center, self._scale))
         self._scale_filter = None
         if self.config.scale is not None:
             self._scale_filter = ScaleFilter(self.config.scale, g.base_target, self._features)
@@ -99,11 +135,11 @@ class CorrelationTracker:
 
     def update(self, frame: np.ndarray) -> TrackerOutput:
         """Locate the target in ``frame`` and learn from it (Algorithm 2.1, lines 6-12)."""
-        if self._filter is None or self._geometry is None:
-            raise RuntimeError("initialize() must be called before update()")
+        self._require_target()
         frame = validate_frame(frame)
         self._features.check_frame(frame)
-        response = self._filter.response(self._sample(frame))
+        found = self.respond(frame)
+        response = found.response
         row, col, peak = subpixel_peak(response)
         if not self.config.subpixel:
             row, col = float(peak[0]), float(peak[1])
@@ -112,22 +148,55 @@ class CorrelationTracker:
         # Offsets past half the patch wrap around (the response is periodic).
         d_row = (row - rows // 2 + rows / 2) % rows - rows / 2
         d_col = (col - cols // 2 + cols / 2) % cols - cols / 2
-        step_x, step_y = self._geometry.pixels_per_cell(self._scale)
         height, width = frame.shape[:2]
         self._center = (
-            float(np.clip(self._center[0] + d_col * step_x, 0, width - 1)),
-            float(np.clip(self._center[1] + d_row * step_y, 0, height - 1)),
+            float(np.clip(self._center[0] + d_col * found.step[0], 0, width - 1)),
+            float(np.clip(self._center[1] + d_row * found.step[1], 0, height - 1)),
         )
         if self._scale_filter is not None:
             self._scale = self._scale_filter.estimate(frame, self._center, self._scale)
-        self._filter.update(self._sample(frame))
-        if self._scale_filter is not None:
-            self._scale_filter.update(frame, self._center, self._scale)
+        self.learn(frame)
         return TrackerOutput(
             box=self.box,
             peak=float(response[peak]),
             psr=peak_to_sidelobe_ratio(response, peak),
         )
+
+    def respond(
+        self,
+        frame: np.ndarray,
+        center: tuple[float, float] | None = None,
+        scale: float | None = None,
+    ) -> ResponseMap:
+        """The correlation response over the search patch at ``center`` and ``scale`` (default:
+        the current ones), without moving or learning: for callers that fuse it with other
+        evidence, like the particle filter of Part II."""
+        self._require_target()
+        center = self._center if center is None else center
+        scale = self._scale if scale is None else scale
+        response = self._filter.response(self._sample(frame, center, scale))
+        return ResponseMap(response, center, self._geometry.pixels_per_cell(scale))
+
+    def learn(
+        self,
+        frame: np.ndarray,
+        center: tuple[float, float] | None = None,
+        scale: float | None = None,
+    ) -> None:
+        """Learn the appearance at ``center`` and ``scale`` and make them the current target
+        (Algorithm 2.1, lines 10-12; the scale filter learns too)."""
+        self._require_target()
+        if center is not None:
+            self._center = (float(center[0]), float(center[1]))
+        if scale is not None:
+            self._scale = float(scale)
+        self._filter.update(self._sample(frame, self._center, self._scale))
+        if self._scale_filter is not None:
+            self._scale_filter.update(frame, self._center, self._scale)
+
+    def _require_target(self) -> None:
+        if self._filter is None or self._geometry is None:
+            raise RuntimeError("initialize() must be called before update()")
 
     @property
     def box(self) -> Box:
@@ -137,10 +206,10 @@ class CorrelationTracker:
         w, h = self._geometry.base_target
         return Box.from_center(*self._center, w * self._scale, h * self._scale)
 
-    def _sample(self, frame: np.ndarray) -> np.ndarray:
+    def _sample(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> np.ndarray:
         g = self._geometry
-        size = (g.base_patch[0] * self._scale, g.base_patch[1] * self._scale)
-        return self._features(extract_patch(frame, self._center, size, g.model_pixels))
+        size = (g.base_patch[0] * scale, g.base_patch[1] * scale)
+        return self._features(extract_patch(frame, center, size, g.model_pixels))
 
     def _plan_geometry(self, box: Box) -> _Geometry:
         """Patch size ``(M, N) = (1 + eta) s`` (§2.4.1), resampled down if above the area cap,
