@@ -1,0 +1,62 @@
+"""Person detection: the `Detector` contract, the DPM engine, the embedded default, outside boxes.
+
+- :class:`DpmDetector` runs voc-release5 deformable part models (``inriaperson_final.mat``...)
+  and gives part boxes and dense score maps;
+- :class:`HogPeopleDetector` is the embedded default (OpenCV's HOG people detector, no file);
+- :class:`MotDetections` and :class:`SubmittedDetections` bring detections from outside;
+- :func:`make_detector` builds any of them from a name or a path.
+
+Every detector returns :class:`Detections` (boxes, raw scores, calibrated probabilities, parts);
+:class:`LogisticCalibration` maps scores to probabilities (``python -m
+tracking.detection.calibrate`` fits one).
+"""
+
+from tracking.detection.base import DenseScores, Detections, Detector
+from tracking.detection.calibration import (
+    CalibrationError,
+    LogisticCalibration,
+    calibration_path,
+    fit_logistic,
+    load_calibration,
+)
+from tracking.detection.dpm import DpmConfig, DpmDetector, ModelFileError, load_dpm_model
+from tracking.detection.external import (
+    MotDetections,
+    SubmittedDetections,
+    detections_from_arrays,
+)
+from tracking.detection.factory import DETECTOR_NAMES, make_detector
+from tracking.detection.hog_people import (
+    HOG_PEOPLE_CALIBRATION,
+    HogPeopleConfig,
+    HogPeopleDetector,
+)
+from tracking.detection.nms import box_iou, nms
+from tracking.detection.sequences import MotFormatError, MotSequence
+
+__all__ = [
+    "DETECTOR_NAMES",
+    "HOG_PEOPLE_CALIBRATION",
+    "CalibrationError",
+    "DenseScores",
+    "Detections",
+    "Detector",
+    "DpmConfig",
+    "DpmDetector",
+    "HogPeopleConfig",
+    "HogPeopleDetector",
+    "LogisticCalibration",
+    "ModelFileError",
+    "MotDetections",
+    "MotFormatError",
+    "MotSequence",
+    "SubmittedDetections",
+    "box_iou",
+    "calibration_path",
+    "detections_from_arrays",
+    "fit_logistic",
+    "load_calibration",
+    "load_dpm_model",
+    "make_detector",
+    "nms",
+]

@@ -1,0 +1,205 @@
+"""The DPM detector on real frames, its region-of-interest mode, and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracking.detection.base import DenseScores, Detections, Detector
+from tracking.detection.dpm.detector import DpmConfig, DpmDetector
+from tracking.detection.metrics import match_frame
+from tracking.types import Box
+
+# People in PETS09-S2L1 are 50-150 px tall; the INRIA model's smallest window is 60 px at
+# upscale 1, so small people can be missed. On frames 0, 200, 400, 600 (19 people) the default
+# detector (voc-release5 threshold) finds 18 at IoU >= 0.5. 0.75 tolerates losing a few to
+# numeric or resizing changes, and still fails if the pyramid, the padding or the box geometry
+# were off (a box offset or scale error of a cell or more pushes IoU below 0.5 for most).
+MIN_RECALL = 0.75
+FRAMES = (0, 200, 400, 600)
+
+
+@pytest.fixture(scope="module")
+def detector(inria_model) -> DpmDetector:
+    return DpmDetector(inria_model, DpmConfig())
+
+
+@pytest.fixture(scope="module")
+def pets_detections(detector, pets):
+    return {i: detector.detect(pets.read_frame(i)) for i in FRAMES}
+
+
+def test_detector_satisfies_the_protocol(detector):
+    assert isinstance(detector, Detector)
+    assert detector.part_names[0] == "head"
+    assert len(set(detector.part_names)) == len(detector.part_names)
+
+
+@pytest.mark.slow
+def test_finds_the_people_of_pets_frames(pets, pets_detections):
+    found = total = 0
+    for i, detections in pets_detections.items():
+        gt = pets.gt[i]
+        total += len(gt)
+        found += int(match_frame(detections.boxes, detections.scores, gt).sum())
+    assert found / total >= MIN_RECALL, f"found {found} of {total} people"
+
+
+@pytest.mark.slow
+def test_parts_lie_in_or_near_their_root_box(pets_detections):
+    for detections in pets_detections.values():
+        assert detections.parts.shape == (len(detections), len(detections.part_names), 4)
+        for box, parts in zip(detections.boxes, detections.parts, strict=True):
+            present = parts[np.all(np.isfinite(parts), axis=1)]
+            assert len(present) == 8  # each INRIA component has 8 of the 9 named regions
+            centres = present[:, :2] + present[:, 2:] / 2
+            x, y, w, h = box
+            # within the box grown by a quarter of its height (parts move up to 4 cells)
+            margin = 0.25 * h
+            assert np.all(centres[:, 0] >= x - margin) and np.all(centres[:, 0] <= x + w + margin)
+            assert np.all(centres[:, 1] >= y - margin) and np.all(centres[:, 1] <= y + h + margin)
+            head = parts[0]  # "head": the topmost part
+            assert head[1] <= present[:, 1].min() + 1e-9
+
+
+@pytest.mark.slow
+def test_scores_probabilities_and_threshold(pets_detections, detector):
+    for d in pets_detections.values():
+        assert np.all(d.scores > detector.threshold)
+        assert np.all((d.probabilities >= 0) & (d.probabilities <= 1))
+        order = np.argsort(-d.scores)
+        assert np.all(np.diff(d.probabilities[order]) <= 1e-12)  # monotone in the score
+
+
+def _person_region(gt_box):
+    x, y, w, h = gt_box
+    return Box(x + w / 2 - 0.25 * h, y + h / 2 - 0.25 * h, 0.5 * h, 0.5 * h), (0.8 * h, 1.25 * h)
+
+
+def test_region_of_interest_finds_the_person(detector, pets, pets_frame):
+    gt = pets.gt[0][1]  # 33 x 89 px person at (258, 219)
+    region, heights = _person_region(gt)
+    detections = detector.detect_region(pets_frame, region, heights)
+    assert len(detections) >= 1
+    assert match_frame(detections.boxes[:1], detections.scores[:1], gt[None]).all()
+
+
+def test_dense_scores_peak_at_the_person(detector, pets, pets_frame):
+    gt = pets.gt[0][1]
+    region, heights = _person_region(gt)
+    dense = detector.dense_scores(pets_frame, region, heights)
+    assert isinstance(dense, DenseScores)
+    assert np.all(np.diff(dense.heights) >= 0)
+    assert all(heights[0] <= h <= heights[1] for h in dense.heights)
+    assert len(dense.part_offsets) == len(dense.levels)
+    for grid, offsets in zip(dense.levels, dense.part_offsets, strict=True):
+        assert offsets.shape == (*grid.shape, len(detector.part_names), 2)
+    # the best dense score agrees with the region detection's raw score
+    best = max(float(g.max()) for g in dense.levels)
+    detections = detector.detect_region(pets_frame, region, heights)
+    assert best == pytest.approx(float(detections.scores.max()), abs=1e-6)
+    # the peak is the person: centre within 15% of the height, height within 10%
+    level = int(np.argmax([g.max() for g in dense.levels]))
+    i, j = np.unravel_index(np.argmax(dense.levels[level]), dense.levels[level].shape)
+    peak = dense.origins[level] + np.array([j, i]) * dense.strides[level]
+    centre = np.array([gt[0] + gt[2] / 2, gt[1] + gt[3] / 2])
+    assert np.all(np.abs(peak - centre) <= 0.15 * gt[3])
+    assert dense.heights[level] == pytest.approx(gt[3], rel=0.1)
+    # lookup reads that grid element back; outside the region there is no score
+    assert dense.lookup(peak[None], dense.heights[level : level + 1])[0] == best
+    assert dense.lookup(centre[None] + 500, np.array([gt[3]]))[0] == -np.inf
+    # parts of the best position: the head is above the window centre, the feet below
+    offsets = dense.part_offsets[level][i, j]
+    names = detector.part_names
+    assert offsets[names.index("head"), 1] < -0.25 * dense.heights[level]
+    feet = [offsets[names.index(n), 1] for n in ("left_foot", "right_foot")]
+    assert min(feet) > 0.25 * dense.heights[level]
+
+
+@pytest.mark.slow
+def test_region_and_full_frame_find_the_same_person(detector, pets, pets_detections):
+    # Not the same score: the region's pyramid is built on a crop, so its cell grid is shifted
+    # by a fraction of a cell against the full frame's, and DPM scores are sharp at that scale
+    # (here 1.63 against 2.14). The same person, above the threshold, in nearly the same box.
+    full = pets_detections[0]
+    for gt in pets.gt[0]:
+        region, heights = _person_region(gt)
+        roi = detector.detect_region(pets.read_frame(0), region, heights)
+        if len(roi) == 0:
+            continue
+        best = int(np.argmax(roi.scores))
+        same = match_frame(full.boxes, full.scores, roi.boxes[best : best + 1])
+        assert same.any()
+
+
+@pytest.mark.parametrize(
+    ("frame", "error"),
+    [
+        (np.zeros((0, 0, 3), np.uint8), ValueError),  # empty
+        (np.zeros((1, 5, 3), np.uint8), ValueError),  # too small to have a gradient
+        (np.zeros((10, 10, 4), np.uint8), ValueError),  # four channels
+        (np.zeros((10, 10), dtype=bool), ValueError),  # not numbers
+        ([[0, 1], [2, 3]], TypeError),  # not an array
+    ],
+)
+def test_bad_frames_raise_clear_errors(detector, frame, error):
+    with pytest.raises(error):
+        detector.detect(frame)
+
+
+@pytest.mark.parametrize("shape", [(2, 2, 3), (16, 16, 3), (40, 30), (119, 39, 3)])
+def test_tiny_frames_give_no_detections(detector, shape):
+    result = detector.detect(np.full(shape, 128, np.uint8))
+    assert isinstance(result, Detections)
+    assert len(result) == 0
+
+
+@pytest.mark.parametrize(
+    "region",
+    [
+        Box(1000, 1000, 50, 50),  # right of and below the frame
+        Box(-200, -200, 100, 100),  # above and left of it
+    ],
+)
+def test_regions_outside_the_frame_give_empty_results(detector, pets_frame, region):
+    assert len(detector.detect_region(pets_frame, region)) == 0
+    assert detector.dense_scores(pets_frame, region) is None
+
+
+@pytest.mark.parametrize(
+    ("region", "error"),
+    [
+        (Box(10, 10, 0, 5), ValueError),  # no area
+        (Box(float("nan"), 10, 5, 5), ValueError),
+        ((10, 10, 5, 5), TypeError),  # a tuple, not a Box
+    ],
+)
+def test_bad_regions_raise(detector, pets_frame, region, error):
+    with pytest.raises(error):
+        detector.detect_region(pets_frame, region)
+
+
+def test_bad_height_range_raises(detector, pets_frame):
+    with pytest.raises(ValueError, match="heights"):
+        detector.dense_scores(pets_frame, Box(100, 100, 50, 50), heights=(80, 40))
+
+
+def test_heights_without_a_level_give_no_scores(detector, pets_frame):
+    # windows of 10-20 px: below the model's smallest (60 px) at upscale 1
+    assert detector.dense_scores(pets_frame, Box(100, 100, 50, 50), heights=(10, 20)) is None
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"upscale": 0.0},
+        {"min_height": -1.0},
+        {"min_height": 100.0, "max_height": 50.0},
+        {"deformation_window": -1},
+        {"nms_overlap": 1.5},
+        {"workers": 0},
+    ],
+)
+def test_bad_config_is_rejected(options):
+    with pytest.raises(ValueError):
+        DpmConfig(**options)

@@ -1,0 +1,131 @@
+"""MOTChallenge det.txt reading and detections handed in by the caller."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracking.detection.base import Detector
+from tracking.detection.calibration import LogisticCalibration
+from tracking.detection.external import (
+    MotDetections,
+    SubmittedDetections,
+    detections_from_arrays,
+)
+from tracking.detection.sequences import MotFormatError, read_mot_rows
+from tracking.types import Box
+
+
+def test_public_detections_of_pets(pets):
+    dets = MotDetections.from_file(pets.detections_file)
+    assert isinstance(dets, Detector)
+    first = dets.for_frame(0)  # rows with frame == 1
+    # det.txt line 1: 1,-1,243.00,218.00,45.00,90.00,0.87006,-1,-1,-1
+    assert first.boxes[0].tolist() == [243.0, 218.0, 45.0, 90.0]
+    assert first.scores[0] == pytest.approx(0.87006)
+    assert first.probabilities[0] == pytest.approx(0.87006)  # conf clipped to [0, 1]
+    assert first.parts.shape == (len(first), 0, 4)
+    assert sum(len(dets.for_frame(i)) for i in range(dets.num_frames)) == 5434
+    assert dets.num_frames == 795
+    assert dets.dense_scores(None, Box(0, 0, 10, 10)) is None
+
+
+def test_detect_walks_through_the_frames_and_seek_jumps(pets):
+    dets = MotDetections.from_file(pets.detections_file)
+    a, b = dets.detect(None), dets.detect(None)
+    np.testing.assert_array_equal(a.boxes, dets.for_frame(0).boxes)
+    np.testing.assert_array_equal(b.boxes, dets.for_frame(1).boxes)
+    dets.seek(0)
+    np.testing.assert_array_equal(dets.detect(None).boxes, a.boxes)
+    region = Box(240, 240, 40, 40)  # around the first box's centre (265.5, 263)
+    dets.seek(0)
+    inside = dets.detect_region(None, region)
+    assert len(inside) == 1 and inside.boxes[0, 0] == 243.0
+
+
+def test_calibration_and_confidence_filter(tmp_path):
+    path = tmp_path / "det.txt"
+    path.write_text("1,-1,10,20,30,60,0.9,-1,-1,-1\n1,-1,50,20,30,60,0.3,-1,-1,-1\n")
+    calibrated = MotDetections.from_file(path, calibration=LogisticCalibration(10.0, -5.0))
+    np.testing.assert_allclose(
+        calibrated.for_frame(0).probabilities, 1 / (1 + np.exp(-(10 * np.array([0.9, 0.3]) - 5)))
+    )
+    assert len(MotDetections.from_file(path, min_confidence=0.5).for_frame(0)) == 1
+    assert len(calibrated.for_frame(7)) == 0  # a frame without rows
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("1,-1,10,20,30,60,0.9\n1,-1,oops,20,30,60,0.9\n", r":2: expected numbers"),
+        ("1,-1,10,20,30,60,0.9\n\n1,-1,10,20\n", r":3: expected at least 7 columns"),
+        ("1,-1,10,20,nan,60,0.9\n", r":1: non-finite"),
+    ],
+)
+def test_malformed_lines_name_the_line(tmp_path, text, message):
+    path = tmp_path / "det.txt"
+    path.write_text(text)
+    with pytest.raises(MotFormatError, match=message):
+        MotDetections.from_file(path)
+
+
+def test_missing_file_and_empty_file(tmp_path):
+    with pytest.raises(MotFormatError, match="not found"):
+        read_mot_rows(tmp_path / "none.txt")
+    empty = tmp_path / "empty.txt"
+    empty.write_text("\n")
+    assert MotDetections.from_file(empty).num_frames == 0
+
+
+def test_whitespace_separated_rows(tmp_path):
+    path = tmp_path / "det.txt"
+    path.write_text("2 -1 10 20 30 60 0.8 -1 -1 -1\n")
+    assert MotDetections.from_file(path).for_frame(1).boxes.tolist() == [[10, 20, 30, 60]]
+
+
+def test_submitted_detections_per_frame():
+    sub = SubmittedDetections()
+    assert isinstance(sub, Detector)
+    sub.submit(0, [[10, 10, 20, 40]], [0.7])
+    sub.submit(2, [[30, 10, 20, 40], [80, 10, 20, 40]], [2.0, -1.0])
+    assert sub.detect(None).boxes.tolist() == [[10, 10, 20, 40]]  # frame 0
+    assert len(sub.detect(None)) == 0  # frame 1: nothing handed in
+    third = sub.detect(None)  # frame 2: scores clipped to [0, 1] as probabilities
+    np.testing.assert_array_equal(third.probabilities, [1.0, 0.0])
+    with pytest.raises(ValueError, match="already past"):
+        sub.submit(1, [[0, 0, 1, 1]], [1.0])
+    assert sub.dense_scores(None, Box(0, 0, 1, 1)) is None
+
+
+def test_submitted_detections_are_bounded():
+    sub = SubmittedDetections(max_pending=2)
+    sub.submit(5, np.zeros((0, 4)), [])
+    sub.submit(6, np.zeros((0, 4)), [])
+    with pytest.raises(ValueError, match="waiting"):
+        sub.submit(7, np.zeros((0, 4)), [])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"boxes": [[0, 0, 1]], "scores": [1.0]}, r"boxes must have shape \(N, 4\), got \(1, 3\)"),
+        ({"boxes": [[0, 0, 1, 1]], "scores": [1.0, 2.0]}, r"scores must have shape \(1,\)"),
+        ({"boxes": [[0, 0, 0, 1]], "scores": [1.0]}, "positive width"),
+        ({"boxes": [[0, np.inf, 1, 1]], "scores": [1.0]}, "finite"),
+        ({"boxes": [[0, 0, 1, 1]], "scores": [1.0], "probabilities": [1.5]}, r"\[0, 1\]"),
+        (
+            {"boxes": [[0, 0, 1, 1]], "scores": [1.0], "parts": np.zeros((1, 2, 4))},
+            r"parts must have shape \(1, 0, 4\)",
+        ),
+    ],
+)
+def test_detections_from_arrays_validates(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        detections_from_arrays(**kwargs)
+
+
+def test_detections_from_arrays_with_parts():
+    d = detections_from_arrays(
+        [[0, 0, 10, 20]], [3.0], parts=np.ones((1, 1, 4)), part_names=("head",)
+    )
+    assert d.part_names == ("head",) and d.probabilities.tolist() == [1.0]

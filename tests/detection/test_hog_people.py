@@ -1,0 +1,66 @@
+"""The embedded default: OpenCV's HOG people detector behind the Detector protocol."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracking.detection.base import Detector
+from tracking.detection.hog_people import HogPeopleConfig, HogPeopleDetector
+from tracking.detection.metrics import match_frame
+from tracking.types import Box
+
+
+@pytest.fixture(scope="module")
+def detector() -> HogPeopleDetector:
+    return HogPeopleDetector()
+
+
+def test_protocol_and_no_parts(detector):
+    assert isinstance(detector, Detector)
+    assert detector.part_names == ()
+
+
+def test_detects_the_people_of_a_pets_frame(detector, pets):
+    # frame 201 (index 200): seven people 55-100 px tall. At 1.5x the window's 96-px person is
+    # 64 px, so most are found: 6 of 7 at IoU >= 0.5 here; 4 is the floor, and it shows the
+    # boxes are shrunk onto the person (the unshrunk windows match none of the seven).
+    frame, gt = pets.read_frame(200), pets.gt[200]
+    found = detector.detect(frame)
+    assert found.parts.shape == (len(found), 0, 4)
+    assert int(match_frame(found.boxes, found.scores, gt).sum()) >= 4
+    assert np.all((found.probabilities >= 0) & (found.probabilities <= 1))
+
+
+def test_dense_scores_agree_with_the_detection(detector, pets, pets_frame):
+    gt = pets.gt[0][1]
+    x, y, w, h = gt
+    region = Box(x + w / 2 - 0.25 * h, y + h / 2 - 0.25 * h, 0.5 * h, 0.5 * h)
+    dense = detector.dense_scores(pets_frame, region, (0.8 * h, 1.25 * h))
+    assert dense is not None and len(dense.levels) >= 3
+    assert np.all(np.diff(dense.heights) > 0)
+    assert dense.part_offsets == [] and dense.part_names == ()
+    roi = detector.detect_region(pets_frame, region, (0.8 * h, 1.25 * h))
+    assert len(roi) >= 1
+    # the SVM scores in the grid are the ones detect thresholds: the best is positive and
+    # the person is found near the best position
+    best = max(float(g.max()) for g in dense.levels)
+    assert best > 0
+    assert match_frame(roi.boxes, roi.scores, gt[None]).any()
+
+
+def test_outside_regions_and_small_frames(detector, pets_frame):
+    assert len(detector.detect_region(pets_frame, Box(2000, 0, 10, 10))) == 0
+    assert detector.dense_scores(pets_frame, Box(2000, 0, 10, 10)) is None
+    assert len(detector.detect(np.zeros((20, 30, 3), np.uint8))) == 0
+    with pytest.raises(ValueError):
+        detector.detect(np.zeros((0, 5, 3), np.uint8))
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"upscale": -1.0}, {"scale_step": 1.0}, {"win_stride": 0}, {"box_scale": (0.5, 1.5)}],
+)
+def test_bad_config(options):
+    with pytest.raises(ValueError):
+        HogPeopleConfig(**options)

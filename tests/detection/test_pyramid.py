@@ -1,0 +1,67 @@
+"""The pyramid layout of voc-release5 featpyramid.m and its padding."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracking.detection.dpm.pyramid import (
+    TRUNCATION_CHANNEL,
+    level_features,
+    pad_features,
+    pyramid_levels,
+)
+
+
+def test_levels_with_the_extra_octave_follow_featpyramid():
+    # 576 x 768 image, sbin 8, interval 10: max_scale = 1 + floor(log(576 / 40) / log(2^0.1))
+    levels = pyramid_levels((576, 768, 3), 8, 10, extra_octave=True)
+    max_scale = 1 + int(np.floor(np.log(576 / 40) / np.log(2**0.1)))
+    assert len(levels) == 10 + 10 + max_scale
+    assert [lv.hog_cell for lv in levels[:21]] == [2] * 10 + [4] * 10 + [8]
+    # level k - interval has exactly twice the resolution of level k
+    for k in range(10, len(levels)):
+        assert levels[k - 10].cell == pytest.approx(levels[k].cell / 2)
+    assert levels[0].cell == pytest.approx(2.0)
+    assert levels[20].cell == pytest.approx(8.0)
+    assert [lv.octave for lv in (levels[9], levels[10], levels[19], levels[20], levels[-1])] == [
+        0,
+        1,
+        1,
+        2,
+        2,
+    ]
+
+
+def test_levels_without_the_extra_octave_start_at_half_sbin():
+    levels = pyramid_levels((480, 640), 8, 10, extra_octave=False)
+    assert levels[0].hog_cell == 4 and levels[10].hog_cell == 8
+    assert levels[10].cell == pytest.approx(8.0)
+
+
+def test_upscale_divides_every_cell_size():
+    plain = pyramid_levels((100, 120), 8, 5, extra_octave=True)
+    big = pyramid_levels((100, 120), 8, 5, extra_octave=True, upscale=2.0)
+    for a, b in zip(plain, big, strict=False):
+        assert b.cell == pytest.approx(a.cell / 2)
+
+
+def test_padding_marks_the_truncation_channel():
+    features = np.full((3, 4, 32), 0.5, dtype=np.float32)
+    features[..., TRUNCATION_CHANNEL] = 0
+    padded = pad_features(features, (2, 1))  # pad + 1 cells of zeros on each side
+    assert padded.shape == (3 + 6, 4 + 4, 32)
+    inside = padded[3:6, 2:6]
+    np.testing.assert_array_equal(inside, features)
+    ring = np.ones(padded.shape[:2], bool)
+    ring[3:6, 2:6] = False
+    assert np.all(padded[ring][:, TRUNCATION_CHANNEL] == 1)
+    assert np.all(padded[ring][:, :TRUNCATION_CHANNEL] == 0)
+
+
+def test_level_features_of_a_tiny_image_are_only_padding():
+    image = np.zeros((10, 12, 3), np.uint8)
+    levels = pyramid_levels(image.shape, 8, 10, extra_octave=True)
+    feats = level_features(image, [levels[-1]], (15, 5))
+    (only,) = feats.values()
+    assert only.shape == (2 * 16, 2 * 6, 32)

@@ -1,0 +1,216 @@
+"""The multi-person tracker on scenes the tests draw, on a real sequence, and on bad input."""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from tracking.detection import Detections
+from tracking.people import EMBEDDED_BODY, MultiPersonTracker, PeopleTrackerConfig
+
+HEIGHT, WIDTH = 260, 420
+PART_COLOURS = np.array(
+    [
+        [250, 220, 180],  # head
+        [200, 30, 30],  # left_shoulder
+        [30, 30, 200],  # right_shoulder
+        [30, 160, 30],  # left_hip
+        [200, 200, 30],  # right_hip
+        [160, 30, 160],  # left_knee
+        [30, 160, 160],  # right_knee
+        [90, 60, 20],  # left_foot
+        [240, 130, 20],  # right_foot
+    ],
+    dtype=np.uint8,
+)
+
+
+def _texture(rng, shape, sigma):
+    noise = ndimage.gaussian_filter(rng.standard_normal(shape), (sigma, sigma, 0))
+    noise -= noise.min()
+    return (255 * noise / noise.max()).astype(np.uint8)
+
+
+class Figure:
+    """A textured body with nine coloured parts drawn where the body model puts them, plus a
+    sway that the part filters must follow (the arms' and legs' offsets change over time)."""
+
+    def __init__(self, rng, height, bottom, x0, speed, torso_colour):
+        self.height, self.bottom, self.x0, self.speed = height, bottom, x0, speed
+        self.body = _texture(rng, (height, int(0.41 * height), 3), 3.0) // 2 + torso_colour // 2
+
+    def centre(self, t):
+        return self.x0 + self.speed * t, self.bottom - self.height / 2
+
+    def box(self, t):
+        cx, cy = self.centre(t)
+        w = 0.41 * self.height
+        return np.array([cx - w / 2, cy - self.height / 2, w, self.height])
+
+    def parts(self, t):
+        """Part centres (9, 2): the model's mean offsets with a swing of the knees and feet."""
+        offsets = EMBEDDED_BODY.mean.copy()
+        swing = 0.04 * np.sin(0.5 * t)
+        offsets[5:, 0] += np.array([swing, -swing, swing, -swing])
+        return np.array(self.centre(t)) + self.height * offsets
+
+    def draw(self, frame, t):
+        x, y, w, h = (round(v) for v in self.box(t))
+        region = frame[y : y + h, x : x + w]
+        rows, cols = (
+            min(region.shape[0], self.body.shape[0]),
+            min(region.shape[1], self.body.shape[1]),
+        )
+        region[:rows, :cols] = self.body[:rows, :cols]
+        r = max(int(0.05 * self.height), 2)
+        for (px, py), colour in zip(self.parts(t), PART_COLOURS, strict=True):
+            px, py = round(px), round(py)
+            frame[max(py - r, 0) : py + r, max(px - r, 0) : px + r] = colour
+
+
+def crossing_scene(frames=44, seed=0):
+    """Figure A (nearer: its box ends lower) walks right, B walks left; they cross mid-way.
+
+    Returns frames, per-frame detections (B's is withheld while A covers most of it, as a
+    detector would miss it), the true boxes and part positions, and which frames B is covered.
+    """
+    rng = np.random.default_rng(seed)
+    background = _texture(rng, (HEIGHT, WIDTH, 3), 4.0) // 3 + 60
+    a = Figure(rng, 120, 235, 60.0, 7.0, np.array([40, 40, 160], np.uint8))
+    b = Figure(rng, 104, 215, 360.0, -7.0, np.array([160, 120, 40], np.uint8))
+    images, detections, covered = [], [], []
+    for t in range(frames):
+        frame = background.copy()
+        b.draw(frame, t)
+        a.draw(frame, t)  # A is nearer: drawn over B
+        images.append(frame)
+        box_a, box_b = a.box(t), b.box(t)
+        x1, x2 = max(box_a[0], box_b[0]), min(box_a[0] + box_a[2], box_b[0] + box_b[2])
+        y1, y2 = max(box_a[1], box_b[1]), min(box_a[1] + box_a[3], box_b[1] + box_b[3])
+        share = max(x2 - x1, 0) * max(y2 - y1, 0) / (box_b[2] * box_b[3])
+        covered.append(share > 0.3)
+        people = [(box_a, a.parts(t))] + ([] if share > 0.5 else [(box_b, b.parts(t))])
+        size = 0.1 * np.array([[a.height, a.height]])
+        detections.append(
+            Detections(
+                boxes=np.array([p[0] for p in people]),
+                scores=np.ones(len(people)),
+                probabilities=np.full(len(people), 0.95),
+                parts=np.array(
+                    [np.hstack([p[1] - size / 2, np.repeat(size, 9, 0)]) for p in people]
+                ),
+                part_names=EMBEDDED_BODY.names,
+            )
+        )
+    return images, detections, (a, b), np.array(covered)
+
+
+def _nearest_id(tracks, centre):
+    distances = [np.hypot(*(np.array(t.box.center) - centre)) for t in tracks]
+    return tracks[int(np.argmin(distances))].track_id if tracks else None
+
+
+def test_two_people_crossing_keep_their_ids_and_parts():
+    images, detections, (a, b), covered = crossing_scene()
+    # report_occluded: B is reported while covered, so the test can see its flag.
+    tracker = MultiPersonTracker(PeopleTrackerConfig(confirm_hits=2, report_occluded=True))
+    history, part_errors = [], []
+    for t, (frame, dets) in enumerate(zip(images, detections, strict=True)):
+        tracks = tracker.update(frame, t / 10.0, dets)
+        history.append({tr.track_id: tr for tr in tracks})
+        if t > 5 and not covered[t]:
+            track = history[-1][_nearest_id(tracks, a.centre(t))]
+            drawn = a.parts(t)
+            part_errors += [
+                np.hypot(p.x - drawn[k, 0], p.y - drawn[k, 1]) for k, p in enumerate(track.parts)
+            ]
+    # The ids of A and B before the crossing (frame 10) are the ids nearest them after it.
+    id_a = _nearest_id(list(history[10].values()), a.centre(10))
+    id_b = _nearest_id(list(history[10].values()), b.centre(10))
+    last = len(images) - 1
+    assert id_a != id_b
+    assert _nearest_id(list(history[last].values()), a.centre(last)) == id_a
+    assert _nearest_id(list(history[last].values()), b.centre(last)) == id_b
+    # While A covers B, B is still reported, flagged occluded; A never is.
+    flags = [history[t][id_b].occluded for t in np.flatnonzero(covered) if id_b in history[t]]
+    assert len(flags) >= 0.8 * covered.sum() and all(flags)
+    assert not any(h[id_a].occluded for h in history if id_a in h)
+    # A's parts (measured by the detections' part boxes) follow where they are drawn.
+    assert np.median(part_errors) < 3.0 and np.percentile(part_errors, 90) < 6.0
+
+
+def test_covered_parts_are_reported_not_visible():
+    images, detections, _, _covered = crossing_scene()
+    tracker = MultiPersonTracker(PeopleTrackerConfig(confirm_hits=2, report_occluded=True))
+    hidden = []
+    for t, (frame, dets) in enumerate(zip(images, detections, strict=True)):
+        for track in tracker.update(frame, t / 10.0, dets):
+            if track.occluded:
+                hidden.append(sum(not p.visible for p in track.parts))
+    assert hidden and max(hidden) > 0
+
+
+# -- bad input -------------------------------------------------------------------------------
+
+
+def _frame(h=120, w=160):
+    return np.full((h, w, 3), 90, np.uint8)
+
+
+def _detections(boxes):
+    boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    n = len(boxes)
+    return Detections(boxes, np.ones(n), np.full(n, 0.9), np.zeros((n, 0, 4)))
+
+
+def test_timestamps_going_backwards_are_refused():
+    tracker = MultiPersonTracker()
+    tracker.update(_frame(), 1.0, _detections([]))
+    with pytest.raises(ValueError, match="backwards"):
+        tracker.update(_frame(), 0.5, _detections([]))
+
+
+def test_a_change_of_frame_size_starts_again():
+    tracker = MultiPersonTracker(PeopleTrackerConfig(confirm_hits=1))
+    assert len(tracker.update(_frame(), 0.0, _detections([[40, 20, 30, 70]]))) == 1
+    out = tracker.update(_frame(200, 300), 0.1, _detections([[100, 50, 30, 70]]))
+    assert [t.track_id for t in out] == [1]  # ids start again with the new geometry
+
+
+@pytest.mark.parametrize(
+    "boxes",
+    [
+        [],  # no detections at all
+        [[500, 500, 30, 60]],  # entirely outside the frame
+        [[-40, -80, 30, 60]],  # above and left of the frame
+        [[150, 100, 40, 80]],  # centre inside, box sticking out
+        [[10, 10, 0.5, 0.5]],  # a speck
+    ],
+)
+def test_odd_detections_give_a_sane_result(boxes):
+    tracker = MultiPersonTracker(PeopleTrackerConfig(confirm_hits=1))
+    for t in range(3):
+        out = tracker.update(_frame(), t * 0.1, _detections(boxes))
+    assert all(np.isfinite(tr.box.as_array()).all() for tr in out)
+
+
+def test_without_detections_or_detector_it_says_so():
+    with pytest.raises(ValueError, match="no detections"):
+        MultiPersonTracker().update(_frame(), 0.0)
+
+
+@pytest.mark.parametrize(
+    ("frame", "message"),
+    [
+        (np.zeros((0, 0, 3), np.uint8), "empty"),
+        (np.zeros((50, 50), np.uint8), "RGB"),
+        (np.zeros((50, 50, 4), np.uint8), r"\(H, W, 3\)"),
+    ],
+)
+def test_malformed_frames_are_refused(frame, message):
+    with pytest.raises(ValueError, match=message):
+        MultiPersonTracker().update(frame, 0.0, _detections([]))
+
+
+def test_nan_timestamp_is_refused():
+    with pytest.raises(ValueError, match="finite"):
+        MultiPersonTracker().update(_frame(), float("nan"), _detections([]))

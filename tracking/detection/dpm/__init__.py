@@ -1,0 +1,30 @@
+"""The deformable part model engine (voc-release5 mixtures of star models)."""
+
+from tracking.detection.dpm.config import DpmConfig
+from tracking.detection.dpm.detector import (
+    DEFAULT_DPM_CALIBRATION,
+    KNOWN_CALIBRATIONS,
+    DpmDetector,
+)
+from tracking.detection.dpm.model import (
+    DpmComponent,
+    DpmModel,
+    FilterSymbol,
+    ModelFileError,
+    load_dpm_model,
+)
+from tracking.detection.dpm.parts import component_part_names, model_part_names
+
+__all__ = [
+    "DEFAULT_DPM_CALIBRATION",
+    "KNOWN_CALIBRATIONS",
+    "DpmComponent",
+    "DpmConfig",
+    "DpmDetector",
+    "DpmModel",
+    "FilterSymbol",
+    "ModelFileError",
+    "component_part_names",
+    "load_dpm_model",
+    "model_part_names",
+]

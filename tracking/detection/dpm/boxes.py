@@ -1,0 +1,204 @@
+"""From star-model scores to boxes: detection windows, filter boxes, regression, clipping.
+
+Geometry (voc-release5 ``get_detection_trees.cc``, in 0-based continuous pixel coordinates): a
+symbol at padded-map position ``(x, y)`` of a level whose cells cover ``c`` image pixels has the
+box ``((x - pad_x) c, (y - pad_y) c, w c, h c)`` for a filter of ``h x w`` cells; the detection
+window of a root at ``(x, y)`` is ``((x - shift_x - pad_x) c, (y - shift_y - pad_y) c,
+window_w c, window_h c)``; a part on the level of twice the resolution has cells of ``c / 2``.
+Boxes of a level computed on a crop of the frame are offset by the crop's corner.
+
+Post-processing follows voc-release5's test pipeline (``pascal_test.m``, ``bboxpred_rescore.m``):
+clip to the image (``clipboxes.m``), non-maximum suppression, bounding-box regression from the
+filter centres (``bboxpred_get.m``, ``bboxpred_input.m``), clip, suppression again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tracking.detection.dpm.model import DpmModel
+from tracking.detection.dpm.scoring import LevelScores
+from tracking.detection.nms import nms
+from tracking.types import Box
+
+__all__ = ["Candidates", "candidates", "clip_boxes", "postprocess", "predict_boxes"]
+
+
+@dataclass(frozen=True, slots=True)
+class Candidates:
+    """Detections before suppression.
+
+    Attributes
+    ----------
+    windows:
+        ``(N, 4)`` detection windows (or predicted boxes) ``x, y, w, h``.
+    filters:
+        ``(N, S, 4)`` filter boxes, root first, in the component's symbol order; NaN for
+        symbols the component does not have.
+    scores:
+        ``(N,)`` raw scores.
+    components:
+        ``(N,)`` component index.
+    """
+
+    windows: np.ndarray
+    filters: np.ndarray
+    scores: np.ndarray
+    components: np.ndarray
+
+    def take(self, index: np.ndarray) -> Candidates:
+        return Candidates(
+            self.windows[index], self.filters[index], self.scores[index], self.components[index]
+        )
+
+    def with_windows(self, windows: np.ndarray, keep: np.ndarray) -> Candidates:
+        return Candidates(windows, self.filters[keep], self.scores[keep], self.components[keep])
+
+
+def _empty(n_symbols: int) -> Candidates:
+    return Candidates(
+        np.zeros((0, 4)), np.zeros((0, n_symbols, 4)), np.zeros(0), np.zeros(0, dtype=int)
+    )
+
+
+def candidates(
+    model: DpmModel,
+    scored: list[tuple[LevelScores, tuple[int, int]]],
+    pad: tuple[int, int],
+    threshold: float,
+    region: Box | None = None,
+    limit: int | None = None,
+) -> Candidates:
+    """Every root position scoring above ``threshold``, as windows and filter boxes.
+
+    Parameters
+    ----------
+    model:
+        The model the scores come from.
+    scored:
+        ``(scores of a level, (x, y) corner of the image the level was computed on)``.
+    pad:
+        ``(pad_y, pad_x)`` of the feature maps.
+    threshold:
+        Strict lower bound on the score.
+    region:
+        Keep only windows whose centre lies in this region.
+    limit:
+        Keep at most this many, best scores first.
+    """
+    pad_y, pad_x = pad
+    n_symbols = max(len(c.symbols) for c in model.components)
+    windows_cells = np.array([c.window for c in model.components])  # (C, 2) h, w
+    shifts = np.array([c.shift for c in model.components])
+    out = []
+    for ls, (ox, oy) in scored:
+        ys, xs = np.nonzero(ls.scores > threshold)
+        if ys.size == 0:
+            continue
+        comp = ls.component[ys, xs]
+        cell = ls.level.cell
+        x0 = ox + (ls.origin[1] + xs - shifts[comp, 1] - pad_x) * cell
+        y0 = oy + (ls.origin[0] + ys - shifts[comp, 0] - pad_y) * cell
+        boxes = np.column_stack(
+            [x0, y0, windows_cells[comp, 1] * cell, windows_cells[comp, 0] * cell]
+        )
+        if region is not None:
+            cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
+            inside = (
+                (cx >= region.x)
+                & (cx <= region.x + region.w)
+                & (cy >= region.y)
+                & (cy <= region.y + region.h)
+            )
+            ys, xs, comp, boxes = ys[inside], xs[inside], comp[inside], boxes[inside]
+        filters = np.full((ys.size, n_symbols, 4), np.nan)
+        for ci, component in enumerate(model.components):
+            sel = np.flatnonzero(comp == ci)
+            if sel.size == 0:
+                continue
+            for j, symbol in enumerate(component.symbols):
+                place = ls.placements[ci, j, ys[sel], xs[sel]]  # (n, 2): col, row
+                c = cell / 2 ** symbol.anchor[2]
+                h, w = symbol.size
+                filters[sel, j] = np.column_stack(
+                    [
+                        ox + (place[:, 0] - pad_x) * c,
+                        oy + (place[:, 1] - pad_y) * c,
+                        np.full(sel.size, w * c),
+                        np.full(sel.size, h * c),
+                    ]
+                )
+        out.append(Candidates(boxes, filters, ls.scores[ys, xs], comp))
+    if not out:
+        return _empty(n_symbols)
+    merged = Candidates(*(np.concatenate(arrays) for arrays in zip(*(
+        (c.windows, c.filters, c.scores, c.components) for c in out
+    ), strict=True)))  # fmt: skip
+    if limit is not None and merged.scores.size > limit:
+        merged = merged.take(np.argsort(-merged.scores, kind="stable")[:limit])
+    return merged
+
+
+def predict_boxes(model: DpmModel, c: Candidates) -> np.ndarray:
+    """``bboxpred_get.m``: boxes regressed from the window and the filter centres.
+
+    In MATLAB's inclusive 1-based pixels (``x1 = x + 1``, ``x2 = x + w``): with the window's
+    width ``w = x2 - x1``, height ``h`` and centre ``(rx, ry)``, and filter centres
+    ``(px_j, py_j)`` in ``model.filters`` order, the features are
+    ``A = [(px_j - rx) / w, (py_j - ry) / h, ..., 1]`` and the box is
+    ``x1 + w A b_x1, y1 + h A b_y1, x2 + w A b_x2, y2 + h A b_y2``.
+    """
+    out = c.windows.copy()
+    for ci, component in enumerate(model.components):
+        coefficients = component.bbox_regression
+        sel = np.flatnonzero(c.components == ci)
+        if coefficients is None or sel.size == 0:
+            continue
+        win = c.windows[sel]
+        x1, y1 = win[:, 0] + 1, win[:, 1] + 1
+        x2, y2 = win[:, 0] + win[:, 2], win[:, 1] + win[:, 3]
+        w, h = x2 - x1, y2 - y1
+        rx, ry = x1 + w / 2, y1 + h / 2
+        # reduceboxes.m keeps the component's filter boxes in model.filters order
+        order = np.argsort([s.filter_index for s in component.symbols], kind="stable")
+        f = c.filters[sel][:, order]
+        px = (f[..., 0] + 1) + (f[..., 2] - 1) / 2
+        py = (f[..., 1] + 1) + (f[..., 3] - 1) / 2
+        features = np.empty((sel.size, 2 * order.size + 1))
+        features[:, 0:-1:2] = (px - rx[:, None]) / w[:, None]
+        features[:, 1:-1:2] = (py - ry[:, None]) / h[:, None]
+        features[:, -1] = 1.0
+        d = features @ coefficients.T  # (n, 4): displacements of x1, y1, x2, y2
+        nx1, ny1 = x1 + w * d[:, 0], y1 + h * d[:, 1]
+        nx2, ny2 = x2 + w * d[:, 2], y2 + h * d[:, 3]
+        out[sel] = np.column_stack([nx1 - 1, ny1 - 1, nx2 - nx1 + 1, ny2 - ny1 + 1])
+    return out
+
+
+def clip_boxes(boxes: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``clipboxes.m``: clip to the image, drop boxes left empty; boxes and kept rows."""
+    height, width = shape[:2]
+    x1 = np.maximum(boxes[:, 0], 0.0)
+    y1 = np.maximum(boxes[:, 1], 0.0)
+    x2 = np.minimum(boxes[:, 0] + boxes[:, 2], width)
+    y2 = np.minimum(boxes[:, 1] + boxes[:, 3], height)
+    keep = np.flatnonzero((x2 > x1) & (y2 > y1))
+    return np.column_stack([x1, y1, x2 - x1, y2 - y1])[keep], keep
+
+
+def postprocess(
+    model: DpmModel,
+    c: Candidates,
+    shape: tuple[int, ...],
+    overlap: float,
+    regression: bool,
+) -> Candidates:
+    """Clip, suppress, regress, clip, suppress (``pascal_test.m`` + ``bboxpred_rescore.m``)."""
+    c = c.with_windows(*clip_boxes(c.windows, shape))
+    c = c.take(nms(c.windows, c.scores, overlap))
+    if regression and c.scores.size:
+        c = c.with_windows(*clip_boxes(predict_boxes(model, c), shape))
+        c = c.take(nms(c.windows, c.scores, overlap))
+    return c

@@ -1,0 +1,99 @@
+"""Options of the DPM detector (:class:`tracking.detection.dpm.detector.DpmDetector`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["DpmConfig"]
+
+
+@dataclass(frozen=True, slots=True)
+class DpmConfig:
+    """Options of :class:`~tracking.detection.dpm.detector.DpmDetector`.
+
+    Attributes
+    ----------
+    threshold:
+        Raw score above which a root position is a detection; ``None``: the model's
+        ``thresh`` (INRIA: -0.126, voc-release5's default).
+    upscale:
+        Enlarge the frame by this factor before building the pyramid (1: voc-release5). The
+        smallest window the INRIA model finds is 15 cells of ``sbin / 2`` = 60 px tall at 1;
+        2.0 halves that.
+    levels_per_octave:
+        Pyramid levels per octave; ``None``: the model's ``interval`` (10). Fewer levels are
+        proportionally faster and sample scale more coarsely (5: steps of 15% in size).
+    min_height, max_height:
+        Search only pyramid levels whose detection-window height (pixels of the input frame)
+        lies in this range; ``None``: no limit (all levels of voc-release5's pyramid).
+    deformation_window:
+        Largest part displacement from its anchor in cells (voc-release5 ``bounded_dt``: 4);
+        ``None``: unbounded, the exact linear-time distance transform.
+    nms_overlap:
+        voc-release5 non-maximum suppression threshold (intersection over the smaller box).
+    bbox_prediction:
+        Refine boxes with the model's bounding-box regression (``bboxpred``).
+    max_candidates:
+        Keep at most this many best-scoring positions before suppression (bounds the work at
+        very low thresholds).
+    region_heights:
+        Default window-height range for :meth:`DpmDetector.detect_region` and
+        :meth:`DpmDetector.dense_scores`, as fractions of the region's height.
+    workers:
+        Threads that compute pyramid levels concurrently (numpy releases the GIL). Combine
+        ``workers > 1`` with a single-threaded BLAS (``OPENBLAS_NUM_THREADS=1``): both at once
+        oversubscribe the cores.
+    calibration:
+        JSON calibration file; ``None``: ``<model>.calibration.json`` beside the model if it
+        exists, else the detector module's ``DEFAULT_DPM_CALIBRATION``.
+    """
+
+    threshold: float | None = None
+    upscale: float = 1.0
+    levels_per_octave: int | None = None
+    min_height: float | None = None
+    max_height: float | None = None
+    deformation_window: int | None = 4
+    nms_overlap: float = 0.5
+    bbox_prediction: bool = True
+    max_candidates: int = 5000
+    region_heights: tuple[float, float] = (0.4, 1.0)
+    workers: int = 1
+    calibration: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.upscale) and self.upscale > 0):
+            raise ValueError(f"upscale must be a positive number, got {self.upscale}")
+        for name in ("min_height", "max_height"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number or None, got {value}")
+        if (
+            self.min_height is not None
+            and self.max_height is not None
+            and self.min_height > self.max_height
+        ):
+            raise ValueError(
+                f"min_height must not exceed max_height, got {self.min_height} > {self.max_height}"
+            )
+        levels = self.levels_per_octave
+        if levels is not None and (isinstance(levels, bool) or not isinstance(levels, int)):
+            raise ValueError(f"levels_per_octave must be a positive int or None, got {levels}")
+        if levels is not None and levels < 1:
+            raise ValueError(f"levels_per_octave must be positive, got {levels}")
+        window = self.deformation_window
+        if window is not None and (isinstance(window, bool) or not isinstance(window, int)):
+            raise ValueError(f"deformation_window must be a non-negative int or None, got {window}")
+        if window is not None and window < 0:
+            raise ValueError(f"deformation_window must be non-negative, got {window}")
+        if not 0.0 <= self.nms_overlap <= 1.0:
+            raise ValueError(f"nms_overlap must be in [0, 1], got {self.nms_overlap}")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise ValueError(f"workers must be a positive int, got {self.workers}")
+        if self.max_candidates < 1:
+            raise ValueError(f"max_candidates must be positive, got {self.max_candidates}")
+        low, high = self.region_heights
+        if not (0 < low <= high):
+            raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")

@@ -1,0 +1,369 @@
+"""The DPM person detector: voc-release5 detection with a mixture of star models.
+
+``detect`` follows voc-release5 ``imgdetect.m`` / ``pascal_test.m`` / ``bboxpred_rescore.m``:
+the feature pyramid (:mod:`.pyramid`), star-model scores on every root level (:mod:`.scoring`),
+every root position scoring above the threshold as a candidate with its filter boxes, then
+clipping, suppression, bounding-box regression, clipping and suppression (:mod:`.boxes`).
+
+``detect_region`` and ``dense_scores`` score only root windows centred inside a region of
+interest, only at the pyramid levels whose window heights fall in a given range, each level on a
+crop of the frame holding just those windows and the reach of their parts: the cost scales with
+the region and the height range, not with the frame. A crop's cell grid starts at the crop's
+corner, so region scores sample positions up to a cell apart from the full frame's and may
+differ from them by what a shift of a fraction of a cell changes (both are exact DPM scores of
+their windows).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+from tracking.detection.base import DenseScores, Detections
+from tracking.detection.calibration import (
+    LogisticCalibration,
+    calibration_path,
+    load_calibration,
+)
+from tracking.detection.dpm.boxes import Candidates, candidates, postprocess
+from tracking.detection.dpm.config import DpmConfig
+from tracking.detection.dpm.dense import dense_scores
+from tracking.detection.dpm.model import DpmModel, load_dpm_model
+from tracking.detection.dpm.parts import model_part_names
+from tracking.detection.dpm.pyramid import PyramidLevel, level_features, pyramid_levels
+from tracking.detection.dpm.scoring import LevelScores, root_grid, score_level
+from tracking.detection.regions import checked_heights, checked_region, clip_region
+from tracking.types import Box, validate_frame
+
+__all__ = ["DEFAULT_DPM_CALIBRATION", "KNOWN_CALIBRATIONS", "DpmConfig", "DpmDetector"]
+
+# Fitted with our calibration command on 1 frame in 4 of PETS09-S2L1 and TUD-Stadtmitte
+# (244 frames; 1253 positives, 1281 negatives), default options, threshold model.thresh - 1:
+#   python -m tracking.detection.calibrate --detector dpm --model INRIA/inriaperson_final.mat \
+#       --sequences <data>/mot/PETS09-S2L1 <data>/mot/TUD-Stadtmitte --step 4
+# p = 0.5 at a score of 0.086 (the model's threshold, -0.126, gives p = 0.31).
+DEFAULT_DPM_CALIBRATION = LogisticCalibration(
+    a=3.73723,
+    b=-0.320898,
+    source="DPM inriaperson_final.mat, threshold -1.126; fitted on PETS09-S2L1 and "
+    "TUD-Stadtmitte (1 frame in 4)",
+)
+"""Used for a model without a calibration file beside it, none configured and no entry in
+:data:`KNOWN_CALIBRATIONS`; fitted for the INRIA person model (other models' scores are on a
+similar scale but not the same: fit theirs with ``python -m tracking.detection.calibrate``)."""
+
+KNOWN_CALIBRATIONS: Mapping[tuple[str, int], LogisticCalibration] = MappingProxyType(
+    {
+        ("inriaperson", 2): DEFAULT_DPM_CALIBRATION,
+        # VOC2007/person_final.mat, fitted the same way (1145 positives, 8095 negatives, threshold
+        # -2.442); p = 0.5 at a score of -0.296.
+        ("person", 6): LogisticCalibration(
+            a=4.83467,
+            b=1.43075,
+            source="DPM VOC2007 person_final.mat, threshold -2.442; fitted on PETS09-S2L1 and "
+            "TUD-Stadtmitte (1 frame in 4)",
+        ),
+    }
+)
+"""Default calibrations of the voc-release5 person models, by ``(model.name, components)``."""
+
+_HOG_BORDER = 1.5  # root cells a crop needs beyond the parts' reach for exact-enough HOG
+
+
+@dataclass(frozen=True, slots=True)
+class _Plan:
+    """One root level to score: its levels, the image they come from, the positions."""
+
+    root: PyramidLevel
+    levels: tuple[PyramidLevel, ...]  # root level and, for models with parts, its part level
+    corner: tuple[int, int]  # (x, y) of the image in the frame
+    image: np.ndarray
+    rows: tuple[int, int] | None = None  # root positions (padded-map indices); None: all
+    cols: tuple[int, int] | None = None
+
+
+@dataclass(slots=True)
+class DpmDetector:
+    """Person detector running a voc-release5 mixture of star models.
+
+    Parameters
+    ----------
+    model:
+        A loaded model (:func:`~tracking.detection.dpm.model.load_dpm_model`).
+    config:
+        Options; the defaults reproduce voc-release5.
+    calibration:
+        Score-to-probability mapping; ``None``: ``config.calibration``, else the
+        ``<model>.calibration.json`` beside the model file, else the model's entry in
+        :data:`KNOWN_CALIBRATIONS`, else :data:`DEFAULT_DPM_CALIBRATION`.
+
+    Attributes
+    ----------
+    part_names:
+        Named part slots of :attr:`Detections.parts` (:mod:`.parts`).
+    """
+
+    model: DpmModel
+    config: DpmConfig = field(default_factory=DpmConfig)
+    calibration: LogisticCalibration | None = None
+    part_names: tuple[str, ...] = field(init=False)
+    _slots: tuple[tuple[int, ...], ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.part_names, self._slots = model_part_names(self.model)
+        if self.calibration is None:
+            self.calibration = _find_calibration(self.model, self.config)
+
+    @classmethod
+    def from_file(
+        cls, path: str | os.PathLike[str], config: DpmConfig | None = None
+    ) -> DpmDetector:
+        """Load a voc-release5 model file (raises ``ModelFileError``) and wrap it."""
+        return cls(load_dpm_model(path), config or DpmConfig())
+
+    @property
+    def threshold(self) -> float:
+        """The score threshold in use."""
+        t = self.config.threshold
+        return self.model.threshold if t is None else float(t)
+
+    @property
+    def interval(self) -> int:
+        """Pyramid levels per octave in use (``config.levels_per_octave`` or the model's)."""
+        return self.config.levels_per_octave or self.model.interval
+
+    @property
+    def pad(self) -> tuple[int, int]:
+        """Feature-map padding ``(pad_y, pad_x)`` in cells (``getpadding.m``: the max size)."""
+        return self.model.max_size
+
+    # ------------------------------------------------------------------ levels and scoring
+    def _pyramid(self, shape: tuple[int, ...]) -> tuple[PyramidLevel, ...]:
+        model = self.model
+        return pyramid_levels(
+            shape, model.sbin, self.interval, model.extra_octave, self.config.upscale
+        )
+
+    def _root_levels(
+        self, levels: tuple[PyramidLevel, ...], heights: tuple[float | None, float | None]
+    ) -> list[PyramidLevel]:
+        """Levels that can hold a root (``gdetect_parse.m``) with a window height in range."""
+        low = heights[0] if heights[0] is not None else 0.0
+        high = heights[1] if heights[1] is not None else math.inf
+        window_heights = [c.window[0] for c in self.model.components]
+        return [
+            level
+            for level in levels
+            if level.index >= self.interval
+            and any(low <= h * level.cell <= high for h in window_heights)
+        ]
+
+    def _with_parts(self, root: PyramidLevel, levels: tuple[PyramidLevel, ...]) -> tuple:
+        if any(c.parts for c in self.model.components):
+            return (root, levels[root.index - self.interval])
+        return (root,)
+
+    def _run(self, plans: list[_Plan], shared: np.ndarray | None = None) -> list[tuple]:
+        """Score the plans; ``shared``: one image for all plans, features computed once."""
+
+        def score(plan: _Plan, features: dict[int, np.ndarray]) -> LevelScores | None:
+            return score_level(
+                self.model,
+                features,
+                plan.root,
+                self.pad,
+                plan.rows,
+                plan.cols,
+                self.config.deformation_window,
+            )
+
+        jobs: list[Callable[[], object]]
+        if shared is not None:
+            needed = {level.index: level for plan in plans for level in plan.levels}
+            by_factor: dict[float, list[PyramidLevel]] = {}
+            for level in needed.values():
+                by_factor.setdefault(level.factor, []).append(level)
+            features: dict[int, np.ndarray] = {}
+            compute = [
+                (lambda g=group: level_features(shared, g, self.pad))
+                for group in by_factor.values()
+            ]
+            for part in self._map(compute):
+                features.update(part)  # type: ignore[arg-type]
+            jobs = [(lambda p=plan: score(p, features)) for plan in plans]
+        else:
+            jobs = [
+                (lambda p=plan: score(p, level_features(p.image, p.levels, self.pad)))
+                for plan in plans
+            ]
+        results = self._map(jobs)
+        return [(s, plan.corner) for s, plan in zip(results, plans, strict=True) if s is not None]
+
+    def _map(self, jobs: list[Callable[[], object]]) -> list:
+        """Run ``jobs`` in order, on ``config.workers`` threads when there are several."""
+        if self.config.workers > 1 and len(jobs) > 1:
+            with ThreadPoolExecutor(self.config.workers) as pool:
+                return list(pool.map(lambda job: job(), jobs))
+        return [job() for job in jobs]
+
+    def _detections(self, c: Candidates, shape: tuple[int, ...]) -> Detections:
+        c = postprocess(self.model, c, shape, self.config.nms_overlap, self.config.bbox_prediction)
+        parts = np.full((c.scores.size, len(self.part_names), 4), np.nan)
+        for ci, slots in enumerate(self._slots):
+            sel = np.flatnonzero(c.components == ci)
+            if sel.size:
+                parts[sel[:, None], np.array(slots)[None, :]] = c.filters[sel, 1 : 1 + len(slots)]
+        calibration = self.calibration or DEFAULT_DPM_CALIBRATION
+        return Detections(
+            boxes=c.windows,
+            scores=c.scores,
+            probabilities=calibration.probability(c.scores),
+            parts=parts,
+            part_names=self.part_names,
+        )
+
+    # ------------------------------------------------------------------ regions of interest
+    def _region_plans(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None
+    ) -> tuple[Box, list[_Plan]] | None:
+        """Per root level: the crop of the frame it needs and its root positions."""
+        clipped = clip_region(region, frame.shape)
+        if clipped is None:
+            return None
+        if heights is None:
+            low, high = self.config.region_heights
+            heights = (low * clipped.h, high * clipped.h)
+        heights = checked_heights(heights)
+        levels = self._pyramid(frame.shape)
+        frame_h, frame_w = frame.shape[:2]
+        pad_y, pad_x = self.pad
+        window = self.config.deformation_window
+        # parts move up to `window` part cells (half as many root cells) beyond the window
+        reach = (4 if window is None else window) / 2 + _HOG_BORDER
+        comps = self.model.components
+        plans = []
+        for root in self._root_levels(levels, heights):
+            c = root.cell
+            margin_x = max(c_.window[1] / 2 + abs(c_.shift[1]) + reach for c_ in comps) * c
+            margin_y = max(c_.window[0] / 2 + abs(c_.shift[0]) + reach for c_ in comps) * c
+            x0 = max(0, math.floor(clipped.x - margin_x))
+            y0 = max(0, math.floor(clipped.y - margin_y))
+            x1 = min(frame_w, math.ceil(clipped.x + clipped.w + margin_x))
+            y1 = min(frame_h, math.ceil(clipped.y + clipped.h + margin_y))
+            if x1 - x0 < 2 or y1 - y0 < 2:
+                continue
+            # root positions (padded-map indices) whose window centre can lie in the region
+            lo_x = min((clipped.x - x0) / c - k.window[1] / 2 + k.shift[1] for k in comps)
+            hi_x = max(
+                (clipped.x + clipped.w - x0) / c - k.window[1] / 2 + k.shift[1] for k in comps
+            )
+            lo_y = min((clipped.y - y0) / c - k.window[0] / 2 + k.shift[0] for k in comps)
+            hi_y = max(
+                (clipped.y + clipped.h - y0) / c - k.window[0] / 2 + k.shift[0] for k in comps
+            )
+            cells_y = max(math.floor((y1 - y0) * root.factor / root.hog_cell + 0.5) - 2, 0)
+            cells_x = max(math.floor((x1 - x0) * root.factor / root.hog_cell + 0.5) - 2, 0)
+            grid = root_grid(self.model, (cells_y + 2 * pad_y + 2, cells_x + 2 * pad_x + 2))
+            rows = (max(math.ceil(lo_y + pad_y), 0), min(math.floor(hi_y + pad_y) + 1, grid[0]))
+            cols = (max(math.ceil(lo_x + pad_x), 0), min(math.floor(hi_x + pad_x) + 1, grid[1]))
+            if rows[1] <= rows[0] or cols[1] <= cols[0]:
+                continue
+            plans.append(
+                _Plan(
+                    root, self._with_parts(root, levels), (x0, y0), frame[y0:y1, x0:x1], rows, cols
+                )
+            )
+        return clipped, plans
+
+    # ------------------------------------------------------------------ public interface
+    def detect(self, frame: np.ndarray) -> Detections:
+        """People in the whole frame (RGB ``(H, W, 3)`` or grayscale, values 0..255)."""
+        frame = _checked(frame)
+        levels = self._pyramid(frame.shape)
+        roots = self._root_levels(levels, (self.config.min_height, self.config.max_height))
+        plans = [_Plan(r, self._with_parts(r, levels), (0, 0), frame) for r in roots]
+        scored = self._run(plans, shared=frame)
+        found = candidates(
+            self.model, scored, self.pad, self.threshold, limit=self.config.max_candidates
+        )
+        return self._detections(found, frame.shape)
+
+    def detect_region(
+        self,
+        frame: np.ndarray,
+        region: Box,
+        heights: tuple[float, float] | None = None,
+    ) -> Detections:
+        """People whose window centre lies in ``region``, at window heights ``heights``.
+
+        Parameters
+        ----------
+        frame:
+            The whole frame.
+        region:
+            Region of interest; clipped to the frame. A region outside the frame gives no
+            detections.
+        heights:
+            ``(min, max)`` detection-window heights in pixels; default
+            ``config.region_heights`` times the region's height.
+        """
+        frame = _checked(frame)
+        setup = self._region_plans(frame, checked_region(region), heights)
+        if setup is None or not setup[1]:
+            return Detections.empty(self.part_names)
+        clipped, plans = setup
+        found = candidates(
+            self.model,
+            self._run(plans),
+            self.pad,
+            self.threshold,
+            region=clipped,
+            limit=self.config.max_candidates,
+        )
+        return self._detections(found, frame.shape)
+
+    def dense_scores(
+        self,
+        frame: np.ndarray,
+        region: Box,
+        heights: tuple[float, float] | None = None,
+    ) -> DenseScores | None:
+        """Raw scores of every root position and level whose window centre lies in ``region``.
+
+        See :mod:`.dense` for the layout. Returns ``None`` when the region lies outside the
+        frame or no level's window height is in ``heights`` (default: ``config.region_heights``
+        times the region's height).
+        """
+        frame = _checked(frame)
+        setup = self._region_plans(frame, checked_region(region), heights)
+        if setup is None or not setup[1]:
+            return None
+        clipped, plans = setup
+        return dense_scores(
+            self.model, self._run(plans), self.pad, clipped, self.part_names, self._slots
+        )
+
+
+def _checked(frame: object) -> np.ndarray:
+    frame = validate_frame(frame)
+    if frame.dtype == np.bool_ or not (
+        np.issubdtype(frame.dtype, np.integer) or np.issubdtype(frame.dtype, np.floating)
+    ):
+        raise ValueError(f"frame must have an integer or floating dtype, got {frame.dtype}")
+    return frame
+
+
+def _find_calibration(model: DpmModel, config: DpmConfig) -> LogisticCalibration:
+    if config.calibration is not None:
+        return load_calibration(config.calibration)
+    if model.path is not None:
+        candidate = calibration_path(model.path)
+        if candidate.is_file():
+            return load_calibration(candidate)
+    return KNOWN_CALIBRATIONS.get((model.name, len(model.components)), DEFAULT_DPM_CALIBRATION)

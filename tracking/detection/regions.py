@@ -1,0 +1,49 @@
+"""Validation and clipping of regions of interest and height ranges (shared by the detectors)."""
+
+from __future__ import annotations
+
+import math
+
+from tracking.types import Box
+
+__all__ = ["checked_heights", "checked_region", "clip_region"]
+
+
+def checked_region(region: object) -> Box:
+    """``region`` if it is a :class:`Box` with finite coordinates and a positive size.
+
+    Raises
+    ------
+    TypeError
+        If ``region`` is not a ``Box``.
+    ValueError
+        If a coordinate is not finite or the size is not positive.
+    """
+    if not isinstance(region, Box):
+        raise TypeError(f"region must be a tracking.types.Box, got {type(region).__name__}")
+    if not all(math.isfinite(v) for v in (region.x, region.y, region.w, region.h)):
+        raise ValueError(f"region must have finite coordinates, got {region}")
+    if region.w <= 0 or region.h <= 0:
+        raise ValueError(f"region must have a positive size, got {region.w}x{region.h}")
+    return region
+
+
+def clip_region(region: Box, shape: tuple[int, ...]) -> Box | None:
+    """``region`` clipped to a frame of ``shape`` ``(H, W, ...)``; ``None`` if nothing is left."""
+    x1, y1 = max(region.x, 0.0), max(region.y, 0.0)
+    x2 = min(region.x + region.w, float(shape[1]))
+    y2 = min(region.y + region.h, float(shape[0]))
+    if x2 <= x1 or y2 <= y1:
+        return None
+    return Box(x1, y1, x2 - x1, y2 - y1)
+
+
+def checked_heights(heights: object) -> tuple[float, float]:
+    """``(min, max)`` person heights in pixels with ``0 < min <= max``, or ValueError."""
+    try:
+        low, high = (float(h) for h in heights)  # type: ignore[union-attr]
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"heights must be (min, max) in pixels, got {heights!r}") from error
+    if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
+        raise ValueError(f"heights must satisfy 0 < min <= max, got {heights!r}")
+    return low, high

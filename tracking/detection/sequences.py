@@ -1,0 +1,143 @@
+"""MOTChallenge sequences as the detection benchmark and the calibration command read them.
+
+Layout (MOTChallenge 2015): ``<seq>/img1/NNNNNN.jpg`` (frame ``N``, 1-based),
+``<seq>/gt/gt.txt`` and ``<seq>/det/det.txt`` with comma-separated rows
+``frame, id, x, y, w, h, conf, ...`` (pixels, top-left corner, frame 1-based), and an optional
+``seqinfo.ini``.
+
+Ground truth: in MOT15-style ``gt.txt`` the 7th column is a flag, 0 meaning "ignore this row"
+(MOT16+ also puts a class in column 8 and a visibility in column 9; rows whose class is not 1,
+pedestrian, are ignored when the column is present and positive). In the PETS09-S2L1 and
+TUD-Stadtmitte files shipped here every row has flag 1 and class -1, so every row counts.
+"""
+
+from __future__ import annotations
+
+import configparser
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+__all__ = ["MotFormatError", "MotSequence", "read_mot_rows"]
+
+
+class MotFormatError(ValueError):
+    """A MOTChallenge file or folder is missing or malformed."""
+
+
+def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndarray:
+    """Rows of a MOTChallenge text file as a float64 array ``(N, C)``, ``C >= min_columns``.
+
+    Blank lines are skipped; separators may be commas or whitespace.
+
+    Raises
+    ------
+    MotFormatError
+        If the file is missing or a line has fewer than ``min_columns`` numbers, or a value that
+        is not a number; the message names the line.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MotFormatError(f"MOT file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise MotFormatError(f"cannot read {path}: {error}") from error
+    rows: list[list[float]] = []
+    width = None
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        fields = stripped.replace(",", " ").split()
+        try:
+            values = [float(v) for v in fields]
+        except ValueError:
+            raise MotFormatError(
+                f"{path}:{number}: expected numbers 'frame,id,x,y,w,h,conf,...', got {stripped!r}"
+            ) from None
+        if len(values) < min_columns:
+            raise MotFormatError(
+                f"{path}:{number}: expected at least {min_columns} columns, got {len(values)}"
+            )
+        if not all(np.isfinite(values[:min_columns])):
+            raise MotFormatError(f"{path}:{number}: non-finite value in {stripped!r}")
+        width = len(values) if width is None else min(width, len(values))
+        rows.append(values)
+    if not rows:
+        return np.zeros((0, min_columns))
+    return np.array([r[:width] for r in rows], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class MotSequence:
+    """One MOTChallenge sequence folder.
+
+    Attributes
+    ----------
+    path:
+        The sequence folder.
+    name:
+        Its name (``seqinfo.ini`` ``name`` or the folder name).
+    frames:
+        Image files, frame 1 first.
+    gt:
+        Ground-truth boxes per 0-based frame index (``(M, 4)`` ``x, y, w, h``).
+    """
+
+    path: Path
+    name: str
+    frames: tuple[Path, ...]
+    gt: dict[int, np.ndarray] = field(repr=False)
+
+    @classmethod
+    def open(cls, path: str | os.PathLike[str]) -> MotSequence:
+        """Read a sequence folder (frames and ground truth).
+
+        Raises
+        ------
+        MotFormatError
+            If the folder has no ``img1`` frames or no readable ``gt/gt.txt``.
+        """
+        path = Path(path)
+        if not path.is_dir():
+            raise MotFormatError(f"not a MOTChallenge sequence folder: {path}")
+        name = path.name
+        ini = path / "seqinfo.ini"
+        ext = ".jpg"
+        image_dir = "img1"
+        if ini.is_file():
+            parser = configparser.ConfigParser()
+            parser.read(ini, encoding="utf-8")
+            if parser.has_section("Sequence"):
+                name = parser.get("Sequence", "name", fallback=name)
+                ext = parser.get("Sequence", "imExt", fallback=ext)
+                image_dir = parser.get("Sequence", "imDir", fallback=image_dir)
+        frames = tuple(sorted((path / image_dir).glob(f"*{ext}")))
+        if not frames:
+            raise MotFormatError(f"{path}: no frames {image_dir}/*{ext}")
+        rows = read_mot_rows(path / "gt" / "gt.txt")
+        keep = rows[:, 6] != 0  # flag 0: ignore
+        if rows.shape[1] >= 8:
+            keep &= (rows[:, 7] <= 0) | (rows[:, 7] == 1)  # MOT16+: class 1 = pedestrian
+        rows = rows[keep]
+        gt = {i: rows[rows[:, 0] == i + 1, 2:6].copy() for i in range(len(frames))}
+        return cls(path=path, name=name, frames=frames, gt=gt)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    @property
+    def detections_file(self) -> Path:
+        """The public detections, ``det/det.txt``."""
+        return self.path / "det" / "det.txt"
+
+    def read_frame(self, index: int) -> np.ndarray:
+        """Frame ``index`` (0-based) as RGB uint8 ``(H, W, 3)``."""
+        image = cv2.imread(str(self.frames[index]), cv2.IMREAD_COLOR)
+        if image is None:
+            raise MotFormatError(f"cannot decode {self.frames[index]}")
+        return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)

@@ -1,0 +1,164 @@
+"""Every tunable number of the multi-person tracker (DESIGN.md §5), in one frozen object."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from tracking.correlation.config import CorrelationConfig
+
+
+def _appearance_default() -> CorrelationConfig:
+    # RCSK (thesis ch. 2) on grayscale + Color Names, the thesis's proposed features, averaged on
+    # 4-pixel cells and capped at 1600 pixels: a person's appearance in about 0.3 ms per frame.
+    return CorrelationConfig(
+        learner="rcsk",
+        feature="gray+cn",
+        cell_size=4,
+        padding=1.0,
+        learning_rate=0.05,
+        max_patch_area=1600,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class PeopleTrackerConfig:
+    """Parameters of :class:`tracking.people.MultiPersonTracker`.
+
+    Times are in seconds (streams drop frames, so nothing counts frames); lengths are in units
+    of the person's height unless they say pixels.
+
+    Attributes
+    ----------
+    particles:
+        Particles per person (the non-linear root state: centre, log height, velocity).
+    position_noise:
+        Standard deviation of the centre's random acceleration, in heights per second: the
+        process noise of the constant-velocity model, proportional to the person's height.
+    velocity_damping:
+        Per second, the share of the velocity kept (1: pure constant velocity); damping keeps
+        a person without measurements from coasting away.
+    log_height_noise:
+        Standard deviation of the random walk of log height per square-root second.
+    occluded_noise_gain:
+        Factor on the process noise while the person is occluded (its uncertainty grows).
+    detection_sigma:
+        Standard deviations ``(x, y)``, in heights, of a detection's centre about the person's.
+        Detectors place a person's centre more precisely across than along the body: measured
+        on the public detections of PETS09-S2L1 and TUD-Stadtmitte against their ground truth,
+        0.04-0.05 heights across and 0.10-0.12 along.
+    detection_log_height_sigma:
+        Standard deviation of a detection's log height about the person's (measured the same
+        way: 0.17-0.23).
+    clutter:
+        Likelihood floor against a wrong detection (relative to the peak of a matching one):
+        keeps a bad association from collapsing the particles.
+    appearance_weight:
+        Exponent on the appearance likelihood: ``exp(appearance_weight * response)`` at each
+        particle, the response of the person's RCSK tracker (Part I).
+    appearance:
+        The RCSK tracker that models each person's appearance.
+    box_aspect:
+        Width / height of the reported boxes. Detectors pad their boxes by different amounts
+        (the public detections of these sequences are 1.5-1.8 times wider than the people), so
+        the default is the standard pedestrian aspect 0.41 (Dollár, Wojek, Schiele, Perona, PAMI
+        2012, who normalise every pedestrian box to it for evaluation); ``None`` follows the
+        associated detections' aspect.
+    match_iou:
+        Least overlap between a person's predicted box and a detection to associate them (both
+        brought to the aspect 0.41 first).
+    low_confidence:
+        Detections below this calibrated probability are only used to continue existing tracks
+        (second association round), never to start one.
+    birth_confidence:
+        Least calibrated probability of a detection that may start a track.
+    confirm_hits:
+        Associations needed, within ``confirm_window`` seconds of its start, before a track is
+        reported.
+    confirm_window:
+        See ``confirm_hits``; a tentative track not confirmed in time is dropped.
+    max_missing:
+        A confirmed track without an associated detection for this long ends.
+    occluded_max_missing:
+        The same while the track is occluded (the death timeout extends).
+    report_missing:
+        A track is reported only while it lacks detections for at most this long, unless a
+        nearer person covers it (then it is reported, flagged occluded, until it ends); other
+        gaps are carried silently until the track is found again or ends. Boxes predicted
+        through an unexplained gap are rarely on the person, so the default reports none.
+    report_occluded:
+        Report a person that a nearer one covers, flagged occluded, even without a detection.
+    duplicate_iou:
+        Two tracks whose boxes overlap this much are the same person: the younger one ends.
+    occlusion_overlap:
+        Share of a person's box that a nearer person (lower box bottom) must cover for it to be
+        occluded.
+    part_process_noise:
+        Standard deviation of a part's offset random walk per square-root second, in heights.
+    part_measurement_sigma:
+        Standard deviation of a part measurement (DPM part placement), in heights.
+    part_prior_gain:
+        Per second, how strongly a part offset returns to its body-model mean (AR(1)).
+    part_appearance:
+        Follow parts with their own small RCSK trackers when the detector gives no part boxes.
+    full_detection_interval:
+        Seconds between full-frame detections when the tracker runs its own detector; in
+        between, only regions around the tracks are searched.
+    region_margin:
+        Margin, in heights, around a track's box when searching a region of interest.
+    seed:
+        Seed of the particle filter's random generator (runs are reproducible).
+    """
+
+    particles: int = 64
+    position_noise: float = 1.0
+    velocity_damping: float = 0.5
+    log_height_noise: float = 0.05
+    occluded_noise_gain: float = 2.0
+    detection_sigma: tuple[float, float] = (0.05, 0.1)
+    detection_log_height_sigma: float = 0.2
+    clutter: float = 0.05
+    appearance_weight: float = 3.0
+    appearance: CorrelationConfig = field(default_factory=_appearance_default)
+    box_aspect: float | None = 0.41
+    match_iou: float = 0.3
+    low_confidence: float = 0.6
+    birth_confidence: float = 0.6
+    confirm_hits: int = 3
+    confirm_window: float = 1.0
+    max_missing: float = 1.5
+    occluded_max_missing: float = 3.0
+    report_missing: float = 0.0
+    report_occluded: bool = False
+    duplicate_iou: float = 0.7
+    occlusion_overlap: float = 0.3
+    part_process_noise: float = 0.03
+    part_measurement_sigma: float = 0.04
+    part_prior_gain: float = 1.0
+    part_appearance: bool = True
+    full_detection_interval: float = 0.0
+    region_margin: float = 0.5
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.particles < 2:
+            raise ValueError(f"particles must be >= 2, got {self.particles}")
+        if min(self.detection_sigma) <= 0:
+            raise ValueError(f"detection_sigma must be positive, got {self.detection_sigma}")
+        positive = (
+            "position_noise",
+            "log_height_noise",
+            "detection_log_height_sigma",
+            "part_measurement_sigma",
+        )
+        for name in positive:
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("match_iou", "duplicate_iou", "occlusion_overlap"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in (0, 1], got {getattr(self, name)}")
+        if not 0.0 <= self.velocity_damping <= 1.0:
+            raise ValueError(f"velocity_damping must be in [0, 1], got {self.velocity_damping}")
+        if self.confirm_hits < 1:
+            raise ValueError(f"confirm_hits must be >= 1, got {self.confirm_hits}")
+        if self.max_missing < 0 or self.occluded_max_missing < self.max_missing:
+            raise ValueError("need 0 <= max_missing <= occluded_max_missing")

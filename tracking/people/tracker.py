@@ -1,0 +1,445 @@
+"""The detector-fused Rao-Blackwellized particle filter over people (DESIGN.md §5)."""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tracking.correlation import CorrelationTracker
+from tracking.detection.base import Detections, Detector
+from tracking.features.maps import FeatureMap
+from tracking.filtering import RbpfState, estimate, predict, resample, update
+from tracking.people import parts as part_model
+from tracking.people.association import assign, iou_matrix
+from tracking.people.body import EMBEDDED_BODY, BodyModel
+from tracking.people.config import PeopleTrackerConfig
+from tracking.people.likelihoods import detection_log_likelihood
+from tracking.people.motion import CX, CY, LOG_H, ROOT_DIM, VX, VY, boxes_from_roots, propagate
+from tracking.people.occlusion import hidden_points, occluders
+from tracking.people.scheduling import DetectionScheduler
+from tracking.tracks import PartEstimate, TrackEstimate
+from tracking.types import Box, validate_frame
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(slots=True)
+class _Track:
+    """What the tracker keeps about one person besides its particles."""
+
+    track_id: int
+    appearance: CorrelationTracker
+    base_height: float  # height when the appearance model was initialised (its scale 1)
+    aspect: float  # width / height, smoothed over associated detections
+    born: float
+    last_seen: float  # time of the last associated detection
+    hits: int = 1
+    confirmed: bool = False
+    occluded: bool = False
+    score: float = 0.0
+    measured: bool = False  # associated in the current frame
+    detection: int = -1  # index of the associated detection in the current frame
+
+
+@dataclass(slots=True)
+class _Frame:
+    """Per-frame bookkeeping of :meth:`MultiPersonTracker.update`."""
+
+    image: np.ndarray
+    timestamp: float
+    detections: Detections
+    boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+
+
+class MultiPersonTracker:
+    """Tracks every person in view, with stable ids, boxes, occlusion flags and body parts.
+
+    Per frame: predict every person's particles and part filters with the real time step;
+    associate detections with people; weigh each particle by the detection likelihood and by
+    the person's RCSK appearance response read at the particle, and by the Kalman evidence of
+    each part measurement; update the part filters; resample; estimate; reason about
+    occlusion; learn appearances; start, confirm and end tracks (DESIGN.md §5).
+
+    Parameters
+    ----------
+    config:
+        Every parameter, with documented defaults.
+    detector:
+        Runs when :meth:`update` gets no detections (full frame or regions of interest, on the
+        configured schedule). ``None``: detections must be handed in every frame.
+    body:
+        The body model; by default the detector's (a DPM model's parts) or the embedded one.
+    """
+
+    def __init__(
+        self,
+        config: PeopleTrackerConfig | None = None,
+        detector: Detector | None = None,
+        body: BodyModel | None = None,
+    ) -> None:
+        self.config = config or PeopleTrackerConfig()
+        self._detector = detector
+        self._body = body or EMBEDDED_BODY
+        self._features = FeatureMap.from_config(self.config.appearance)
+        self._rng = np.random.default_rng(self.config.seed)
+        self._scheduler = DetectionScheduler(detector, self.config) if detector else None
+        self.reset()
+
+    @property
+    def part_names(self) -> tuple[str, ...]:
+        return self._body.names
+
+    def reset(self) -> None:
+        """Forget every person; ids start again at 1."""
+        self._tracks: list[_Track] = []
+        self._state: RbpfState | None = None
+        self._next_id = 1
+        self._frame_shape: tuple[int, ...] | None = None
+        self._last_timestamp: float | None = None
+        if self._scheduler is not None:
+            self._scheduler.reset()
+
+    # -- the frame step ------------------------------------------------------------------------
+
+    def update(
+        self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
+    ) -> tuple[TrackEstimate, ...]:
+        """Track the people of one frame.
+
+        Parameters
+        ----------
+        frame:
+            RGB uint8 ``(H, W, 3)``.
+        timestamp:
+            Capture time in seconds; must not go backwards.
+        detections:
+            The frame's detections (public, or from an upstream detector); ``None`` runs the
+            tracker's own detector.
+
+        Raises
+        ------
+        ValueError
+            For a malformed frame, a timestamp before the previous one, or no detections and no
+            detector.
+        """
+        frame = validate_frame(frame)
+        self._features.check_frame(frame)
+        timestamp = float(timestamp)
+        if not math.isfinite(timestamp):
+            raise ValueError(f"timestamp must be a finite number of seconds, got {timestamp}")
+        if self._last_timestamp is not None and timestamp < self._last_timestamp:
+            raise ValueError(
+                f"timestamp {timestamp:.3f} s is before the previous frame's "
+                f"{self._last_timestamp:.3f} s; timestamps must not go backwards"
+            )
+        if self._frame_shape is not None and frame.shape != self._frame_shape:
+            logger.warning(
+                "frame size changed from %s to %s: every track ends and tracking starts again",
+                self._frame_shape,
+                frame.shape,
+            )
+            self.reset()
+        dt = 0.0 if self._last_timestamp is None else timestamp - self._last_timestamp
+        self._frame_shape = frame.shape
+        self._last_timestamp = timestamp
+
+        if self._state is not None:
+            self._predict(dt)
+        if detections is None:
+            if self._scheduler is None:
+                raise ValueError("no detections given and the tracker has no detector")
+            detections = self._scheduler.detect(frame, timestamp, self._predicted_boxes())
+        current = _Frame(frame, timestamp, detections)
+        if self._state is not None:
+            self._associate(current)
+            self._weigh_and_update(current)
+            self._learn(current)
+        self._manage(current)
+        return self._report(current)
+
+    # -- steps ---------------------------------------------------------------------------------
+
+    def _predict(self, dt: float) -> None:
+        c = self.config
+        gain = np.array([c.occluded_noise_gain if t.occluded else 1.0 for t in self._tracks])
+        a, q = part_model.transition(self._body, dt, c)
+        state = self._state
+        self._state = predict(
+            state,
+            lambda p: propagate(
+                p,
+                np.full(len(self._tracks), dt),
+                gain,
+                self._rng,
+                position_noise=c.position_noise,
+                velocity_damping=c.velocity_damping,
+                log_height_noise=c.log_height_noise,
+            ),
+            a,
+            q,
+        )
+
+    def _predicted_boxes(self) -> np.ndarray:
+        if self._state is None:
+            return np.zeros((0, 4))
+        roots, _ = estimate(self._state)
+        aspect = np.array([t.aspect for t in self._tracks])
+        return boxes_from_roots(roots, aspect)
+
+    def _associate(self, current: _Frame) -> None:
+        """Two rounds of optimal assignment on box overlap, confident detections first (the low
+        ones only continue tracks), confirmed tracks before tentative ones in each round.
+
+        Overlap is measured between boxes brought to one aspect ratio around their centres, so a
+        detector's padding (wider boxes than the person) does not count against a match.
+        """
+        c = self.config
+        dets = current.detections
+        overlap = iou_matrix(_normalised(self._predicted_boxes()), _normalised(dets.boxes))
+        for track in self._tracks:
+            track.measured, track.detection = False, -1
+        taken = np.zeros(len(dets), dtype=bool)
+        confident = dets.probabilities >= c.low_confidence
+        confirmed = np.array([t.confirmed for t in self._tracks], dtype=bool)
+        for det_mask in (confident, ~confident):
+            for track_mask in (confirmed, ~confirmed):
+                free = np.array([not t.measured for t in self._tracks], dtype=bool)
+                rows = np.flatnonzero(track_mask & free)
+                cols = np.flatnonzero(det_mask & ~taken)
+                if rows.size == 0 or cols.size == 0:
+                    continue
+                for r, col in assign(overlap[np.ix_(rows, cols)], c.match_iou):
+                    track = self._tracks[rows[r]]
+                    track.measured, track.detection = True, int(cols[col])
+                    taken[cols[col]] = True
+
+    def _weigh_and_update(self, current: _Frame) -> None:
+        c = self.config
+        state = self._state
+        dets = current.detections
+        log_lik = np.zeros(state.weights.shape)
+        roots, _ = estimate(state)
+        for i, track in enumerate(self._tracks):
+            particles = state.particles[i]
+            # Appearance: the person's RCSK response over its search window, read at every
+            # particle (one FFT per person serves all its particles).
+            response = track.appearance.respond(
+                current.image,
+                (float(roots[i, CX]), float(roots[i, CY])),
+                math.exp(roots[i, LOG_H]) / track.base_height,
+            )
+            log_lik[i] += c.appearance_weight * response.at(particles[:, :2])
+            if track.measured:
+                log_lik[i] += detection_log_likelihood(
+                    particles,
+                    dets.boxes[track.detection],
+                    float(dets.probabilities[track.detection]),
+                    sigma=c.detection_sigma,
+                    log_height_sigma=c.detection_log_height_sigma,
+                    clutter=c.clutter,
+                )
+        measurement = part_model.measurements(self._body, self._tracks, dets, state, c)
+        state = update(state, log_lik, **measurement)
+        self._state = resample(state, self._rng)
+        for track in self._tracks:
+            if track.measured:
+                box = dets.boxes[track.detection]
+                if c.box_aspect is None:
+                    track.aspect = 0.8 * track.aspect + 0.2 * float(box[2] / box[3])
+                track.hits += 1
+                track.last_seen = current.timestamp
+                track.score = 0.7 * track.score + 0.3 * float(dets.probabilities[track.detection])
+        current.boxes = self._predicted_boxes()
+        cover = occluders(current.boxes, c.occlusion_overlap)
+        for track, covered in zip(self._tracks, cover.any(axis=1), strict=True):
+            track.occluded = bool(covered)
+
+    def _learn(self, current: _Frame) -> None:
+        """Appearance learning at the estimate, only where a detection confirms the person and
+        nobody covers it (an occluded person stops learning, DESIGN.md §5)."""
+        roots, _ = estimate(self._state)
+        for track, root in zip(self._tracks, roots, strict=True):
+            if track.measured and not track.occluded:
+                track.appearance.learn(
+                    current.image,
+                    (float(root[CX]), float(root[CY])),
+                    math.exp(root[LOG_H]) / track.base_height,
+                )
+
+    def _manage(self, current: _Frame) -> None:
+        """End, merge, confirm and start tracks."""
+        c = self.config
+        t = current.timestamp
+        height, width = current.image.shape[:2]
+        keep = []
+        boxes = (
+            current.boxes if len(current.boxes) == len(self._tracks) else self._predicted_boxes()
+        )
+        for i, track in enumerate(self._tracks):
+            box = boxes[i]
+            cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
+            missing = t - track.last_seen
+            limit = c.occluded_max_missing if track.occluded else c.max_missing
+            if not track.confirmed and track.hits >= c.confirm_hits:
+                track.confirmed = True
+            alive = 0 <= cx < width and 0 <= cy < height
+            if track.confirmed:
+                alive = alive and missing <= limit
+            else:
+                alive = (
+                    alive and t - track.born <= c.confirm_window and missing <= c.confirm_window / 2
+                )
+            keep.append(alive)
+        keep = np.array(keep, dtype=bool)
+        # Duplicates: of two tracks on the same person, the younger ends. Two people crossing
+        # overlap as much, but stand at different depths: a duplicate also has the same bottom
+        # edge and height (within a tenth of the height).
+        if len(self._tracks) > 1:
+            overlap = iou_matrix(boxes, boxes)
+            np.fill_diagonal(overlap, 0.0)
+            bottom = boxes[:, 1] + boxes[:, 3]
+            heights = boxes[:, 3]
+            same_depth = np.abs(bottom[:, None] - bottom[None, :]) < 0.1 * heights[:, None]
+            same_depth &= np.abs(np.log(heights[:, None] / heights[None, :])) < 0.1
+            duplicate = np.triu(overlap > c.duplicate_iou) & same_depth
+            for i, j in zip(*np.nonzero(duplicate), strict=True):
+                younger = i if self._tracks[i].born > self._tracks[j].born else j
+                keep[younger] = False
+        self._remove(~keep)
+        self._start_tracks(current)
+
+    def _start_tracks(self, current: _Frame) -> None:
+        c = self.config
+        dets = current.detections
+        if len(dets) == 0:
+            return
+        taken = np.zeros(len(dets), dtype=bool)
+        for track in self._tracks:
+            if track.measured and 0 <= track.detection < len(dets):
+                taken[track.detection] = True
+        existing = self._predicted_boxes()
+        covered = (
+            iou_matrix(_normalised(dets.boxes), _normalised(existing)).max(axis=1) >= c.match_iou
+            if len(existing)
+            else np.zeros(len(dets), dtype=bool)
+        )
+        height, width = current.image.shape[:2]
+        centre_x = dets.boxes[:, 0] + dets.boxes[:, 2] / 2
+        centre_y = dets.boxes[:, 1] + dets.boxes[:, 3] / 2
+        inside = (centre_x >= 0) & (centre_x < width) & (centre_y >= 0) & (centre_y < height)
+        inside &= (dets.boxes[:, 2] >= 2) & (dets.boxes[:, 3] >= 4)
+        start = np.flatnonzero(
+            ~taken & ~covered & inside & (dets.probabilities >= c.birth_confidence)
+        )
+        for index in start:
+            self._add_track(current, dets.boxes[index], float(dets.probabilities[index]))
+
+    def _add_track(self, current: _Frame, box: np.ndarray, probability: float) -> None:
+        c = self.config
+        x, y, w, h = (float(v) for v in box)
+        appearance = CorrelationTracker(c.appearance, features=self._features)
+        appearance.initialize(current.image, Box(x, y, w, h))
+        n = c.particles
+        roots = np.empty((n, ROOT_DIM))
+        roots[:, CX] = x + w / 2 + self._rng.normal(0, c.detection_sigma[0] * h, n)
+        roots[:, CY] = y + h / 2 + self._rng.normal(0, c.detection_sigma[1] * h, n)
+        roots[:, LOG_H] = math.log(h) + self._rng.normal(0, c.detection_log_height_sigma, n)
+        roots[:, VX] = self._rng.normal(0, 0.5 * h, n)
+        roots[:, VY] = self._rng.normal(0, 0.25 * h, n)
+        mean, cov = part_model.prior(self._body)
+        born = RbpfState.from_prior(roots[None], mean, cov)
+        if self._state is None:
+            self._state = born
+        else:
+            s = self._state
+            self._state = RbpfState(
+                np.concatenate([s.particles, born.particles]),
+                np.concatenate([s.weights, born.weights]),
+                np.concatenate([s.mean, born.mean]),
+                np.concatenate([s.cov, born.cov]),
+            )
+        track = _Track(
+            track_id=self._next_id,
+            appearance=appearance,
+            base_height=h,
+            aspect=w / h if c.box_aspect is None else c.box_aspect,
+            born=current.timestamp,
+            last_seen=current.timestamp,
+            score=probability,
+            measured=True,
+        )
+        track.confirmed = c.confirm_hits <= 1
+        self._next_id += 1
+        self._tracks.append(track)
+
+    def _remove(self, drop: np.ndarray) -> None:
+        if not np.any(drop):
+            return
+        keep = ~drop
+        self._tracks = [t for t, k in zip(self._tracks, keep, strict=True) if k]
+        if not self._tracks:
+            self._state = None
+            return
+        s = self._state
+        self._state = RbpfState(s.particles[keep], s.weights[keep], s.mean[keep], s.cov[keep])
+
+    def _report(self, current: _Frame) -> tuple[TrackEstimate, ...]:
+        if self._state is None:
+            return ()
+        c = self.config
+        roots, _ = estimate(self._state)
+        aspect = np.array([t.aspect for t in self._tracks])
+        boxes = boxes_from_roots(roots, aspect)
+        positions = part_model.positions(self._body, self._state)  # (T, P, 2)
+        cover = occluders(boxes, c.occlusion_overlap)
+        hidden = hidden_points(positions, cover, boxes)
+        height, width = current.image.shape[:2]
+        outside = (
+            (positions[..., 0] < 0)
+            | (positions[..., 0] >= width)
+            | (positions[..., 1] < 0)
+            | (positions[..., 1] >= height)
+        )
+        out = []
+        for i, track in enumerate(self._tracks):
+            missing = current.timestamp - track.last_seen
+            if not track.confirmed or (
+                missing > c.report_missing and not (track.occluded and c.report_occluded)
+            ):
+                continue
+            x, y, w, h = (float(v) for v in boxes[i])
+            parts = tuple(
+                PartEstimate(
+                    name=name,
+                    x=float(positions[i, p, 0]),
+                    y=float(positions[i, p, 1]),
+                    box=Box.from_center(
+                        float(positions[i, p, 0]),
+                        float(positions[i, p, 1]),
+                        float(self._body.size[p, 0] * h),
+                        float(self._body.size[p, 1] * h),
+                    ),
+                    visible=not (hidden[i, p] or outside[i, p]),
+                )
+                for p, name in enumerate(self._body.names)
+            )
+            # Confidence fades while the person goes without detections.
+            decay = math.exp(-missing / max(c.max_missing, 1e-6))
+            out.append(
+                TrackEstimate(
+                    track.track_id, Box(x, y, w, h), track.score * decay, track.occluded, parts
+                )
+            )
+        return tuple(out)
+
+
+def _normalised(boxes: np.ndarray, aspect: float = 0.41) -> np.ndarray:
+    """Boxes of the same centre and height with width ``aspect * height``."""
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    width = aspect * boxes[:, 3]
+    return np.stack(
+        [boxes[:, 0] + (boxes[:, 2] - width) / 2, boxes[:, 1], width, boxes[:, 3]], axis=1
+    )
