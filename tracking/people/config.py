@@ -87,6 +87,16 @@ class PeopleTrackerConfig:
         through an unexplained gap are rarely on the person, so the default reports none.
     report_occluded:
         Report a person that a nearer one covers, flagged occluded, even without a detection.
+    reid_memory:
+        Seconds a lost person (a confirmed track that ended for lack of detections) is
+        remembered: a new person who appears within that time where the lost one could have
+        walked, and whom the lost one's appearance model recognises, takes the lost one's id.
+    reid_min_response:
+        Least correlation response of a lost person's RCSK model at a new person for them to
+        be the same person (a perfect match responds about 1).
+    reid_max_speed:
+        Fastest plausible walking speed, in heights per second, bounding where a lost person
+        can have gone.
     duplicate_iou:
         Two tracks whose boxes overlap this much are the same person: the younger one ends.
     occlusion_overlap:
@@ -129,6 +139,9 @@ class PeopleTrackerConfig:
     occluded_max_missing: float = 3.0
     report_missing: float = 0.0
     report_occluded: bool = False
+    reid_memory: float = 6.0
+    reid_min_response: float = 0.5
+    reid_max_speed: float = 1.5
     duplicate_iou: float = 0.7
     occlusion_overlap: float = 0.3
     part_process_noise: float = 0.03

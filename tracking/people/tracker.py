@@ -45,6 +45,15 @@ class _Track:
 
 
 @dataclass(slots=True)
+class _Lost:
+    """A confirmed person whose track ended for lack of detections, kept for re-identification."""
+
+    track: _Track
+    box: np.ndarray  # last estimated box
+    time: float  # when it was lost
+
+
+@dataclass(slots=True)
 class _Frame:
     """Per-frame bookkeeping of :meth:`MultiPersonTracker.update`."""
 
@@ -95,6 +104,7 @@ class MultiPersonTracker:
     def reset(self) -> None:
         """Forget every person; ids start again at 1."""
         self._tracks: list[_Track] = []
+        self._lost: list[_Lost] = []
         self._state: RbpfState | None = None
         self._next_id = 1
         self._frame_shape: tuple[int, ...] | None = None
@@ -215,6 +225,29 @@ class MultiPersonTracker:
                     track = self._tracks[rows[r]]
                     track.measured, track.detection = True, int(cols[col])
                     taken[cols[col]] = True
+        self._reacquire(current, predicted=None, taken=taken, confident=confident)
+
+    def _reacquire(self, current: _Frame, predicted, taken: np.ndarray, confident: np.ndarray):
+        """Third round: a confirmed person who has gone without detections may take a leftover
+        confident detection that is within walking reach of where it was last seen and that
+        its appearance model recognises (its predicted box may have drifted out of overlap)."""
+        c = self.config
+        dets = current.detections
+        boxes = self._predicted_boxes()
+        candidates = []
+        for i, track in enumerate(self._tracks):
+            if track.measured or not track.confirmed:
+                continue
+            for j in np.flatnonzero(confident & ~taken):
+                score = self._recognition(current, track, boxes[i], track.last_seen, dets.boxes[j])
+                if score >= c.reid_min_response:
+                    candidates.append((score, i, int(j)))
+        for _, i, j in sorted(candidates, reverse=True):
+            track = self._tracks[i]
+            if track.measured or taken[j]:
+                continue
+            track.measured, track.detection = True, j
+            taken[j] = True
 
     def _weigh_and_update(self, current: _Frame) -> None:
         c = self.config
@@ -285,13 +318,14 @@ class MultiPersonTracker:
             limit = c.occluded_max_missing if track.occluded else c.max_missing
             if not track.confirmed and track.hits >= c.confirm_hits:
                 track.confirmed = True
-            alive = 0 <= cx < width and 0 <= cy < height
+            inside = 0 <= cx < width and 0 <= cy < height
             if track.confirmed:
-                alive = alive and missing <= limit
+                alive = inside and missing <= limit
+                if inside and not alive:
+                    self._lost.append(_Lost(track, boxes[i].copy(), t))
             else:
-                alive = (
-                    alive and t - track.born <= c.confirm_window and missing <= c.confirm_window / 2
-                )
+                alive = inside and t - track.born <= c.confirm_window
+                alive = alive and missing <= c.confirm_window / 2
             keep.append(alive)
         keep = np.array(keep, dtype=bool)
         # Duplicates: of two tracks on the same person, the younger ends. Two people crossing
@@ -309,6 +343,7 @@ class MultiPersonTracker:
                 younger = i if self._tracks[i].born > self._tracks[j].born else j
                 keep[younger] = False
         self._remove(~keep)
+        self._lost = [lost for lost in self._lost if t - lost.time <= c.reid_memory]
         self._start_tracks(current)
 
     def _start_tracks(self, current: _Frame) -> None:
@@ -340,6 +375,7 @@ class MultiPersonTracker:
     def _add_track(self, current: _Frame, box: np.ndarray, probability: float) -> None:
         c = self.config
         x, y, w, h = (float(v) for v in box)
+        lost = self._recognise(current, box)
         appearance = CorrelationTracker(c.appearance, features=self._features)
         appearance.initialize(current.image, Box(x, y, w, h))
         n = c.particles
@@ -371,9 +407,43 @@ class MultiPersonTracker:
             score=probability,
             measured=True,
         )
-        track.confirmed = c.confirm_hits <= 1
-        self._next_id += 1
+        if lost is not None:
+            # The same person again: the old id, confirmed at once, its history kept.
+            track.track_id, track.confirmed, track.hits = lost.track_id, True, lost.hits
+        else:
+            track.confirmed = c.confirm_hits <= 1
+            self._next_id += 1
         self._tracks.append(track)
+
+    def _recognise(self, current: _Frame, box: np.ndarray) -> _Track | None:
+        """The lost person a new detection most likely is, if any (see :meth:`_recognition`)."""
+        scores = [
+            self._recognition(current, lost.track, lost.box, lost.time, box) for lost in self._lost
+        ]
+        if not scores or max(scores) < self.config.reid_min_response:
+            return None
+        best = self._lost.pop(int(np.argmax(scores)))
+        return best.track
+
+    def _recognition(
+        self,
+        current: _Frame,
+        track: _Track,
+        last_box: np.ndarray,
+        last_time: float,
+        box: np.ndarray,
+    ) -> float:
+        """How strongly ``track``'s appearance model responds at detection ``box``, or ``-inf``
+        when the person cannot have walked from ``last_box`` (at ``last_time``) to there."""
+        c = self.config
+        gap = current.timestamp - last_time
+        cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
+        lx, ly = last_box[0] + last_box[2] / 2, last_box[1] + last_box[3] / 2
+        reach = c.reid_max_speed * last_box[3] * max(gap, 0.1) + 0.5 * last_box[3]
+        if math.hypot(cx - lx, cy - ly) > reach or abs(math.log(box[3] / last_box[3])) > 0.4:
+            return -math.inf
+        response = track.appearance.respond(current.image, (cx, cy), box[3] / track.base_height)
+        return float(response.at(np.array([[cx, cy]]))[0])
 
     def _remove(self, drop: np.ndarray) -> None:
         if not np.any(drop):

@@ -1,0 +1,105 @@
+"""The one object that turns frames into per-frame track states (DESIGN.md §2).
+
+Both the upload worker and the stream worker drive a :class:`FramePipeline`: they hand it frames
+with their capture timestamps (and, optionally, detections from an upstream detector) and get
+:class:`~tracking.tracks.FrameTracks` back. Which tracker runs behind it is the pipeline's
+business: a single object from a first box (thesis Part I), or every person in view (Part II).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from tracking.correlation import CorrelationConfig, CorrelationTracker
+from tracking.detection.base import Detections, Detector
+from tracking.people import MultiPersonTracker, PeopleTrackerConfig
+from tracking.tracks import FrameTracks, TrackEstimate
+from tracking.types import Box
+
+
+@runtime_checkable
+class FramePipeline(Protocol):
+    """Frames in, tracks out, one frame at a time."""
+
+    @property
+    def part_names(self) -> tuple[str, ...]:
+        """Names of the body parts the tracks carry (empty when they carry none)."""
+        ...
+
+    def process(
+        self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
+    ) -> FrameTracks:
+        """Track one RGB frame captured at ``timestamp`` seconds.
+
+        Raises
+        ------
+        ValueError
+            For a malformed frame, a timestamp before the previous one, or detections where
+            the pipeline takes none.
+        """
+        ...
+
+
+class SingleTargetPipeline:
+    """One object followed from its first-frame box by a correlation tracker (thesis Part I).
+
+    The object's track has id 1; its score is the correlation peak, clipped to ``[0, 1]``.
+    """
+
+    def __init__(self, first_box: Box, config: CorrelationConfig | None = None) -> None:
+        self._tracker = CorrelationTracker(config)
+        self._first_box = first_box
+        self._index = 0
+        self._started = False
+
+    @property
+    def part_names(self) -> tuple[str, ...]:
+        return ()
+
+    def process(
+        self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
+    ) -> FrameTracks:
+        if detections is not None:
+            raise ValueError("single-target tracking takes no detections")
+        if not self._started:
+            self._tracker.initialize(frame, self._first_box)
+            self._started = True
+            track = TrackEstimate(1, self._first_box, 1.0, False)
+        else:
+            out = self._tracker.update(frame)
+            track = TrackEstimate(1, out.box, float(np.clip(out.peak, 0.0, 1.0)), False)
+        result = FrameTracks(self._index, float(timestamp), (track,))
+        self._index += 1
+        return result
+
+
+class PeoplePipeline:
+    """Every person in view, with parts and occlusion (thesis Part II, DESIGN.md §5).
+
+    Parameters
+    ----------
+    detector:
+        Runs when a frame comes without detections; ``None`` requires detections every frame.
+    config:
+        The multi-person tracker's parameters.
+    """
+
+    def __init__(
+        self, detector: Detector | None = None, config: PeopleTrackerConfig | None = None
+    ) -> None:
+        self._tracker = MultiPersonTracker(config, detector=detector)
+        self._index = 0
+
+    @property
+    def part_names(self) -> tuple[str, ...]:
+        return self._tracker.part_names
+
+    def process(
+        self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
+    ) -> FrameTracks:
+        tracks = self._tracker.update(frame, timestamp, detections)
+        result = FrameTracks(self._index, float(timestamp), tracks)
+        self._index += 1
+        return result
