@@ -92,8 +92,9 @@ class PeopleTrackerConfig:
         remembered: a new person who appears within that time where the lost one could have
         walked, and whom the lost one's appearance model recognises, takes the lost one's id.
     reid_min_response:
-        Least correlation response of a lost person's RCSK model at a new person for them to
-        be the same person (a perfect match responds about 1).
+        Least recognition score for a new person to be a lost one: the lost person's RCSK
+        response at the new person (a perfect match responds about 1) minus the distance between
+        them in heights.
     reid_max_speed:
         Fastest plausible walking speed, in heights per second, bounding where a lost person
         can have gone.
@@ -140,7 +141,7 @@ class PeopleTrackerConfig:
     report_missing: float = 0.0
     report_occluded: bool = False
     reid_memory: float = 6.0
-    reid_min_response: float = 0.5
+    reid_min_response: float = -0.3
     reid_max_speed: float = 1.5
     duplicate_iou: float = 0.7
     occlusion_overlap: float = 0.3

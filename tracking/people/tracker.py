@@ -433,17 +433,24 @@ class MultiPersonTracker:
         last_time: float,
         box: np.ndarray,
     ) -> float:
-        """How strongly ``track``'s appearance model responds at detection ``box``, or ``-inf``
-        when the person cannot have walked from ``last_box`` (at ``last_time``) to there."""
+        """How likely detection ``box`` is ``track``'s person, last seen at ``last_box``: the
+        track's appearance response at the detection minus the distance walked, in heights.
+        ``-inf`` when the person cannot have walked there since ``last_time``.
+
+        Measured on PETS09-S2L1's re-appearances, distance tells the same person from another
+        much better than the response of a small-patch appearance model (medians 0.42 against
+        0.70 heights; responses 0.23 against 0.18), so distance dominates the score.
+        """
         c = self.config
         gap = current.timestamp - last_time
         cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
         lx, ly = last_box[0] + last_box[2] / 2, last_box[1] + last_box[3] / 2
-        reach = c.reid_max_speed * last_box[3] * max(gap, 0.1) + 0.5 * last_box[3]
-        if math.hypot(cx - lx, cy - ly) > reach or abs(math.log(box[3] / last_box[3])) > 0.4:
+        distance = math.hypot(cx - lx, cy - ly) / last_box[3]
+        reach = c.reid_max_speed * max(gap, 0.1) + 0.5
+        if distance > reach or abs(math.log(box[3] / last_box[3])) > 0.4:
             return -math.inf
         response = track.appearance.respond(current.image, (cx, cy), box[3] / track.base_height)
-        return float(response.at(np.array([[cx, cy]]))[0])
+        return float(response.at(np.array([[cx, cy]]))[0]) - distance
 
     def _remove(self, drop: np.ndarray) -> None:
         if not np.any(drop):
