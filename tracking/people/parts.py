@@ -13,7 +13,7 @@ from tracking.filtering import RbpfState
 from tracking.people.body import BodyModel
 from tracking.people.config import PeopleTrackerConfig
 from tracking.people.motion import CX, CY, LOG_H
-from tracking.people.occlusion import occluders
+from tracking.people.occlusion import hidden_points, occluders
 
 if TYPE_CHECKING:
     from tracking.detection.base import Detections
@@ -58,68 +58,59 @@ def _particle_positions(body: BodyModel, particles: np.ndarray, deviation: np.nd
     return centre + height * (body.mean + deviation)
 
 
-def measurements(
-    body: BodyModel,
-    tracks: list,
-    detections: Detections,
-    state: RbpfState,
-    config: PeopleTrackerConfig,
-) -> dict[str, np.ndarray]:
-    """Keyword arguments of :func:`tracking.filtering.update` for the part placements of each
-    person's associated detection (a DPM detection's part boxes, matched by name); ``{}`` when
-    no detection has parts.
-
-    Every person gets one slot per body part; a part without a measurement (no such part in
-    the detection, or covered by a nearer person, DESIGN.md §5) has infinite noise, which the
-    filter skips.
-    """
-    if detections.parts.shape[1] == 0:
-        return {}
-    index = {name: p for p, name in enumerate(body.names)}
-    columns = [(k, index[n]) for k, n in enumerate(detections.part_names) if n in index]
-    if not columns:
-        return {}
+def from_detections(
+    body: BodyModel, tracks: list, detections: Detections
+) -> tuple[np.ndarray, np.ndarray]:
+    """Part centres ``(T, P, 2)`` from each person's associated detection (a DPM detection's
+    part boxes, matched by name), and which slots hold one ``(T, P)``."""
     people, parts = len(tracks), len(body)
     z = np.zeros((people, parts, 2))
-    noise = np.full((people, parts), np.inf)
-    roots = np.einsum("tn,tnd->td", state.weights, state.particles)
-    heights = np.exp(roots[:, LOG_H])
-    width_height = np.stack([heights * 0.41, heights], axis=1)
-    predicted = np.concatenate([roots[:, [CX, CY]] - width_height / 2, width_height], axis=1)
-    hidden_by = occluders(predicted, config.occlusion_overlap)
-    expected = positions(body, state)
+    found = np.zeros((people, parts), dtype=bool)
+    if detections.parts.shape[1] == 0:
+        return z, found
+    index = {name: p for p, name in enumerate(body.names)}
+    columns = [(k, index[n]) for k, n in enumerate(detections.part_names) if n in index]
     for t, track in enumerate(tracks):
         if not track.measured:
             continue
-        det_parts = detections.parts[track.detection]
+        boxes = detections.parts[track.detection]
         for k, p in columns:
-            box = det_parts[k]
-            if not np.all(np.isfinite(box)):
-                continue
-            centre = box[:2] + box[2:] / 2
-            covered = any(
-                _inside(expected[t, p], predicted[j]) for j in np.flatnonzero(hidden_by[t])
-            )
-            if covered:
-                continue
-            z[t, p] = centre
-            noise[t, p] = (config.part_measurement_sigma * heights[t]) ** 2
-    if not np.any(np.isfinite(noise)):
+            if np.all(np.isfinite(boxes[k])):
+                z[t, p] = boxes[k, :2] + boxes[k, 2:] / 2
+                found[t, p] = True
+    return z, found
+
+
+def hidden(body: BodyModel, state: RbpfState, boxes: np.ndarray, min_overlap: float):
+    """Which parts ``(T, P)`` a nearer person's box covers (they get no measurement and are
+    reported not visible, DESIGN.md §5)."""
+    return hidden_points(positions(body, state), occluders(boxes, min_overlap), boxes)
+
+
+def filter_arguments(
+    body: BodyModel, state: RbpfState, z: np.ndarray, found: np.ndarray, sigma: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Keyword arguments of :func:`tracking.filtering.update` for part measurements ``z``
+    ``(T, P, 2)`` where ``found``; ``{}`` when there is none.
+
+    The measurement of part ``p`` is ``z = centre + h mu_p + h delta_p + e``: linear in the
+    deviation ``delta_p`` with ``H = h I`` and offset ``centre + h mu_p`` per particle, noise
+    ``e`` with a standard deviation of ``sigma`` ``(T,)`` heights (per person). Every person has
+    one slot per part; slots without a measurement carry infinite noise, which the filter skips.
+    """
+    if not np.any(found):
         return {}
+    people, parts = found.shape
+    roots = np.einsum("tn,tnd->td", state.weights, state.particles)
+    variance = (np.asarray(sigma) * np.exp(roots[:, LOG_H])) ** 2  # (T,)
     height = np.exp(state.particles[..., LOG_H])  # (T, N)
-    observation = height[..., None, None, None] * np.eye(2)  # H = h I, (T, N, 1, 2, 2)
-    offset = state.particles[..., None, [CX, CY]] + height[..., None, None] * body.mean
     r = np.zeros((people, 1, parts, 2, 2))
-    r[..., 0, 0] = r[..., 1, 1] = noise[:, None, :]
-    r[~np.isfinite(noise)[:, None, :]] = np.inf
+    r[..., 0, 0] = r[..., 1, 1] = variance[:, None, None]
+    r[~found[:, None, :]] = np.inf
     return {
         "blocks": np.broadcast_to(np.arange(parts), (people, parts)),
         "measurement": z,
-        "observation": observation,
-        "offset": offset,
+        "observation": height[..., None, None, None] * np.eye(2),
+        "offset": state.particles[..., None, [CX, CY]] + height[..., None, None] * body.mean,
         "noise": r,
     }
-
-
-def _inside(point: np.ndarray, box: np.ndarray) -> bool:
-    return bool(box[0] <= point[0] <= box[0] + box[2] and box[1] <= point[1] <= box[1] + box[3])

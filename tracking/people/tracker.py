@@ -19,6 +19,7 @@ from tracking.people.config import PeopleTrackerConfig
 from tracking.people.likelihoods import detection_log_likelihood
 from tracking.people.motion import CX, CY, LOG_H, ROOT_DIM, VX, VY, boxes_from_roots, propagate
 from tracking.people.occlusion import hidden_points, occluders
+from tracking.people.part_trackers import PartTrackers
 from tracking.people.scheduling import DetectionScheduler
 from tracking.tracks import PartEstimate, TrackEstimate
 from tracking.types import Box, validate_frame
@@ -42,6 +43,7 @@ class _Track:
     score: float = 0.0
     measured: bool = False  # associated in the current frame
     detection: int = -1  # index of the associated detection in the current frame
+    parts: PartTrackers | None = None  # per-part appearance, for detectors without parts
 
 
 @dataclass(slots=True)
@@ -93,6 +95,8 @@ class MultiPersonTracker:
         self._detector = detector
         self._body = body or EMBEDDED_BODY
         self._features = FeatureMap.from_config(self.config.appearance)
+        part_config = self.config.part_appearance
+        self._part_features = FeatureMap.from_config(part_config) if part_config else None
         self._rng = np.random.default_rng(self.config.seed)
         self._scheduler = DetectionScheduler(detector, self.config) if detector else None
         self.reset()
@@ -274,7 +278,7 @@ class MultiPersonTracker:
                     log_height_sigma=c.detection_log_height_sigma,
                     clutter=c.clutter,
                 )
-        measurement = part_model.measurements(self._body, self._tracks, dets, state, c)
+        measurement = self._part_measurements(current, state, roots)
         state = update(state, log_lik, **measurement)
         self._state = resample(state, self._rng)
         for track in self._tracks:
@@ -290,17 +294,42 @@ class MultiPersonTracker:
         for track, covered in zip(self._tracks, cover.any(axis=1), strict=True):
             track.occluded = bool(covered)
 
+    def _part_measurements(
+        self, current: _Frame, state: RbpfState, roots: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        """Part measurements: a DPM detection's part placements where the person's detection
+        has them, else the peaks of the person's part trackers; none for covered parts."""
+        c = self.config
+        z, found = part_model.from_detections(self._body, self._tracks, current.detections)
+        heights = np.exp(roots[:, LOG_H])
+        expected = part_model.positions(self._body, state)
+        sigma = np.full(len(self._tracks), c.part_measurement_sigma)
+        for t, track in enumerate(self._tracks):
+            if track.parts is not None and not found[t].any():
+                z[t], found[t] = track.parts.measure(current.image, expected[t], heights[t])
+                sigma[t] = c.part_tracker_sigma
+        boxes = boxes_from_roots(roots, np.array([t.aspect for t in self._tracks]))
+        found &= ~part_model.hidden(self._body, state, boxes, c.occlusion_overlap)
+        return part_model.filter_arguments(self._body, state, z, found, sigma)
+
     def _learn(self, current: _Frame) -> None:
         """Appearance learning at the estimate, only where a detection confirms the person and
-        nobody covers it (an occluded person stops learning, DESIGN.md §5)."""
+        nobody covers it (an occluded person stops learning, DESIGN.md §5); part trackers learn
+        their visible parts."""
         roots, _ = estimate(self._state)
-        for track, root in zip(self._tracks, roots, strict=True):
-            if track.measured and not track.occluded:
-                track.appearance.learn(
-                    current.image,
-                    (float(root[CX]), float(root[CY])),
-                    math.exp(root[LOG_H]) / track.base_height,
-                )
+        boxes = boxes_from_roots(roots, np.array([t.aspect for t in self._tracks]))
+        positions = part_model.positions(self._body, self._state)
+        covered = part_model.hidden(self._body, self._state, boxes, self.config.occlusion_overlap)
+        for i, (track, root) in enumerate(zip(self._tracks, roots, strict=True)):
+            if not track.measured or track.occluded:
+                continue
+            track.appearance.learn(
+                current.image,
+                (float(root[CX]), float(root[CY])),
+                math.exp(root[LOG_H]) / track.base_height,
+            )
+            if track.parts is not None:
+                track.parts.learn(current.image, positions[i], math.exp(root[LOG_H]), ~covered[i])
 
     def _manage(self, current: _Frame) -> None:
         """End, merge, confirm and start tracks."""
@@ -407,6 +436,12 @@ class MultiPersonTracker:
             score=probability,
             measured=True,
         )
+        if c.part_appearance is not None and current.detections.parts.shape[1] == 0:
+            track.parts = PartTrackers(
+                c.part_appearance, self._body, self._part_features, c.part_min_peak
+            )
+            centre = np.array([x + w / 2, y + h / 2])
+            track.parts.initialize(current.image, centre + h * self._body.mean, h)
         if lost is not None:
             # The same person again: the old id, confirmed at once, its history kept.
             track.track_id, track.confirmed, track.hits = lost.track_id, True, lost.hits
