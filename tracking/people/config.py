@@ -129,6 +129,12 @@ class PeopleTrackerConfig:
     part_tracker_sigma:
         Standard deviation, in heights, of a part tracker's measurement: larger than a DPM part
         placement's, since a patch a tenth of a person tall is easily confused.
+    dense_likelihood:
+        When the detector can score densely (the DPM engine), weigh each particle by the
+        detector's calibrated score at its position and height, over a region around the person
+        (the image likelihood of DESIGN.md §5); otherwise only associated detections count.
+        Off by default: with the embedded HOG detector it costs about 0.3 s per person and
+        frame on this machine (measured on the PETS09 video).
     full_detection_interval:
         Seconds between full-frame detections when the tracker runs its own detector; in
         between, only regions around the tracks are searched.
@@ -169,6 +175,7 @@ class PeopleTrackerConfig:
     part_appearance: CorrelationConfig | None = None
     part_min_peak: float = 0.2
     part_tracker_sigma: float = 0.1
+    dense_likelihood: bool = False
     full_detection_interval: float = 0.0
     region_margin: float = 0.5
     seed: int = 0

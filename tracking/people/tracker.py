@@ -16,7 +16,7 @@ from tracking.people import parts as part_model
 from tracking.people.association import assign, iou_matrix
 from tracking.people.body import EMBEDDED_BODY, BodyModel
 from tracking.people.config import PeopleTrackerConfig
-from tracking.people.likelihoods import detection_log_likelihood
+from tracking.people.likelihoods import dense_score_log_likelihood, detection_log_likelihood
 from tracking.people.motion import CX, CY, LOG_H, ROOT_DIM, VX, VY, boxes_from_roots, propagate
 from tracking.people.occlusion import hidden_points, occluders
 from tracking.people.part_trackers import PartTrackers
@@ -278,6 +278,7 @@ class MultiPersonTracker:
                     log_height_sigma=c.detection_log_height_sigma,
                     clutter=c.clutter,
                 )
+        log_lik += self._dense_log_likelihood(current, state)
         measurement = self._part_measurements(current, state, roots)
         state = update(state, log_lik, **measurement)
         self._state = resample(state, self._rng)
@@ -293,6 +294,29 @@ class MultiPersonTracker:
         cover = occluders(current.boxes, c.occlusion_overlap)
         for track, covered in zip(self._tracks, cover.any(axis=1), strict=True):
             track.occluded = bool(covered)
+
+    def _dense_log_likelihood(self, current: _Frame, state: RbpfState) -> np.ndarray:
+        """The detector's calibrated dense scores at every particle (``(T, N)``, zeros when the
+        detector cannot score densely or is not calibrated)."""
+        out = np.zeros(state.weights.shape)
+        c = self.config
+        calibration = getattr(self._detector, "calibration", None)
+        if not c.dense_likelihood or self._detector is None or calibration is None:
+            return out
+        height, width = current.image.shape[:2]
+        for i, (x, y, w, h) in enumerate(self._predicted_boxes()):
+            m = c.region_margin * h
+            x0, y0 = max(x - m, 0.0), max(y - m, 0.0)
+            x1, y1 = min(x + w + m, width), min(y + h + m, height)
+            if x1 - x0 < 2 or y1 - y0 < 2:
+                continue
+            dense = self._detector.dense_scores(current.image, Box(x0, y0, x1 - x0, y1 - y0))
+            if dense is None:
+                continue
+            particles = state.particles[i]
+            raw = dense.lookup(particles[:, [CX, CY]], np.exp(particles[:, LOG_H]))
+            out[i] = dense_score_log_likelihood(raw, calibration.a, calibration.b)
+        return out
 
     def _part_measurements(
         self, current: _Frame, state: RbpfState, roots: np.ndarray
