@@ -1,0 +1,52 @@
+"""pydantic v2 models of everything that crosses a process or network boundary (DESIGN.md §2).
+
+No algorithm code. ``python -m api_schemas.export`` writes the JSON Schema of the public models
+to ``api_schemas/schema.json``.
+"""
+
+from api_schemas.common import BoxModel, ErrorResponse
+from api_schemas.jobs import (
+    ALL_FORMATS,
+    DetectorOptions,
+    JobCreated,
+    JobList,
+    JobOptions,
+    JobProgress,
+    JobState,
+    JobStatus,
+    OutputFormat,
+    PeopleTrackerOptions,
+    ProgressEvent,
+)
+from api_schemas.tracks import (
+    FrameTracksMessage,
+    PartState,
+    TrackState,
+    Trajectories,
+    Trajectory,
+    TrajectoryPoint,
+    VideoInfo,
+)
+
+__all__ = [
+    "ALL_FORMATS",
+    "BoxModel",
+    "DetectorOptions",
+    "ErrorResponse",
+    "FrameTracksMessage",
+    "JobCreated",
+    "JobList",
+    "JobOptions",
+    "JobProgress",
+    "JobState",
+    "JobStatus",
+    "OutputFormat",
+    "PartState",
+    "PeopleTrackerOptions",
+    "ProgressEvent",
+    "TrackState",
+    "Trajectories",
+    "Trajectory",
+    "TrajectoryPoint",
+    "VideoInfo",
+]

@@ -1,4 +1,4 @@
-"""The ``vtrack`` command line."""
+"""The ``vtrack`` command line: ``track`` one target, ``analyze`` a video, ``serve`` the API."""
 
 from __future__ import annotations
 
@@ -80,6 +80,133 @@ def _track(args: argparse.Namespace) -> int:
     return 0
 
 
+def _formats(text: str) -> list[str]:
+    from api_schemas.jobs import OutputFormat
+
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    known = [f.value for f in OutputFormat]
+    unknown = [name for name in names if name not in known]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"formats are a comma-separated list of {','.join(known)}, got {text!r}"
+        )
+    return list(dict.fromkeys(names))
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from api_schemas.jobs import JobOptions
+    from service.analysis import OptionsError, PipelineResources, analyze, publish
+
+    raw: dict = {"formats": args.format, "frame_step": args.frame_step}
+    if args.box is not None:
+        box = args.box
+        raw.update(
+            mode="single_target",
+            first_box={"x": box.x, "y": box.y, "w": box.w, "h": box.h},
+            preset=args.preset,
+        )
+    else:
+        detector: dict = {"name": "dpm" if args.dpm_model else "default"}
+        if args.upscale is not None:
+            detector["upscale"] = args.upscale
+        raw["detector"] = detector
+        if args.detection_interval is not None:
+            raw["tracker"] = {"full_detection_interval": args.detection_interval}
+    try:
+        options = JobOptions.model_validate(raw)
+    except ValidationError as error:
+        print(f"vtrack: {error.errors()[0]['msg']}", file=sys.stderr)
+        return 2
+    resources = PipelineResources(dpm_model=args.dpm_model, color_names=args.w2c)
+    try:
+        source = open_frames(args.source)
+    except FrameSourceError as error:
+        print(f"vtrack: {error}", file=sys.stderr)
+        return 2
+    bar = tqdm(total=source.frame_count or None, unit="frame", disable=args.quiet)
+
+    def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
+        bar.update(frames_read - bar.n)
+        return True
+
+    scratch = args.out_dir / ".vtrack-partial"
+    try:
+        result = analyze(
+            args.source,
+            options,
+            scratch,
+            resources=resources,
+            filename=Path(args.source).name,
+            progress=progress,
+            progress_interval=0.2,
+        )
+    except (FrameSourceError, OptionsError, ValueError) as error:
+        bar.close()
+        print(f"vtrack: {error}", file=sys.stderr)
+        return 2
+    bar.update(result.video.frames_read - bar.n)
+    bar.close()
+    files = publish(result, args.out_dir)
+    scratch.rmdir()
+    for warning in result.warnings:
+        print(f"vtrack: warning: {warning}", file=sys.stderr)
+    rate = result.frames_processed / max(result.seconds, 1e-9)
+    print(
+        f"vtrack: tracked {result.frames_processed} frames in {result.seconds:.1f} s "
+        f"({rate:.1f} frames/s)",
+        file=sys.stderr,
+    )
+    for fmt, path in files.items():
+        print(f"{fmt.value}\t{path}")
+    return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    import logging
+
+    import uvicorn
+    from pydantic import ValidationError
+
+    from service.app import create_app
+    from service.settings import Settings
+
+    overrides = {
+        name: value
+        for name, value in (
+            ("host", args.host),
+            ("port", args.port),
+            ("workers", args.workers),
+            ("data_dir", args.data_dir),
+            ("log_level", args.log_level),
+        )
+        if value is not None
+    }
+    try:
+        settings = Settings(**overrides)
+    except ValidationError as error:
+        for item in error.errors():
+            print(f"vtrack: {item['msg'].removeprefix('Value error, ')}", file=sys.stderr)
+        return 2
+    url = f"http://{settings.host}:{settings.port}"
+    print(
+        f"vtrack: serving on {url} with {settings.workers} workers, data in {settings.data_dir}\n"
+        f"vtrack: open the API docs at {url}/docs (Ctrl-C stops)",
+        file=sys.stderr,
+        flush=True,
+    )
+    logging.basicConfig(level=settings.log_level.upper())
+    uvicorn.run(
+        create_app(settings),
+        host=settings.host,
+        port=settings.port,
+        log_level=settings.log_level.lower(),
+        timeout_graceful_shutdown=10,
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -102,6 +229,60 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
     track.add_argument("--quiet", action="store_true", help="no progress bar")
     track.set_defaults(handler=_track)
+
+    analyze = commands.add_parser(
+        "analyze",
+        help="track every person in a video and write the results (no server)",
+        description="The service's pipeline on one video file, with a progress bar: every "
+        "person in view (or, with --box, one object), written as JSON, MCAP, MOT text and an "
+        "annotated MP4.",
+    )
+    analyze.add_argument("source", help="video file or image folder")
+    analyze.add_argument("--out-dir", type=Path, required=True, help="folder for the results")
+    analyze.add_argument(
+        "--format",
+        type=_formats,
+        default=["json", "mcap", "mot", "mp4"],
+        help="comma-separated results to write: json,mcap,mot,mp4 (default: all)",
+    )
+    analyze.add_argument(
+        "--dpm-model", type=Path, help="detect with this voc-release5 model (.mat) instead"
+    )
+    analyze.add_argument(
+        "--upscale",
+        type=float,
+        help="embedded detector: enlarge frames first (2.0 finds people 40-55 px tall)",
+    )
+    analyze.add_argument(
+        "--detection-interval",
+        type=float,
+        help="seconds between full-frame detections (regions around tracks in between)",
+    )
+    analyze.add_argument("--frame-step", type=int, default=1, help="track every N-th frame")
+    analyze.add_argument(
+        "--box", type=_parse_box, help="follow one object from this first box x,y,w,h instead"
+    )
+    analyze.add_argument(
+        "--preset", default="hog_cn_scale", choices=sorted(PRESETS), help="tracker for --box"
+    )
+    analyze.add_argument("--w2c", type=Path, help="van de Weijer w2c.mat Color Names table")
+    analyze.add_argument("--quiet", action="store_true", help="no progress bar")
+    analyze.set_defaults(handler=_analyze)
+
+    serve = commands.add_parser(
+        "serve",
+        help="start the HTTP service",
+        description="Start the HTTP service. Every setting can also come from a VTRACK_* "
+        "environment variable (see the README); options here win.",
+    )
+    serve.add_argument("--host", help="address to bind (VTRACK_HOST, default 127.0.0.1)")
+    serve.add_argument("--port", type=int, help="port (VTRACK_PORT, default 8000)")
+    serve.add_argument(
+        "--workers", type=int, help="worker processes (VTRACK_WORKERS, default: cores)"
+    )
+    serve.add_argument("--data-dir", type=Path, help="job store and files (VTRACK_DATA_DIR)")
+    serve.add_argument("--log-level", help="debug, info, warning... (VTRACK_LOG_LEVEL)")
+    serve.set_defaults(handler=_serve)
     return parser
 
 

@@ -9,11 +9,33 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+DEFAULT_FPS = 25.0
+"""Frame rate assumed for image folders and videos that declare none."""
+
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm")
 
 
 class FrameSourceError(ValueError):
     """A path that is not a readable video or image folder."""
+
+
+@dataclass(frozen=True, slots=True)
+class TimedFrame:
+    """One decoded frame and where it sits in its video.
+
+    Attributes
+    ----------
+    index:
+        0-based position of the frame in the video (skipped frames count).
+    timestamp:
+        Capture time in seconds from the start of the video: ``index / fps``.
+    image:
+        RGB uint8 ``(H, W, 3)``.
+    """
+
+    index: int
+    timestamp: float
+    image: np.ndarray
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,12 +50,16 @@ class FrameSource:
         Number of frames (as the container reports it for videos; may be approximate).
     fps:
         Frame rate, or ``None`` when unknown (image folders).
+    width, height:
+        Size of the first frame in pixels.
     """
 
     path: Path
     frame_count: int
     fps: float | None
     _images: tuple[Path, ...] = ()
+    width: int = 0
+    height: int = 0
 
     def __iter__(self) -> Iterator[np.ndarray]:
         """RGB uint8 frames ``(H, W, 3)``, in order."""
@@ -48,6 +74,40 @@ class FrameSource:
                 if not ok:
                     break
                 yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+        finally:
+            capture.release()
+
+    @property
+    def timing_fps(self) -> float:
+        """The frame rate that turns frame indices into timestamps."""
+        return self.fps if self.fps and self.fps > 0 else DEFAULT_FPS
+
+    def timed(self, step: int = 1) -> Iterator[TimedFrame]:
+        """Every ``step``-th frame with its index and timestamp (``index / fps``).
+
+        Skipped frames of a video are grabbed, not decoded into RGB, so a larger step is
+        cheaper. A video that stops decoding early (a truncated file) simply ends.
+        """
+        if step < 1:
+            raise ValueError(f"step must be >= 1, got {step}")
+        fps = self.timing_fps
+        if self._images:
+            for index in range(0, len(self._images), step):
+                yield TimedFrame(index, index / fps, read_image(self._images[index]))
+            return
+        capture = cv2.VideoCapture(str(self.path))
+        try:
+            index = 0
+            while True:
+                if index % step:
+                    if not capture.grab():
+                        break
+                else:
+                    ok, bgr = capture.read()
+                    if not ok:
+                        break
+                    yield TimedFrame(index, index / fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+                index += 1
         finally:
             capture.release()
 
@@ -76,14 +136,16 @@ def open_frames(path: str | Path) -> FrameSource:
         images = tuple(sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
         if not images:
             raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
-        return FrameSource(path, len(images), None, images)
+        height, width = read_image(images[0]).shape[:2]
+        return FrameSource(path, len(images), None, images, width=width, height=height)
     capture = cv2.VideoCapture(str(path))
     try:
-        ok, _ = capture.read() if capture.isOpened() else (False, None)
-        if not ok:
+        ok, first = capture.read() if capture.isOpened() else (False, None)
+        if not ok or first is None:
             raise FrameSourceError(f"{path} is not a video OpenCV can decode")
         count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
         fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
     finally:
         capture.release()
-    return FrameSource(path, max(count, 0), fps)
+    height, width = first.shape[:2]
+    return FrameSource(path, max(count, 0), fps, width=width, height=height)

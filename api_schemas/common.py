@@ -1,0 +1,27 @@
+"""Shapes shared by every resource: boxes, points, errors."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class BoxModel(BaseModel):
+    """An axis-aligned box in pixels: top-left corner ``(x, y)`` (0-based) and size ``(w, h)``."""
+
+    model_config = ConfigDict(extra="forbid", title="Box")
+
+    x: float = Field(description="Left edge in pixels, 0-based.")
+    y: float = Field(description="Top edge in pixels, 0-based.")
+    w: float = Field(gt=0, description="Width in pixels.")
+    h: float = Field(gt=0, description="Height in pixels.")
+
+
+class ErrorResponse(BaseModel):
+    """What every 4xx and 5xx answer carries: a sentence saying what went wrong and what to do."""
+
+    detail: str = Field(description="What went wrong, and what to change.")
+    errors: list[dict[str, Any]] | None = Field(
+        default=None, description="For validation errors: each failed check (location, message)."
+    )

@@ -1,0 +1,210 @@
+"""Jobs: what a client sends to create one (options), and what it reads back (status, progress).
+
+Schema families: :class:`JobOptions` is the creation request (the ``options`` part of the
+upload), :class:`JobCreated` the acceptance, :class:`JobStatus` the public view with progress,
+:class:`ProgressEvent` the live event of the progress stream.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from enum import StrEnum
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from api_schemas.common import BoxModel
+
+
+class OutputFormat(StrEnum):
+    """Result formats a job can write."""
+
+    json = "json"
+    """The :class:`~api_schemas.tracks.Trajectories` model."""
+    mcap = "mcap"
+    """Foxglove-ready MCAP: images, annotations and track messages."""
+    mot = "mot"
+    """MOTChallenge text: ``frame,id,x,y,w,h,score,-1,-1,-1``."""
+    mp4 = "mp4"
+    """The video with boxes, ids, parts and trails drawn on it."""
+
+
+ALL_FORMATS = tuple(OutputFormat)
+
+
+class JobState(StrEnum):
+    """Where a job is in its life."""
+
+    queued = "queued"
+    running = "running"
+    succeeded = "succeeded"
+    failed = "failed"
+    cancelled = "cancelled"
+
+    @property
+    def finished(self) -> bool:
+        return self in (JobState.succeeded, JobState.failed, JobState.cancelled)
+
+
+class DetectorOptions(BaseModel):
+    """The person detector of a people-tracking job."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: Literal["default", "dpm"] = Field(
+        default="default",
+        description="'default': the embedded HOG people detector (no model file); 'dpm': the "
+        "deformable part model the service was configured with (VTRACK_DPM_MODEL), which also "
+        "locates body parts.",
+    )
+    upscale: float | None = Field(
+        default=None,
+        gt=0,
+        le=4,
+        description="Embedded detector only: enlarge frames by this factor before detecting. "
+        "People smaller than about 80 px need more than 1.5 (people 40-55 px tall need 2.0), "
+        "at about 2.5 times the cost. None: the detector's default (1.5).",
+    )
+
+
+class PeopleTrackerOptions(BaseModel):
+    """Multi-person tracker parameters; each None keeps the tracker's default."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    particles: int | None = Field(default=None, ge=2, le=1024, description="Particles per person.")
+    full_detection_interval: float | None = Field(
+        default=None,
+        ge=0,
+        le=60,
+        description="Seconds between full-frame detections; in between only regions around "
+        "the tracks are searched. 0: every tracked frame is searched in full.",
+    )
+    region_margin: float | None = Field(
+        default=None, ge=0, le=5, description="Margin, in person heights, of a searched region."
+    )
+    confirm_hits: int | None = Field(
+        default=None, ge=1, le=30, description="Detections needed before a track is reported."
+    )
+    max_missing: float | None = Field(
+        default=None, ge=0, le=60, description="Seconds without detection after which a track ends."
+    )
+    occluded_max_missing: float | None = Field(
+        default=None, ge=0, le=120, description="The same while the person is occluded."
+    )
+    report_occluded: bool | None = Field(
+        default=None, description="Report covered people (flagged occluded) without a detection."
+    )
+    part_appearance: bool | None = Field(
+        default=None, description="Follow body parts with their own small correlation trackers."
+    )
+    seed: int | None = Field(default=None, ge=0, description="Seed of the particle filter.")
+
+
+class JobOptions(BaseModel):
+    """Options of a tracking job: the ``options`` JSON part of ``POST /v1/jobs``.
+
+    Unknown fields are rejected, so a misspelt option fails loudly instead of being ignored.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    mode: Literal["people", "single_target"] = Field(
+        default="people",
+        description="'people': every person in view, with parts and occlusion; 'single_target':"
+        " one object followed from first_box by a correlation tracker.",
+    )
+    first_box: BoxModel | None = Field(
+        default=None, description="single_target only: the object's box in the first frame."
+    )
+    preset: str = Field(
+        default="hog_cn_scale",
+        pattern=r"^[a-z0-9_]+$",
+        description="single_target only: correlation tracker preset (see `vtrack track --help`).",
+    )
+    detector: DetectorOptions = Field(default_factory=DetectorOptions)
+    tracker: PeopleTrackerOptions = Field(default_factory=PeopleTrackerOptions)
+    formats: list[OutputFormat] = Field(
+        default_factory=lambda: list(ALL_FORMATS),
+        min_length=1,
+        description="Results to write. Each costs time: mcap and mp4 encode every frame.",
+    )
+    frame_step: int = Field(
+        default=1,
+        ge=1,
+        le=100,
+        description="Track every frame_step-th frame (1: all). The tracker works in seconds, "
+        "so it follows people across skipped frames; outputs hold the tracked frames only.",
+    )
+
+    @model_validator(mode="after")
+    def _mode_fields(self) -> JobOptions:
+        if self.mode == "single_target" and self.first_box is None:
+            raise ValueError("mode 'single_target' needs first_box: the object's first box")
+        if self.mode == "people" and self.first_box is not None:
+            raise ValueError("first_box is for mode 'single_target'; set mode or drop first_box")
+        if len(set(self.formats)) != len(self.formats):
+            raise ValueError("formats must not repeat a format")
+        return self
+
+
+class JobProgress(BaseModel):
+    """How far a job has come."""
+
+    frames_done: int = Field(ge=0, description="Frames read so far.")
+    frames_total: int | None = Field(
+        default=None, ge=0, description="Frames the container announces (None: unknown)."
+    )
+    fps: float | None = Field(default=None, ge=0, description="Frames processed per second.")
+    fraction: float | None = Field(default=None, ge=0, le=1, description="frames_done / total.")
+
+
+class JobLinks(BaseModel):
+    """Where to go next."""
+
+    status: str = Field(description="This job's status (poll it).")
+    events: str = Field(description="Server-sent events of this job's progress.")
+    results: dict[str, str] = Field(
+        default_factory=dict, description="Result URL per format, once the job has succeeded."
+    )
+
+
+class JobStatus(BaseModel):
+    """The public view of a job."""
+
+    id: str
+    state: JobState
+    created_at: datetime
+    started_at: datetime | None = None
+    finished_at: datetime | None = None
+    progress: JobProgress
+    error: str | None = Field(default=None, description="Why the job failed.")
+    warnings: list[str] = Field(default_factory=list, description="Things worth knowing.")
+    attempts: int = Field(ge=0, description="Times a worker started the job.")
+    video_filename: str | None = None
+    options: JobOptions
+    links: JobLinks
+
+
+class JobCreated(BaseModel):
+    """The answer to an accepted upload (202)."""
+
+    id: str
+    state: JobState
+    status_url: str = Field(description="Poll this for progress and results.")
+    events_url: str = Field(description="Or follow this stream of server-sent events.")
+
+
+class JobList(BaseModel):
+    """Jobs, newest first."""
+
+    jobs: list[JobStatus]
+
+
+class ProgressEvent(BaseModel):
+    """One server-sent event of ``GET /v1/jobs/{id}/events`` (``data:`` line, JSON)."""
+
+    id: str
+    state: JobState
+    progress: JobProgress
+    error: str | None = None

@@ -1,0 +1,101 @@
+"""Trajectories and per-frame track messages: what the pipeline found, at the service edge.
+
+``tracking`` returns plain dataclasses (:mod:`tracking.tracks`); the service converts them to
+these models when it writes results or publishes messages.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from api_schemas.common import BoxModel
+
+
+class PartState(BaseModel):
+    """One body part of a tracked person in one frame."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(description="Stable part name, e.g. 'head', 'left_shoulder'.")
+    x: float = Field(description="Centre of the part, pixels.")
+    y: float = Field(description="Centre of the part, pixels.")
+    box: BoxModel | None = Field(
+        default=None, description="The part's box, when the model has one."
+    )
+    visible: bool = Field(
+        description="False when the part is covered or out of the frame: the position is then "
+        "the model's prediction, not a measurement."
+    )
+
+
+class TrackState(BaseModel):
+    """One tracked object in one frame."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    track_id: int = Field(ge=0, description="Stable id of the object within one video or stream.")
+    box: BoxModel
+    score: float = Field(ge=0, le=1, description="Confidence that the box holds the object.")
+    occluded: bool = Field(description="True while another, nearer object covers it.")
+    parts: list[PartState] = Field(default_factory=list)
+
+
+class FrameTracksMessage(BaseModel):
+    """Everything tracked in one frame: the message of the MCAP ``/tracks`` channel."""
+
+    model_config = ConfigDict(extra="forbid", title="FrameTracks")
+
+    frame_index: int = Field(ge=0, description="0-based index of the frame in its video.")
+    timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")
+    tracks: list[TrackState]
+
+
+class TrajectoryPoint(BaseModel):
+    """One object in one frame, as part of its trajectory."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    frame_index: int = Field(ge=0, description="0-based index of the frame in the video.")
+    timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")
+    box: BoxModel
+    score: float = Field(ge=0, le=1)
+    occluded: bool
+    parts: list[PartState] = Field(default_factory=list)
+
+
+class Trajectory(BaseModel):
+    """One object through the video: the frames where the tracker reported it, in order."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    track_id: int = Field(ge=0)
+    frames: list[TrajectoryPoint]
+
+
+class VideoInfo(BaseModel):
+    """The analysed video."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    filename: str | None = Field(default=None, description="Name of the uploaded file.")
+    width: int = Field(ge=1)
+    height: int = Field(ge=1)
+    fps: float | None = Field(default=None, description="Frame rate the container declares.")
+    frames_announced: int = Field(ge=0, description="Frame count the container declares.")
+    frames_read: int = Field(ge=0, description="Frames that decoded (fewer when truncated).")
+    frame_step: int = Field(ge=1, description="Every frame_step-th frame was tracked.")
+
+
+class Trajectories(BaseModel):
+    """The JSON result of a job: one trajectory per tracked object."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    job_id: str | None = Field(default=None, description="The job that produced it (None: CLI).")
+    mode: Literal["people", "single_target"]
+    video: VideoInfo
+    part_names: list[str] = Field(description="Names of the parts the tracks carry.")
+    frames_processed: int = Field(ge=0, description="Frames the tracker saw.")
+    tracks: list[Trajectory]

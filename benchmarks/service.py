@@ -1,0 +1,163 @@
+"""End-to-end service benchmark: upload-to-result time for a video, as a ratio to its duration.
+
+    python benchmarks/service.py [--video PATH] [--options JSON] [--workers N] [--json]
+
+Starts ``vtrack serve`` (default settings; a temporary data folder) on a loopback port, uploads
+the video (default: the PETS09-S2L1 video of the shared data, 795 frames at 10 fps = 79.5 s)
+with the given job options (default: none, i.e. the service defaults: the embedded detector,
+every frame, all four outputs), follows the job to its end, downloads every result, and reports:
+
+* ``upload_to_result_s``: from the first byte of the upload to the last byte of the last result;
+* ``ratio_to_real_time``: that divided by the video's duration (below 1: faster than real time);
+* the parts: upload, waiting in the queue, tracking, downloads; frames per second of tracking.
+
+One job uses one worker process; ``--workers`` only sets how many the server starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import httpx
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
+DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _video_seconds(path: Path) -> tuple[int, float, float]:
+    capture = cv2.VideoCapture(str(path))
+    frames = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+    fps = capture.get(cv2.CAP_PROP_FPS)
+    capture.release()
+    return frames, fps, frames / fps
+
+
+def _wait(condition, timeout: float, what: str):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.2)
+    raise TimeoutError(f"timed out waiting for {what}")
+
+
+def run(video: Path, options: dict | None, workers: int | None) -> dict:
+    frames, fps, duration = _video_seconds(video)
+    port = _free_port()
+    url = f"http://127.0.0.1:{port}"
+    with tempfile.TemporaryDirectory(prefix="vtrack-bench-") as scratch:
+        env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
+        command = [sys.executable, "-m", "service.cli", "serve", "--port", str(port)]
+        command += ["--data-dir", str(Path(scratch) / "data"), "--log-level", "warning"]
+        if workers:
+            command += ["--workers", str(workers)]
+        log = open(Path(scratch) / "server.log", "w")  # noqa: SIM115 - closed below
+        server = subprocess.Popen(command, cwd=REPO_ROOT, env=env, stdout=log, stderr=log)
+        try:
+
+            def ready():
+                try:
+                    return httpx.get(f"{url}/readyz", timeout=2).status_code == 200
+                except httpx.TransportError:
+                    return False
+
+            _wait(ready, 120, "the server")
+            with httpx.Client(base_url=url, timeout=600) as client:
+                start = time.perf_counter()
+                with video.open("rb") as handle:
+                    files = {"video": (video.name, handle, "video/x-msvideo")}
+                    data = {"options": json.dumps(options)} if options else None
+                    response = client.post("/v1/jobs", files=files, data=data)
+                response.raise_for_status()
+                uploaded = time.perf_counter()
+                job_id = response.json()["id"]
+
+                def finished():
+                    status = client.get(f"/v1/jobs/{job_id}").json()
+                    return status if status["state"] not in ("queued", "running") else None
+
+                status = _wait(finished, 3 * 3600, "the job")
+                done = time.perf_counter()
+                if status["state"] != "succeeded":
+                    raise RuntimeError(f"the job {status['state']}: {status['error']}")
+                sizes = {}
+                for fmt, link in status["links"]["results"].items():
+                    sizes[fmt] = len(client.get(link).content)
+                end = time.perf_counter()
+        finally:
+            server.send_signal(signal.SIGTERM)
+            server.wait(timeout=60)
+            log.close()
+    started = status["started_at"]
+    created = status["created_at"]
+    from datetime import datetime
+
+    queued_s = (datetime.fromisoformat(started) - datetime.fromisoformat(created)).total_seconds()
+    tracking_s = (
+        datetime.fromisoformat(status["finished_at"]) - datetime.fromisoformat(started)
+    ).total_seconds()
+    total = end - start
+    return {
+        "video": video.name,
+        "frames": frames,
+        "video_fps": fps,
+        "video_seconds": round(duration, 3),
+        "options": options or {},
+        "upload_to_result_s": round(total, 2),
+        "ratio_to_real_time": round(total / duration, 3),
+        "upload_s": round(uploaded - start, 2),
+        "queued_s": round(queued_s, 2),
+        "tracking_s": round(tracking_s, 2),
+        "tracking_fps": round(frames / tracking_s, 2),
+        "poll_to_download_s": round(end - done, 2),
+        "result_bytes": sizes,
+        "cpu_count": os.cpu_count(),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--video", type=Path, default=DEFAULT_VIDEO, help="video to upload")
+    parser.add_argument("--options", type=json.loads, help="job options (JSON)")
+    parser.add_argument("--workers", type=int, help="worker processes of the server")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args(argv)
+    figures = run(args.video, args.options, args.workers)
+    if args.json:
+        print(json.dumps(figures))
+        return 0
+    print(f"{figures['video']}: {figures['frames']} frames, {figures['video_seconds']} s of video")
+    print(f"options: {json.dumps(figures['options'])}")
+    rows = [
+        ("upload to result", f"{figures['upload_to_result_s']:.1f} s"),
+        ("ratio to real time", f"{figures['ratio_to_real_time']:.2f}"),
+        ("  upload", f"{figures['upload_s']:.1f} s"),
+        ("  queued", f"{figures['queued_s']:.1f} s"),
+        ("  tracking", f"{figures['tracking_s']:.1f} s ({figures['tracking_fps']:.1f} frames/s)"),
+        ("  downloads", f"{figures['poll_to_download_s']:.1f} s"),
+    ]
+    for name, value in rows:
+        print(f"{name:<22}{value}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,257 @@
+"""The pipeline run behind every job and ``vtrack analyze``: frames in, result files out.
+
+:func:`analyze` drives one :class:`~tracking.pipeline.FramePipeline` over a video, hands every
+tracked frame to the result writers as it is computed, and reports progress. The files are
+written in a scratch folder; :func:`publish` moves them into place only once the run has
+finished, so a partial result is never served as a complete one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
+from api_schemas.tracks import VideoInfo
+from service.convert import frame_message
+from service.frames import FrameSource, open_frames
+from service.outputs import RunSummary, open_writers
+from service.outputs.base import StreamInfo
+from tracking.correlation import PRESETS
+from tracking.detection.base import Detector
+from tracking.detection.factory import make_detector
+from tracking.detection.hog_people import HogPeopleConfig
+from tracking.people import PeopleTrackerConfig
+from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
+from tracking.types import Box, validate_box
+
+log = logging.getLogger(__name__)
+
+ProgressCallback = Callable[[int, int, float | None], bool]
+"""Called with (frames read so far, frames tracked so far, frames tracked per second) at most
+every ``progress_interval`` seconds; returning ``False`` stops the run."""
+
+
+class OptionsError(ValueError):
+    """Job options this service cannot run (unknown preset, no DPM model...)."""
+
+
+class AnalysisStopped(Exception):
+    """The progress callback asked the run to stop (cancelled, or the job is no longer ours)."""
+
+
+@dataclass(frozen=True, slots=True)
+class PipelineResources:
+    """Files the service was configured with (settings), not chosen per job."""
+
+    dpm_model: Path | None = None
+    color_names: Path | None = None
+
+
+@dataclass(slots=True)
+class AnalysisResult:
+    """A finished run: its files (still in the scratch folder until published)."""
+
+    files: dict[OutputFormat, Path]
+    video: VideoInfo
+    frames_processed: int
+    seconds: float
+    warnings: list[str] = field(default_factory=list)
+
+
+# -- options -> pipeline ---------------------------------------------------------------------
+
+
+def people_config(options: JobOptions, resources: PipelineResources) -> PeopleTrackerConfig:
+    base = PeopleTrackerConfig()
+    if resources.color_names is not None:
+        appearance = dataclasses.replace(
+            base.appearance, color_names_path=str(resources.color_names)
+        )
+        base = dataclasses.replace(base, appearance=appearance)
+    overrides = options.tracker.model_dump(exclude_none=True)
+    try:
+        return dataclasses.replace(base, **overrides)
+    except ValueError as error:
+        raise OptionsError(f"tracker options are inconsistent: {error}") from None
+
+
+def job_detector(options: DetectorOptions, resources: PipelineResources) -> Detector:
+    if options.name == "dpm":
+        if resources.dpm_model is None:
+            raise OptionsError(
+                "detector 'dpm' needs a voc-release5 model, and this service has none: set "
+                "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
+            )
+        if options.upscale is not None:
+            raise OptionsError("detector.upscale applies to the 'default' detector only")
+        return make_detector(resources.dpm_model)
+    config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
+    return make_detector("default", config)
+
+
+def check_options(
+    options: JobOptions, resources: PipelineResources, frame_size: tuple[int, int] | None = None
+) -> None:
+    """Raise :class:`OptionsError` for options that could not run; cheap (loads no model).
+
+    ``frame_size`` is ``(width, height)`` of the video, to check a single target's first box.
+    """
+    if options.mode == "single_target":
+        if options.preset not in PRESETS:
+            raise OptionsError(
+                f"unknown preset {options.preset!r}: choose one of {', '.join(sorted(PRESETS))}"
+            )
+        if frame_size is not None and options.first_box is not None:
+            b = options.first_box
+            try:
+                validate_box(Box(b.x, b.y, b.w, b.h), (frame_size[1], frame_size[0]))
+            except ValueError as error:
+                raise OptionsError(f"first_box: {error}") from None
+        return
+    people_config(options, resources)
+    if options.detector.name == "dpm":
+        if resources.dpm_model is None or not resources.dpm_model.is_file():
+            raise OptionsError(
+                "detector 'dpm' needs a voc-release5 model, and this service has none: set "
+                "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
+            )
+        if options.detector.upscale is not None:
+            raise OptionsError("detector.upscale applies to the 'default' detector only")
+
+
+def build_pipeline(options: JobOptions, resources: PipelineResources) -> FramePipeline:
+    """The pipeline the options ask for."""
+    check_options(options, resources)
+    if options.mode == "single_target":
+        config = PRESETS[options.preset]
+        if resources.color_names is not None:
+            config = dataclasses.replace(config, color_names_path=str(resources.color_names))
+        b = options.first_box
+        assert b is not None  # JobOptions guarantees it in this mode
+        return SingleTargetPipeline(Box(b.x, b.y, b.w, b.h), config)
+    return PeoplePipeline(
+        job_detector(options.detector, resources), people_config(options, resources)
+    )
+
+
+# -- the run ---------------------------------------------------------------------------------
+
+
+def analyze(
+    video: str | os.PathLike[str],
+    options: JobOptions,
+    scratch: Path,
+    *,
+    resources: PipelineResources | None = None,
+    job_id: str | None = None,
+    filename: str | None = None,
+    progress: ProgressCallback | None = None,
+    progress_interval: float = 0.5,
+) -> AnalysisResult:
+    """Track ``video`` and write the requested results into ``scratch`` (emptied first).
+
+    Raises
+    ------
+    FrameSourceError
+        The video cannot be decoded.
+    OptionsError
+        Options that cannot run here.
+    AnalysisStopped
+        ``progress`` returned ``False``.
+    ValueError
+        The pipeline rejected a frame or the first box.
+    """
+    resources = resources or PipelineResources()
+    started = time.perf_counter()
+    source = open_frames(video)
+    check_options(options, resources, (source.width, source.height))
+    pipeline = build_pipeline(options, resources)
+    if scratch.exists():
+        shutil.rmtree(scratch)
+    scratch.mkdir(parents=True)
+    info = StreamInfo(
+        width=source.width,
+        height=source.height,
+        fps=source.timing_fps,
+        frame_step=options.frame_step,
+        part_names=tuple(pipeline.part_names),
+        mode=options.mode,
+        job_id=job_id,
+        filename=filename,
+    )
+    writers = open_writers(list(options.formats), scratch, info)
+    processed = frames_read = 0
+    try:
+        last_report = time.perf_counter()
+        for frame in source.timed(options.frame_step):
+            tracks = pipeline.process(frame.image, frame.timestamp)
+            message = frame_message(frame.index, frame.timestamp, tracks.tracks)
+            for writer in writers.values():
+                writer.write(frame, message)
+            processed += 1
+            frames_read = frame.index + 1
+            now = time.perf_counter()
+            if progress is not None and now - last_report >= progress_interval:
+                last_report = now
+                if not progress(frames_read, processed, processed / max(now - started, 1e-9)):
+                    raise AnalysisStopped(f"stopped after {frames_read} frames")
+        summary = _summary(source, options, frames_read, processed, filename)
+        for writer in writers.values():
+            writer.close(summary)
+    except BaseException:
+        for writer in writers.values():
+            writer.abort()
+        raise
+    seconds = time.perf_counter() - started
+    log.info("tracked %d frames in %.1f s", processed, seconds)
+    return AnalysisResult(
+        files={fmt: writer.path for fmt, writer in writers.items()},
+        video=summary.video,
+        frames_processed=processed,
+        seconds=seconds,
+        warnings=summary.warnings,
+    )
+
+
+def _summary(
+    source: FrameSource, options: JobOptions, frames_read: int, processed: int, filename: str | None
+) -> RunSummary:
+    warnings = []
+    if source.fps is None:
+        warnings.append(
+            f"the video declares no frame rate; timestamps assume {source.timing_fps:g} fps"
+        )
+    if source.frame_count and source.frame_count - frames_read >= options.frame_step:
+        warnings.append(
+            f"the video ended after {frames_read} of the {source.frame_count} frames its "
+            "container announces (truncated or damaged file); the frames that decoded were "
+            "tracked"
+        )
+    video = VideoInfo(
+        filename=filename,
+        width=source.width,
+        height=source.height,
+        fps=source.fps,
+        frames_announced=source.frame_count,
+        frames_read=frames_read,
+        frame_step=options.frame_step,
+    )
+    return RunSummary(video=video, frames_processed=processed, warnings=warnings)
+
+
+def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:
+    """Move a finished run's files from its scratch folder into ``folder`` (atomic renames)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    published = {}
+    for fmt, path in result.files.items():
+        target = folder / path.name
+        os.replace(path, target)
+        published[fmt] = target
+    return published

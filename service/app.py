@@ -1,0 +1,115 @@
+"""The ASGI application: ``create_app()`` builds it, the lifespan opens what it owns.
+
+``uvicorn service.app:app`` serves it with every default (settings from ``VTRACK_*``
+environment variables). Nothing happens at import: the job store opens, interrupted jobs are
+requeued and the worker processes start in the lifespan, and stop with it.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+
+from service.jobs.runner import WorkerConfig
+from service.jobs.store import JobStore
+from service.jobs.submit import resources
+from service.jobs.workers import WorkerPool
+from service.metrics import make_registry
+from service.routers import health, jobs, metrics
+from service.settings import Settings
+
+log = logging.getLogger("service")
+
+DESCRIPTION = """Upload a surveillance video, get back who walked where: one trajectory per
+person (box, body parts, confidence, occlusion), as JSON, MCAP (opens in Foxglove), MOTChallenge
+text and an annotated MP4. Jobs run in worker processes and survive a restart of the service.
+"""
+
+
+def _sweep_uploads(settings: Settings, store: JobStore) -> None:
+    """Delete upload files that no job owns (an upload interrupted by a crash)."""
+    if not settings.uploads_dir.is_dir():
+        return
+    for path in settings.uploads_dir.iterdir():
+        job_id = path.name.split(".", 1)[0]
+        if store.get(job_id) is None:
+            path.unlink(missing_ok=True)
+
+
+@asynccontextmanager
+async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+    settings: Settings = app.state.settings or Settings()
+    logging.basicConfig(
+        level=settings.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
+    settings.uploads_dir.mkdir(parents=True, exist_ok=True)
+    settings.results_dir.mkdir(parents=True, exist_ok=True)
+    store = JobStore(settings.database_path)
+    requeued, failed = store.requeue_orphans(settings.max_attempts)
+    if requeued or failed:
+        log.warning(
+            "jobs interrupted by the last stop: %d queued again, %d failed",
+            len(requeued),
+            len(failed),
+        )
+    _sweep_uploads(settings, store)
+    config = WorkerConfig(
+        database_path=settings.database_path,
+        poll_interval=settings.poll_interval,
+        resources=resources(settings),
+        log_level=settings.log_level,
+    )
+    pool = WorkerPool(store, config, settings.workers, settings.job_timeout)
+    pool.start()
+    app.state.settings = settings
+    app.state.store = store
+    app.state.pool = pool
+    app.state.registry = make_registry(store, pool)
+    log.info("data in %s; %d workers", settings.data_dir.resolve(), settings.workers)
+    try:
+        yield
+    finally:
+        pool.stop()
+        store.close()
+        for name in ("pool", "store", "registry"):
+            delattr(app.state, name)
+
+
+async def _validation_error(request: Request, error: Exception) -> JSONResponse:
+    """422 with one sentence naming each bad field, and the checks that failed."""
+    errors = error.errors() if isinstance(error, RequestValidationError) else []
+    problems = [
+        f"{'.'.join(str(p) for p in item.get('loc', ()))}: {item.get('msg')}" for item in errors
+    ]
+    listed = [
+        {"loc": list(item.get("loc", ())), "msg": str(item.get("msg")), "type": item.get("type")}
+        for item in errors
+    ]
+    return JSONResponse(
+        {"detail": "invalid request: " + "; ".join(problems), "errors": listed}, status_code=422
+    )
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The application; ``settings`` default to the environment, read when it starts."""
+    app = FastAPI(
+        title="visual-tracking",
+        version="0.1.0",
+        summary="Multi-person tracking of uploaded surveillance video",
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.include_router(health.router)
+    app.include_router(jobs.router)
+    app.include_router(metrics.router)
+    return app
+
+
+app = create_app()

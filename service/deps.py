@@ -1,0 +1,54 @@
+"""FastAPI dependencies and their aliases: what a route needs, taken from the app's state."""
+
+from __future__ import annotations
+
+import secrets
+from typing import Annotated
+
+from fastapi import Depends, HTTPException, Request, status
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+
+from service.jobs.store import JobStore
+from service.jobs.workers import WorkerPool
+from service.settings import Settings
+
+_bearer = HTTPBearer(auto_error=False, description="The token set in VTRACK_API_TOKEN.")
+
+
+def get_settings(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+def get_store(request: Request) -> JobStore:
+    return request.app.state.store
+
+
+def get_pool(request: Request) -> WorkerPool:
+    return request.app.state.pool
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+StoreDep = Annotated[JobStore, Depends(get_store)]
+PoolDep = Annotated[WorkerPool, Depends(get_pool)]
+
+
+def require_token(
+    settings: SettingsDep,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> None:
+    """When ``VTRACK_API_TOKEN`` is set, the request must carry it as a bearer token."""
+    if settings.api_token is None:
+        return
+    expected = settings.api_token.get_secret_value()
+    if credentials is None or not secrets.compare_digest(
+        credentials.credentials.encode(), expected.encode()
+    ):
+        raise HTTPException(
+            status.HTTP_401_UNAUTHORIZED,
+            "this service needs a token: send the header 'Authorization: Bearer <token>' with "
+            "the token it was configured with (VTRACK_API_TOKEN)",
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+
+
+AuthDep = Depends(require_token)

@@ -1,0 +1,1 @@
+"""Jobs: the SQLite job store and the worker processes that run them."""

@@ -1,0 +1,146 @@
+"""Inside a worker process: claim queued jobs from the store and run them, one at a time.
+
+A worker is started with the "spawn" method (a fresh interpreter, nothing inherited but its
+arguments) and opens its own database connection. Between frames it reports progress, which
+is also where it learns that its job was cancelled or taken away; and it watches its parent:
+when the service process that started it is gone, it stops at once and leaves the job to the
+next service, which requeues it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import signal
+from dataclasses import dataclass
+from pathlib import Path
+
+from api_schemas.jobs import JobOptions, JobState
+from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
+from service.frames import FrameSourceError
+from service.jobs.store import JobRecord, JobStore
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class WorkerConfig:
+    """What a worker process needs (picklable: it crosses the spawn boundary)."""
+
+    database_path: Path
+    poll_interval: float
+    resources: PipelineResources
+    log_level: str = "info"
+    progress_interval: float = 0.5
+
+
+class Orphaned(Exception):
+    """The service process that started this worker is gone."""
+
+
+def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
+    """Entry point of a worker process: run jobs until ``stop`` is set or the parent dies."""
+    # Ctrl-C in a terminal reaches the whole process group: the service decides what happens
+    # to running jobs (it requeues them), so the worker ignores it.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.basicConfig(
+        level=config.log_level.upper(),
+        format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",
+    )
+    store = JobStore(config.database_path)
+    pid = os.getpid()
+    ready.set()
+    try:
+        while not stop.is_set():
+            if os.getppid() != parent_pid:
+                log.warning("the service process is gone; this worker stops")
+                return
+            job = store.claim(pid)
+            if job is None:
+                stop.wait(config.poll_interval)
+                continue
+            try:
+                run_job(store, job, config, parent_pid)
+            except Orphaned:
+                log.warning("the service process is gone; job %s is left to be requeued", job.id)
+                return
+    finally:
+        store.close()
+
+
+def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: int) -> None:
+    """Run one claimed job to its end state."""
+    pid = os.getpid()
+    log.info("job %s: attempt %d starts", job.id, job.attempts)
+    scratch = job.result_dir / f".attempt-{job.attempts}"
+    reported = 0
+
+    def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
+        nonlocal reported
+        if os.getppid() != parent_pid:
+            raise Orphaned
+        new = frames_processed - reported
+        reported = frames_processed
+        return store.report_progress(job, pid, frames_read, fps, new)
+
+    try:
+        options = JobOptions.model_validate(job.options)
+        result = analyze(
+            job.video_path,
+            options,
+            scratch,
+            resources=config.resources,
+            job_id=job.id,
+            filename=job.video_filename,
+            progress=progress,
+            progress_interval=config.progress_interval,
+        )
+    except Orphaned:
+        raise
+    except AnalysisStopped:
+        _stopped(store, job, scratch)
+        return
+    except (FrameSourceError, OptionsError, ValueError) as error:
+        store.finish(job, pid, JobState.failed, error=f"the job could not run: {error}")
+        log.warning("job %s: failed: %s", job.id, error)
+        shutil.rmtree(scratch, ignore_errors=True)
+        return
+    except Exception as error:
+        log.exception("job %s: internal error", job.id)
+        store.finish(
+            job,
+            pid,
+            JobState.failed,
+            error=f"internal error while tracking ({type(error).__name__}: {error})",
+        )
+        shutil.rmtree(scratch, ignore_errors=True)
+        return
+    fps = result.frames_processed / max(result.seconds, 1e-9)
+    if not progress(result.video.frames_read, result.frames_processed, fps):
+        _stopped(store, job, scratch)
+        return
+    files = publish(result, job.result_dir)
+    for stale in job.result_dir.glob(".attempt-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    store.finish(
+        job,
+        pid,
+        JobState.succeeded,
+        results={fmt.value: path.name for fmt, path in files.items()},
+        warnings=result.warnings,
+        frames_total=result.video.frames_read,
+    )
+    log.info(
+        "job %s: succeeded, %d frames in %.1f s", job.id, result.frames_processed, result.seconds
+    )
+
+
+def _stopped(store: JobStore, job: JobRecord, scratch: Path) -> None:
+    """The run stopped because the job was cancelled or is no longer this attempt's."""
+    if store.cancel_requested(job.id):
+        store.finish(job, os.getpid(), JobState.cancelled, error="cancelled on request")
+        log.info("job %s: cancelled", job.id)
+    else:
+        log.warning("job %s: no longer this worker's (failed or requeued elsewhere)", job.id)
+    shutil.rmtree(scratch, ignore_errors=True)

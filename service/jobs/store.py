@@ -1,0 +1,377 @@
+"""The job store: one SQLite database file (WAL mode) beside the uploads and results.
+
+Accepted jobs survive a restart: the API process writes a job when the upload is accepted,
+worker processes claim queued jobs, report progress and finish them, each through its own
+connection. Every write a worker makes is fenced by the job's attempt number and the worker's
+pid, so a worker left over from a previous service process can never overwrite the state of the
+attempt that replaced it.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from api_schemas.jobs import JobState
+
+DURATION_BUCKETS = (1.0, 5.0, 15.0, 60.0, 300.0, 900.0, 3600.0, 14400.0)
+"""Upper bounds (seconds) of the job processing-time histogram kept in the counters table."""
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS jobs (
+    id TEXT PRIMARY KEY,
+    state TEXT NOT NULL,
+    options TEXT NOT NULL,
+    video_filename TEXT,
+    video_path TEXT NOT NULL,
+    result_dir TEXT NOT NULL,
+    created_at REAL NOT NULL,
+    started_at REAL,
+    finished_at REAL,
+    frames_done INTEGER NOT NULL DEFAULT 0,
+    frames_total INTEGER,
+    fps REAL,
+    error TEXT,
+    warnings TEXT NOT NULL DEFAULT '[]',
+    results TEXT NOT NULL DEFAULT '{}',
+    attempts INTEGER NOT NULL DEFAULT 0,
+    cancel_requested INTEGER NOT NULL DEFAULT 0,
+    worker_pid INTEGER
+);
+CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs (state, created_at);
+CREATE TABLE IF NOT EXISTS counters (name TEXT PRIMARY KEY, value REAL NOT NULL);
+"""
+
+
+@dataclass(frozen=True, slots=True)
+class JobRecord:
+    """One row of the jobs table."""
+
+    id: str
+    state: JobState
+    options: dict[str, Any]
+    video_filename: str | None
+    video_path: Path
+    result_dir: Path
+    created_at: float
+    started_at: float | None
+    finished_at: float | None
+    frames_done: int
+    frames_total: int | None
+    fps: float | None
+    error: str | None
+    warnings: list[str] = field(default_factory=list)
+    results: dict[str, str] = field(default_factory=dict)
+    attempts: int = 0
+    cancel_requested: bool = False
+    worker_pid: int | None = None
+
+    @classmethod
+    def from_row(cls, row: sqlite3.Row) -> JobRecord:
+        return cls(
+            id=row["id"],
+            state=JobState(row["state"]),
+            options=json.loads(row["options"]),
+            video_filename=row["video_filename"],
+            video_path=Path(row["video_path"]),
+            result_dir=Path(row["result_dir"]),
+            created_at=row["created_at"],
+            started_at=row["started_at"],
+            finished_at=row["finished_at"],
+            frames_done=row["frames_done"],
+            frames_total=row["frames_total"],
+            fps=row["fps"],
+            error=row["error"],
+            warnings=json.loads(row["warnings"]),
+            results=json.loads(row["results"]),
+            attempts=row["attempts"],
+            cancel_requested=bool(row["cancel_requested"]),
+            worker_pid=row["worker_pid"],
+        )
+
+
+class JobStore:
+    """Jobs in a SQLite file. Safe to share between threads of one process; every process
+    (the API, each worker) opens its own."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.RLock()
+        self._db = sqlite3.connect(
+            self.path, timeout=30.0, isolation_level=None, check_same_thread=False
+        )
+        self._db.row_factory = sqlite3.Row
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._db.execute("PRAGMA busy_timeout=30000")
+        with self._lock:
+            self._db.executescript(_SCHEMA)
+
+    def close(self) -> None:
+        with self._lock:
+            self._db.close()
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """A write transaction that takes the database lock at once (no upgrade deadlocks)."""
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._db
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+            self._db.execute("COMMIT")
+
+    # -- reads ---------------------------------------------------------------------------------
+
+    def get(self, job_id: str) -> JobRecord | None:
+        with self._lock:
+            row = self._db.execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        return JobRecord.from_row(row) if row else None
+
+    def list(self, limit: int = 100, state: JobState | None = None) -> list[JobRecord]:
+        query = "SELECT * FROM jobs"
+        args: tuple[Any, ...] = ()
+        if state is not None:
+            query += " WHERE state = ?"
+            args = (state.value,)
+        query += " ORDER BY created_at DESC, rowid DESC LIMIT ?"
+        with self._lock:
+            rows = self._db.execute(query, (*args, limit)).fetchall()
+        return [JobRecord.from_row(row) for row in rows]
+
+    def running(self) -> list[JobRecord]:
+        return self.list(limit=1_000_000, state=JobState.running)
+
+    def counts_by_state(self) -> dict[JobState, int]:
+        with self._lock:
+            rows = self._db.execute("SELECT state, COUNT(*) FROM jobs GROUP BY state").fetchall()
+        counts = dict.fromkeys(JobState, 0)
+        counts.update({JobState(state): n for state, n in rows})
+        return counts
+
+    def counters(self) -> dict[str, float]:
+        with self._lock:
+            rows = self._db.execute("SELECT name, value FROM counters").fetchall()
+        return {name: value for name, value in rows}
+
+    # -- the API's writes ----------------------------------------------------------------------
+
+    def create(
+        self,
+        job_id: str,
+        options: dict[str, Any],
+        video_path: Path,
+        result_dir: Path,
+        video_filename: str | None = None,
+        frames_total: int | None = None,
+    ) -> JobRecord:
+        with self._lock:
+            self._db.execute(
+                "INSERT INTO jobs (id, state, options, video_filename, video_path, result_dir,"
+                " created_at, frames_total) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    job_id,
+                    JobState.queued.value,
+                    json.dumps(options),
+                    video_filename,
+                    str(video_path),
+                    str(result_dir),
+                    time.time(),
+                    frames_total,
+                ),
+            )
+        record = self.get(job_id)
+        if record is None:  # pragma: no cover - the insert just happened
+            raise RuntimeError(f"job {job_id} vanished after its insert")
+        return record
+
+    def request_cancel(self, job_id: str) -> JobState | None:
+        """Cancel a queued job at once, or ask a running one to stop; returns the new state
+        (``running`` until its worker stops), ``None`` for an unknown job."""
+        with self._transaction() as db:
+            row = db.execute("SELECT state FROM jobs WHERE id = ?", (job_id,)).fetchone()
+            if row is None:
+                return None
+            state = JobState(row[0])
+            if state == JobState.queued:
+                db.execute(
+                    "UPDATE jobs SET state = ?, finished_at = ?, cancel_requested = 1,"
+                    " error = 'cancelled before it started' WHERE id = ?",
+                    (JobState.cancelled.value, time.time(), job_id),
+                )
+                state = JobState.cancelled
+            elif state == JobState.running:
+                db.execute("UPDATE jobs SET cancel_requested = 1 WHERE id = ?", (job_id,))
+            return state
+
+    def delete(self, job_id: str) -> bool:
+        with self._lock:
+            cursor = self._db.execute("DELETE FROM jobs WHERE id = ?", (job_id,))
+        return cursor.rowcount > 0
+
+    def requeue_orphans(self, max_attempts: int) -> tuple[list[str], list[str]]:
+        """Jobs left running by a service that stopped: queued again, or failed when they have
+        been started ``max_attempts`` times. Call before any worker of this service starts."""
+        requeued, failed = [], []
+        with self._transaction() as db:
+            rows = db.execute(
+                "SELECT id, attempts FROM jobs WHERE state = ?", (JobState.running.value,)
+            ).fetchall()
+            for job_id, attempts in rows:
+                if attempts >= max_attempts:
+                    db.execute(
+                        "UPDATE jobs SET state = ?, finished_at = ?, error = ?,"
+                        " worker_pid = NULL WHERE id = ?",
+                        (
+                            JobState.failed.value,
+                            time.time(),
+                            f"the service stopped while this job ran, {attempts} times; "
+                            "it is not started again",
+                            job_id,
+                        ),
+                    )
+                    failed.append(job_id)
+                else:
+                    db.execute(
+                        "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0,"
+                        " fps = NULL WHERE id = ?",
+                        (JobState.queued.value, job_id),
+                    )
+                    requeued.append(job_id)
+        return requeued, failed
+
+    def fail_running(self, job_id: str, reason: str, worker_pid: int | None = None) -> bool:
+        """Fail a running job from outside its worker (crash, time limit)."""
+        query = "UPDATE jobs SET state = ?, finished_at = ?, error = ? WHERE id = ? AND state = ?"
+        args: tuple[Any, ...] = (
+            JobState.failed.value,
+            time.time(),
+            reason,
+            job_id,
+            JobState.running.value,
+        )
+        if worker_pid is not None:
+            query += " AND worker_pid = ?"
+            args = (*args, worker_pid)
+        with self._lock:
+            cursor = self._db.execute(query, args)
+            if cursor.rowcount:
+                self._count_finished(JobState.failed, job_id)
+        return cursor.rowcount > 0
+
+    def requeue_running(self, job_id: str, worker_pid: int) -> bool:
+        """Put a job back in the queue (its worker was stopped by a clean shutdown)."""
+        with self._lock:
+            cursor = self._db.execute(
+                "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0, fps = NULL"
+                " WHERE id = ? AND state = ? AND worker_pid = ?",
+                (JobState.queued.value, job_id, JobState.running.value, worker_pid),
+            )
+        return cursor.rowcount > 0
+
+    # -- a worker's writes ---------------------------------------------------------------------
+
+    def claim(self, worker_pid: int) -> JobRecord | None:
+        """Take the oldest queued job: it becomes running, attempted once more, owned by
+        ``worker_pid``."""
+        with self._transaction() as db:
+            row = db.execute(
+                "SELECT id FROM jobs WHERE state = ? ORDER BY created_at, rowid LIMIT 1",
+                (JobState.queued.value,),
+            ).fetchone()
+            if row is None:
+                return None
+            db.execute(
+                "UPDATE jobs SET state = ?, started_at = ?, attempts = attempts + 1,"
+                " worker_pid = ?, frames_done = 0, fps = NULL WHERE id = ?",
+                (JobState.running.value, time.time(), worker_pid, row[0]),
+            )
+        return self.get(row[0])
+
+    def report_progress(
+        self, job: JobRecord, worker_pid: int, frames_done: int, fps: float | None, new_frames: int
+    ) -> bool:
+        """Record progress; ``False`` when the job is no longer this attempt's or is to stop
+        (cancelled, failed from outside, requeued)."""
+        with self._transaction() as db:
+            cursor = db.execute(
+                "UPDATE jobs SET frames_done = ?, fps = ? WHERE id = ? AND attempts = ?"
+                " AND worker_pid = ? AND state = ? AND cancel_requested = 0",
+                (frames_done, fps, job.id, job.attempts, worker_pid, JobState.running.value),
+            )
+            if cursor.rowcount and new_frames:
+                self._add_counter("frames_processed", new_frames)
+        return cursor.rowcount > 0
+
+    def cancel_requested(self, job_id: str) -> bool:
+        with self._lock:
+            row = self._db.execute(
+                "SELECT cancel_requested FROM jobs WHERE id = ?", (job_id,)
+            ).fetchone()
+        return row is None or bool(row[0])
+
+    def finish(
+        self,
+        job: JobRecord,
+        worker_pid: int,
+        state: JobState,
+        *,
+        error: str | None = None,
+        results: dict[str, str] | None = None,
+        warnings: list[str] | None = None,
+        frames_total: int | None = None,
+    ) -> bool:
+        """End the worker's attempt; ``False`` when the job was no longer its own."""
+        with self._transaction() as db:
+            cursor = db.execute(
+                "UPDATE jobs SET state = ?, finished_at = ?, error = ?, results = ?, warnings = ?,"
+                " frames_total = COALESCE(?, frames_total) WHERE id = ? AND attempts = ?"
+                " AND worker_pid = ? AND state = ?",
+                (
+                    state.value,
+                    time.time(),
+                    error,
+                    json.dumps(results or {}),
+                    json.dumps(warnings or []),
+                    frames_total,
+                    job.id,
+                    job.attempts,
+                    worker_pid,
+                    JobState.running.value,
+                ),
+            )
+            if cursor.rowcount:
+                self._count_finished(state, job.id)
+        return cursor.rowcount > 0
+
+    # -- counters ------------------------------------------------------------------------------
+
+    def _count_finished(self, state: JobState, job_id: str) -> None:
+        row = self._db.execute(
+            "SELECT started_at, finished_at FROM jobs WHERE id = ?", (job_id,)
+        ).fetchone()
+        self._add_counter(f"jobs_{state.value}", 1)
+        if row and row[0] and row[1]:
+            seconds = row[1] - row[0]
+            self._add_counter("processing_seconds", seconds)
+            self._add_counter("processing_count", 1)
+            for bound in DURATION_BUCKETS:
+                if seconds <= bound:
+                    self._add_counter(f"processing_le_{bound:g}", 1)
+
+    def _add_counter(self, name: str, delta: float) -> None:
+        self._db.execute(
+            "INSERT INTO counters (name, value) VALUES (?, ?)"
+            " ON CONFLICT (name) DO UPDATE SET value = value + excluded.value",
+            (name, delta),
+        )

@@ -1,0 +1,106 @@
+"""Accepting an upload as a job: receive, check the options, check the video, record it."""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from pathlib import Path
+
+from fastapi import HTTPException, Request, status
+from pydantic import ValidationError
+from starlette.concurrency import run_in_threadpool
+
+from api_schemas.jobs import JobOptions
+from service.analysis import OptionsError, PipelineResources, check_options
+from service.frames import FrameSource, FrameSourceError, open_frames
+from service.jobs.store import JobRecord, JobStore
+from service.settings import Settings
+from service.uploads import receive_upload
+
+log = logging.getLogger(__name__)
+
+_VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"}
+
+
+def resources(settings: Settings) -> PipelineResources:
+    return PipelineResources(dpm_model=settings.dpm_model, color_names=settings.color_names)
+
+
+def describe_validation(error: ValidationError, prefix: str = "") -> str:
+    """One sentence for a pydantic error: each field and what was wrong with it."""
+    problems = []
+    for item in error.errors():
+        where = ".".join(str(part) for part in item["loc"]) or "options"
+        if item["type"] == "extra_forbidden":
+            problems.append(f"unknown option '{prefix}{where}'")
+        else:
+            problems.append(f"{prefix}{where}: {item['msg']}")
+    return "; ".join(problems)
+
+
+def parse_options(raw: bytes | None) -> JobOptions:
+    if raw is None or not raw.strip():
+        return JobOptions()
+    try:
+        return JobOptions.model_validate_json(raw)
+    except ValidationError as error:
+        raise HTTPException(
+            422,
+            f"invalid job options: {describe_validation(error)}. The options part is JSON "
+            "with the fields of JobOptions (see /docs)",
+        ) from None
+
+
+def probe_video(path: Path, size: int) -> FrameSource:
+    if size == 0:
+        raise HTTPException(
+            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+            "the 'video' part is empty: send a video file (MP4, AVI, MKV...)",
+        )
+    try:
+        return open_frames(path)
+    except FrameSourceError:
+        raise HTTPException(
+            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+            "the uploaded file is not a video this service can decode (no frame could be "
+            "read from it): send a video file such as MP4 (H.264) or AVI (MJPEG)",
+        ) from None
+
+
+async def submit(request: Request, settings: Settings, store: JobStore) -> JobRecord:
+    """Receive the upload of ``request`` and queue it as a job."""
+    job_id = uuid.uuid4().hex
+    settings.uploads_dir.mkdir(parents=True, exist_ok=True)
+    receiving = settings.uploads_dir / f"{job_id}.receiving"
+    upload = await receive_upload(request, receiving, settings.max_upload_bytes)
+    try:
+        options = parse_options(upload.options)
+        source = await run_in_threadpool(probe_video, upload.video_path, upload.size)
+        try:
+            check_options(options, resources(settings), (source.width, source.height))
+        except OptionsError as error:
+            raise HTTPException(422, str(error)) from None
+        suffix = Path(upload.filename or "").suffix.lower()
+        video_path = (
+            settings.uploads_dir / f"{job_id}{suffix if suffix in _VIDEO_SUFFIXES else '.video'}"
+        )
+        upload.video_path.rename(video_path)
+    except BaseException:
+        upload.video_path.unlink(missing_ok=True)
+        raise
+    record = store.create(
+        job_id,
+        options.model_dump(mode="json"),
+        video_path=video_path,
+        result_dir=settings.results_dir / job_id,
+        video_filename=upload.filename,
+        frames_total=source.frame_count or None,
+    )
+    log.info(
+        "job %s queued: %s, %d bytes, %d frames announced",
+        job_id,
+        upload.filename,
+        upload.size,
+        source.frame_count,
+    )
+    return record

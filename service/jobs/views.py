@@ -1,0 +1,67 @@
+"""Job records -> the public models of the API."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+
+from api_schemas.jobs import JobLinks, JobOptions, JobProgress, JobState, JobStatus, ProgressEvent
+from service.jobs.store import JobRecord
+
+API_PREFIX = "/v1/jobs"
+
+
+def _time(value: float | None) -> datetime | None:
+    return datetime.fromtimestamp(value, UTC) if value is not None else None
+
+
+def status_url(job_id: str) -> str:
+    return f"{API_PREFIX}/{job_id}"
+
+
+def events_url(job_id: str) -> str:
+    return f"{API_PREFIX}/{job_id}/events"
+
+
+def result_url(job_id: str, fmt: str) -> str:
+    return f"{API_PREFIX}/{job_id}/result?format={fmt}"
+
+
+def job_progress(record: JobRecord) -> JobProgress:
+    total = record.frames_total
+    done = record.frames_done
+    if record.state == JobState.succeeded:
+        fraction = 1.0
+    elif total:
+        fraction = min(done / total, 1.0)
+    else:
+        fraction = None
+    return JobProgress(frames_done=done, frames_total=total, fps=record.fps, fraction=fraction)
+
+
+def job_status(record: JobRecord) -> JobStatus:
+    results = {}
+    if record.state == JobState.succeeded:
+        results = {fmt: result_url(record.id, fmt) for fmt in record.results}
+    return JobStatus(
+        id=record.id,
+        state=record.state,
+        created_at=_time(record.created_at),
+        started_at=_time(record.started_at),
+        finished_at=_time(record.finished_at),
+        progress=job_progress(record),
+        error=record.error if record.state != JobState.succeeded else None,
+        warnings=record.warnings,
+        attempts=record.attempts,
+        video_filename=record.video_filename,
+        options=JobOptions.model_validate(record.options),
+        links=JobLinks(status=status_url(record.id), events=events_url(record.id), results=results),
+    )
+
+
+def progress_event(record: JobRecord) -> ProgressEvent:
+    return ProgressEvent(
+        id=record.id,
+        state=record.state,
+        progress=job_progress(record),
+        error=record.error if record.state in (JobState.failed, JobState.cancelled) else None,
+    )

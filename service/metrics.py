@@ -1,0 +1,68 @@
+"""Prometheus metrics, read from the job store at scrape time.
+
+Workers are separate processes, so counts live where every process can add to them: the
+``counters`` table of the job store (they also survive restarts). The collector turns them into
+metric families when ``/metrics`` is scraped.
+"""
+
+from __future__ import annotations
+
+from prometheus_client import CollectorRegistry
+from prometheus_client.core import (
+    CounterMetricFamily,
+    GaugeMetricFamily,
+    HistogramMetricFamily,
+)
+from prometheus_client.registry import Collector
+
+from api_schemas.jobs import JobState
+from service.jobs.store import DURATION_BUCKETS, JobStore
+from service.jobs.workers import WorkerPool
+
+
+class ServiceCollector(Collector):
+    def __init__(self, store: JobStore, pool: WorkerPool) -> None:
+        self._store = store
+        self._pool = pool
+
+    def collect(self):
+        jobs = GaugeMetricFamily(
+            "vtrack_jobs", "Jobs in the job store, by state.", labels=["state"]
+        )
+        for state, count in self._store.counts_by_state().items():
+            jobs.add_metric([state.value], count)
+        yield jobs
+        counters = self._store.counters()
+        yield CounterMetricFamily(
+            "vtrack_frames_processed",
+            "Video frames tracked by the workers.",
+            value=counters.get("frames_processed", 0.0),
+        )
+        finished = CounterMetricFamily(
+            "vtrack_jobs_finished", "Jobs that reached an end state.", labels=["state"]
+        )
+        for state in (JobState.succeeded, JobState.failed, JobState.cancelled):
+            finished.add_metric([state.value], counters.get(f"jobs_{state.value}", 0.0))
+        yield finished
+        buckets = [(f"{b:g}", counters.get(f"processing_le_{b:g}", 0.0)) for b in DURATION_BUCKETS]
+        buckets.append(("+Inf", counters.get("processing_count", 0.0)))
+        yield HistogramMetricFamily(
+            "vtrack_job_processing_seconds",
+            "Time from a job's start by a worker to its end state.",
+            buckets=buckets,
+            sum_value=counters.get("processing_seconds", 0.0),
+        )
+        yield GaugeMetricFamily(
+            "vtrack_workers_alive", "Worker processes alive.", value=self._pool.alive()
+        )
+        yield CounterMetricFamily(
+            "vtrack_workers_replaced",
+            "Worker processes replaced after they died or overran (since start).",
+            value=self._pool.replaced,
+        )
+
+
+def make_registry(store: JobStore, pool: WorkerPool) -> CollectorRegistry:
+    registry = CollectorRegistry(auto_describe=False)
+    registry.register(ServiceCollector(store, pool))
+    return registry

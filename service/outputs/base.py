@@ -1,0 +1,87 @@
+"""What every result writer has in common."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+from api_schemas.jobs import OutputFormat
+from api_schemas.tracks import FrameTracksMessage, VideoInfo
+from service.frames import TimedFrame
+
+RESULT_FILES: dict[OutputFormat, str] = {
+    OutputFormat.json: "trajectories.json",
+    OutputFormat.mcap: "tracks.mcap",
+    OutputFormat.mot: "tracks_mot.txt",
+    OutputFormat.mp4: "annotated.mp4",
+}
+"""File name of each format inside a result folder."""
+
+MEDIA_TYPES: dict[OutputFormat, str] = {
+    OutputFormat.json: "application/json",
+    OutputFormat.mcap: "application/octet-stream",
+    OutputFormat.mot: "text/plain; charset=utf-8",
+    OutputFormat.mp4: "video/mp4",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class StreamInfo:
+    """What writers know before the first frame."""
+
+    width: int
+    height: int
+    fps: float
+    frame_step: int
+    part_names: tuple[str, ...]
+    mode: str
+    job_id: str | None = None
+    filename: str | None = None
+
+
+@dataclass(slots=True)
+class RunSummary:
+    """What writers learn at the end."""
+
+    video: VideoInfo
+    frames_processed: int
+    warnings: list[str] = field(default_factory=list)
+
+
+class ResultWriter(Protocol):
+    """One output file, written frame by frame."""
+
+    path: Path
+
+    def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None: ...
+
+    def close(self, summary: RunSummary) -> None: ...
+
+    def abort(self) -> None: ...
+
+
+def open_writers(
+    formats: list[OutputFormat], folder: Path, info: StreamInfo
+) -> dict[OutputFormat, ResultWriter]:
+    """A writer per format, each writing ``folder / RESULT_FILES[format]``."""
+    from service.outputs.json_out import JsonWriter
+    from service.outputs.mcap_out import McapWriter
+    from service.outputs.mot_out import MotWriter
+    from service.outputs.video_out import VideoWriter
+
+    makers = {
+        OutputFormat.json: JsonWriter,
+        OutputFormat.mcap: McapWriter,
+        OutputFormat.mot: MotWriter,
+        OutputFormat.mp4: VideoWriter,
+    }
+    writers: dict[OutputFormat, ResultWriter] = {}
+    try:
+        for fmt in formats:
+            writers[fmt] = makers[fmt](folder / RESULT_FILES[fmt], info)
+    except BaseException:
+        for writer in writers.values():
+            writer.abort()
+        raise
+    return writers

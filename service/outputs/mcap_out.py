@@ -1,0 +1,147 @@
+"""MCAP result that opens in Foxglove with the boxes drawn over the video.
+
+Channels (JSON message encoding, JSON Schema schemas):
+
+- ``/camera/image`` - ``foxglove.CompressedImage``: each tracked frame as JPEG;
+- ``/camera/annotations`` - ``foxglove.ImageAnnotations``: per track, the box as a
+  ``LINE_LOOP``, the parts as ``POINTS`` (visible parts filled, hidden ones faded) and the track
+  id as text;
+- ``/tracks`` - ``vtrack.FrameTracks``: our own per-frame message
+  (:class:`api_schemas.tracks.FrameTracksMessage`) with its JSON Schema.
+
+Every message of a frame has the same log time, publish time and ``timestamp``: the frame's
+capture time from the video position (nanoseconds from the start of the video), never the wall
+clock, so Foxglove pairs each annotation with its image.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import cv2
+from mcap.writer import CompressionType, Writer
+
+from api_schemas.tracks import FrameTracksMessage
+from service.frames import TimedFrame
+from service.outputs import foxglove
+from service.outputs.base import RunSummary, StreamInfo
+from service.outputs.palette import track_colour
+
+IMAGE_TOPIC = "/camera/image"
+ANNOTATIONS_TOPIC = "/camera/annotations"
+TRACKS_TOPIC = "/tracks"
+FRAME_ID = "camera"
+JPEG_QUALITY = 85
+
+
+def nanoseconds(timestamp: float) -> int:
+    return round(timestamp * 1e9)
+
+
+def annotations(message: FrameTracksMessage, stamp: int) -> dict[str, Any]:
+    """The ``foxglove.ImageAnnotations`` of one frame."""
+    time = foxglove.time_of(stamp)
+    points, texts = [], []
+    for track in message.tracks:
+        rgb = track_colour(track.track_id)
+        b = track.box
+        corners = [(b.x, b.y), (b.x + b.w, b.y), (b.x + b.w, b.y + b.h), (b.x, b.y + b.h)]
+        points.append(
+            {
+                "timestamp": time,
+                "type": foxglove.LINE_LOOP,
+                "points": [{"x": x, "y": y} for x, y in corners],
+                "outline_color": foxglove.color(rgb, 0.5 if track.occluded else 1.0),
+                "outline_colors": [],
+                "fill_color": foxglove.color(rgb, 0.0),
+                "thickness": 1.0 if track.occluded else 2.0,
+            }
+        )
+        if track.parts:
+            points.append(
+                {
+                    "timestamp": time,
+                    "type": foxglove.POINTS,
+                    "points": [{"x": p.x, "y": p.y} for p in track.parts],
+                    "outline_color": foxglove.color(rgb),
+                    "outline_colors": [
+                        foxglove.color(rgb, 1.0 if p.visible else 0.3) for p in track.parts
+                    ],
+                    "fill_color": foxglove.color(rgb),
+                    "thickness": 4.0,
+                }
+            )
+        texts.append(
+            {
+                "timestamp": time,
+                "position": {"x": b.x, "y": max(b.y - 2.0, 0.0)},
+                "text": str(track.track_id),
+                "font_size": 12.0,
+                "text_color": foxglove.color((255, 255, 255)),
+                "background_color": foxglove.color(rgb, 0.8),
+            }
+        )
+    return {"circles": [], "points": points, "texts": texts}
+
+
+def _encode(document: dict[str, Any]) -> bytes:
+    return json.dumps(document, separators=(",", ":")).encode("utf-8")
+
+
+class McapWriter:
+    def __init__(self, path: Path, info: StreamInfo) -> None:
+        self.path = path
+        self._file = path.open("wb")
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="visual-tracking")
+        self._channels = {}
+        for topic, name, schema in (
+            (IMAGE_TOPIC, "foxglove.CompressedImage", foxglove.COMPRESSED_IMAGE_SCHEMA),
+            (ANNOTATIONS_TOPIC, "foxglove.ImageAnnotations", foxglove.IMAGE_ANNOTATIONS_SCHEMA),
+            (TRACKS_TOPIC, "vtrack.FrameTracks", FrameTracksMessage.model_json_schema()),
+        ):
+            schema_id = self._writer.register_schema(name, "jsonschema", _encode(schema))
+            self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)
+        self._sequence = 0
+        self._info = info
+
+    def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
+        stamp = nanoseconds(frame.timestamp)
+        bgr = cv2.cvtColor(frame.image, cv2.COLOR_RGB2BGR)
+        ok, jpeg = cv2.imencode(".jpg", bgr, (cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY))
+        if not ok:
+            raise RuntimeError(f"could not encode frame {frame.index} as JPEG")
+        payloads = (
+            (IMAGE_TOPIC, foxglove.compressed_image(stamp, jpeg.tobytes(), FRAME_ID)),
+            (ANNOTATIONS_TOPIC, annotations(message, stamp)),
+            (TRACKS_TOPIC, message.model_dump(mode="json")),
+        )
+        for topic, document in payloads:
+            self._writer.add_message(
+                self._channels[topic],
+                log_time=stamp,
+                publish_time=stamp,
+                data=_encode(document),
+                sequence=self._sequence,
+            )
+        self._sequence += 1
+
+    def close(self, summary: RunSummary) -> None:
+        info = {
+            "mode": self._info.mode,
+            "frames_processed": str(summary.frames_processed),
+            "frames_read": str(summary.video.frames_read),
+            "fps": str(summary.video.fps or ""),
+            "frame_step": str(self._info.frame_step),
+            "part_names": ",".join(self._info.part_names),
+        }
+        if self._info.job_id:
+            info["job_id"] = self._info.job_id
+        self._writer.add_metadata("vtrack", info)
+        self._writer.finish()
+        self._file.close()
+
+    def abort(self) -> None:
+        self._file.close()

@@ -1,0 +1,34 @@
+"""Liveness and readiness: open to everyone, even with a token configured."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+
+from service.deps import PoolDep, StoreDep
+
+router = APIRouter(tags=["health"])
+
+
+@router.get("/healthz", summary="The process answers")
+def healthz() -> dict[str, str]:
+    return {"status": "ok"}
+
+
+@router.get(
+    "/readyz",
+    summary="The service can take jobs: the store opens and a worker is ready",
+    responses={503: {"description": "Not ready (yet): no worker process is ready."}},
+)
+def readyz(store: StoreDep, pool: PoolDep) -> JSONResponse:
+    counts = store.counts_by_state()
+    ready = pool.ready()
+    body = {
+        "status": "ready" if ready else "starting",
+        "workers": pool.size,
+        "workers_ready": ready,
+        "jobs": {state.value: n for state, n in counts.items()},
+    }
+    if not ready:
+        body["detail"] = "no worker process is ready yet; try again in a few seconds"
+    return JSONResponse(body, status_code=200 if ready else 503)

@@ -1,0 +1,202 @@
+"""``/v1/jobs``: upload a video as a job, follow it, fetch its results, cancel or delete it."""
+
+from __future__ import annotations
+
+import asyncio
+import shutil
+import time
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from fastapi.responses import FileResponse, StreamingResponse
+
+from api_schemas.common import ErrorResponse
+from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFormat
+from service.deps import AuthDep, SettingsDep, StoreDep
+from service.jobs.store import JobRecord, JobStore
+from service.jobs.submit import submit
+from service.jobs.views import events_url, job_status, progress_event, status_url
+from service.outputs.base import MEDIA_TYPES
+
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
+
+_ERRORS = {code: {"model": ErrorResponse} for code in (401, 404, 409, 413, 415, 422)}
+
+_UPLOAD_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "multipart/form-data": {
+                "schema": {
+                    "type": "object",
+                    "required": ["video"],
+                    "properties": {
+                        "video": {
+                            "type": "string",
+                            "format": "binary",
+                            "description": "The video file (MP4, AVI, MKV...).",
+                        },
+                        "options": {
+                            "$ref": "#/components/schemas/JobOptions",
+                            "description": "Job options as JSON (optional).",
+                        },
+                    },
+                },
+                "encoding": {"options": {"contentType": "application/json"}},
+            }
+        },
+    }
+}
+
+EVENT_POLL_SECONDS = 0.25
+KEEPALIVE_SECONDS = 15.0
+
+
+def _job(store: JobStore, job_id: str) -> JobRecord:
+    record = store.get(job_id)
+    if record is None:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            f"no job {job_id!r}: it never existed or was deleted (GET /v1/jobs lists the jobs)",
+        )
+    return record
+
+
+@router.post(
+    "",
+    status_code=status.HTTP_202_ACCEPTED,
+    summary="Upload a video as a tracking job",
+    description="multipart/form-data: the video as the `video` file part, and optionally the "
+    "job options (JobOptions, JSON) as the `options` part. The upload streams to disk; the "
+    "answer says where to poll.",
+    responses=_ERRORS,
+    openapi_extra=_UPLOAD_BODY,
+)
+async def create_job(
+    request: Request, response: Response, settings: SettingsDep, store: StoreDep
+) -> JobCreated:
+    record = await submit(request, settings, store)
+    response.headers["Location"] = status_url(record.id)
+    return JobCreated(
+        id=record.id,
+        state=record.state,
+        status_url=status_url(record.id),
+        events_url=events_url(record.id),
+    )
+
+
+@router.get("", summary="Jobs, newest first")
+def list_jobs(
+    store: StoreDep,
+    state: Annotated[JobState | None, Query(description="Only jobs in this state.")] = None,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+) -> JobList:
+    return JobList(jobs=[job_status(r) for r in store.list(limit=limit, state=state)])
+
+
+@router.get("/{job_id}", summary="A job's state and progress", responses=_ERRORS)
+def get_job(job_id: str, store: StoreDep) -> JobStatus:
+    return job_status(_job(store, job_id))
+
+
+@router.get(
+    "/{job_id}/result",
+    summary="Download a result: json, mcap, mot or mp4 (the annotated video)",
+    response_class=FileResponse,
+    responses=_ERRORS,
+)
+def get_result(
+    job_id: str,
+    store: StoreDep,
+    format: Annotated[OutputFormat, Query(description="Which result.")] = OutputFormat.json,
+) -> FileResponse:
+    record = _job(store, job_id)
+    if record.state != JobState.succeeded:
+        if record.state in (JobState.queued, JobState.running):
+            total = record.frames_total if record.frames_total is not None else "?"
+            raise HTTPException(
+                status.HTTP_409_CONFLICT,
+                f"job {job_id} is {record.state.value} ({record.frames_done} of {total} frames): "
+                f"results are served once it has succeeded; poll {status_url(job_id)}",
+            )
+        raise HTTPException(
+            status.HTTP_409_CONFLICT,
+            f"job {job_id} {record.state.value} and has no results"
+            + (f": {record.error}" if record.error else ""),
+        )
+    name = record.results.get(format.value)
+    if name is None:
+        asked = ", ".join(record.results) or "none"
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            f"job {job_id} was created without the {format.value!r} result (it has: {asked}); "
+            "list the formats you need in options.formats",
+        )
+    path = record.result_dir / name
+    if not path.is_file():
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND, f"the {format.value} result of job {job_id} is gone"
+        )
+    download = f"{job_id}-{name}"
+    return FileResponse(path, media_type=MEDIA_TYPES[format], filename=download)
+
+
+@router.get(
+    "/{job_id}/events",
+    summary="Live progress as server-sent events",
+    description="`event: progress` with a ProgressEvent (JSON) whenever the job changes, then "
+    "`event: end` with the final one, after which the stream closes.",
+    response_class=StreamingResponse,
+    responses={**_ERRORS, 200: {"content": {"text/event-stream": {}}}},
+)
+async def job_events(job_id: str, request: Request, store: StoreDep) -> StreamingResponse:
+    _job(store, job_id)
+
+    async def stream():
+        last, last_sent = None, time.monotonic()
+        while not await request.is_disconnected():
+            record = store.get(job_id)
+            if record is None:
+                yield f'event: end\ndata: {{"id": "{job_id}", "deleted": true}}\n\n'
+                return
+            data = progress_event(record).model_dump_json()
+            if record.state.finished:
+                yield f"event: end\ndata: {data}\n\n"
+                return
+            if data != last:
+                yield f"event: progress\ndata: {data}\n\n"
+                last, last_sent = data, time.monotonic()
+            elif time.monotonic() - last_sent > KEEPALIVE_SECONDS:
+                yield ": keep-alive\n\n"
+                last_sent = time.monotonic()
+            await asyncio.sleep(EVENT_POLL_SECONDS)
+
+    return StreamingResponse(
+        stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache"}
+    )
+
+
+@router.delete(
+    "/{job_id}",
+    summary="Cancel a queued or running job, or delete a finished one with its files",
+    status_code=status.HTTP_200_OK,
+    responses={
+        **_ERRORS,
+        202: {"model": JobStatus, "description": "Running: asked to stop (state follows)."},
+        204: {"description": "Finished: deleted with its upload and results."},
+    },
+)
+def delete_job(job_id: str, store: StoreDep, settings: SettingsDep) -> Response:
+    record = _job(store, job_id)
+    if record.state.finished:
+        store.delete(job_id)
+        record.video_path.unlink(missing_ok=True)
+        if record.result_dir.resolve().is_relative_to(settings.results_dir.resolve()):
+            shutil.rmtree(record.result_dir, ignore_errors=True)
+        return Response(status_code=status.HTTP_204_NO_CONTENT)
+    new_state = store.request_cancel(job_id)
+    updated = _job(store, job_id)
+    code = status.HTTP_202_ACCEPTED if new_state == JobState.running else status.HTTP_200_OK
+    return Response(
+        job_status(updated).model_dump_json(), status_code=code, media_type="application/json"
+    )

@@ -1,0 +1,214 @@
+"""Receiving an upload: the multipart body streamed straight to disk, under a size limit.
+
+``POST /v1/jobs`` takes ``multipart/form-data`` with a ``video`` file part and an optional
+``options`` part (JSON). The body is parsed as it arrives: video bytes go to a file in chunks
+(never the whole file in memory), the limit is enforced while receiving (and up front from
+``Content-Length``), and anything else in the body is an error that says what was expected.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+import anyio
+from fastapi import HTTPException, Request, status
+from python_multipart import MultipartParser
+from python_multipart.exceptions import FormParserError
+from python_multipart.multipart import parse_options_header
+
+log = logging.getLogger(__name__)
+
+VIDEO_PART = "video"
+OPTIONS_PART = "options"
+MAX_OPTIONS_BYTES = 64 * 1024
+_ENVELOPE_BYTES = MAX_OPTIONS_BYTES + 16 * 1024
+"""Room for part headers, boundaries and the options part beside the video itself."""
+_DRAIN_BYTES = 64 * 1024 * 1024
+"""After a too-large upload, read (and drop) at most this much more, so that the client
+sees the 413 answer rather than a reset connection."""
+
+
+class UploadError(Exception):
+    def __init__(self, status_code: int, detail: str) -> None:
+        super().__init__(detail)
+        self.status_code = status_code
+        self.detail = detail
+
+
+@dataclass(slots=True)
+class ReceivedUpload:
+    video_path: Path
+    filename: str | None
+    size: int
+    options: bytes | None
+
+
+class _Receiver:
+    """python-multipart callbacks that route the parts of one upload."""
+
+    def __init__(self, video_path: Path, max_bytes: int) -> None:
+        self.video_path = video_path
+        self.max_bytes = max_bytes
+        self.size = 0
+        self.filename: str | None = None
+        self.options: bytearray | None = None
+        self.seen: set[str] = set()
+        self._file: BinaryIO | None = None
+        self._pending: list[bytes] = []
+        self._part: str | None = None
+        self._header_name = b""
+        self._header_value = b""
+        self._disposition: bytes | None = None
+
+    def callbacks(self) -> dict:
+        return {
+            "on_part_begin": self._on_part_begin,
+            "on_header_field": self._on_header_field,
+            "on_header_value": self._on_header_value,
+            "on_header_end": self._on_header_end,
+            "on_headers_finished": self._on_headers_finished,
+            "on_part_data": self._on_part_data,
+            "on_part_end": self._on_part_end,
+        }
+
+    def _on_part_begin(self) -> None:
+        self._part = None
+        self._disposition = None
+
+    def _on_header_field(self, data: bytes, start: int, end: int) -> None:
+        self._header_name += data[start:end]
+
+    def _on_header_value(self, data: bytes, start: int, end: int) -> None:
+        self._header_value += data[start:end]
+
+    def _on_header_end(self) -> None:
+        if self._header_name.lower() == b"content-disposition":
+            self._disposition = self._header_value
+        self._header_name = self._header_value = b""
+
+    def _on_headers_finished(self) -> None:
+        _, params = parse_options_header(self._disposition or b"")
+        name = params.get(b"name", b"").decode("utf-8", "replace")
+        if name not in (VIDEO_PART, OPTIONS_PART):
+            raise UploadError(
+                422,
+                f"unexpected form part {name!r}: send the video as the {VIDEO_PART!r} file part "
+                f"and, optionally, the job options as the {OPTIONS_PART!r} part (JSON)",
+            )
+        if name in self.seen:
+            raise UploadError(422, f"the {name!r} part was sent twice; send it once")
+        self.seen.add(name)
+        self._part = name
+        if name == VIDEO_PART:
+            raw = params.get(b"filename")
+            self.filename = Path(raw.decode("utf-8", "replace")).name if raw else None
+            self._file = self.video_path.open("wb")
+        else:
+            self.options = bytearray()
+
+    def _on_part_data(self, data: bytes, start: int, end: int) -> None:
+        chunk = data[start:end]
+        if self._part == VIDEO_PART:
+            self.size += len(chunk)
+            if self.size > self.max_bytes:
+                raise UploadError(413, too_large(self.max_bytes))
+            self._pending.append(chunk)
+        elif self.options is not None:
+            if len(self.options) + len(chunk) > MAX_OPTIONS_BYTES:
+                raise UploadError(413, f"the options part is larger than {MAX_OPTIONS_BYTES} bytes")
+            self.options.extend(chunk)
+
+    def _on_part_end(self) -> None:
+        self._part = None
+
+    def flush(self) -> None:
+        """Write the video bytes received so far (called in a worker thread)."""
+        if self._file is not None and self._pending:
+            self._file.write(b"".join(self._pending))
+        self._pending.clear()
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def too_large(max_bytes: int) -> str:
+    return (
+        f"the video is larger than this service accepts ({max_bytes} bytes, "
+        "VTRACK_MAX_UPLOAD_BYTES): send a shorter or more compressed video"
+    )
+
+
+async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> ReceivedUpload:
+    """Stream the request's multipart body; the video part goes to ``video_path``.
+
+    Raises
+    ------
+    HTTPException
+        413 above the size limit, 415 for a body that is not multipart, 422 for a missing
+        ``video`` part, an unexpected part or a malformed body.
+    """
+    content_type = request.headers.get("content-type", "")
+    kind, params = parse_options_header(content_type)
+    if kind != b"multipart/form-data" or b"boundary" not in params:
+        raise HTTPException(
+            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+            "send the upload as multipart/form-data with the video in a 'video' file part "
+            f"(got Content-Type {content_type or 'none'!r})",
+        )
+    declared = request.headers.get("content-length")
+    if declared and declared.isdigit() and int(declared) > max_bytes + _ENVELOPE_BYTES:
+        await _drain(request)
+        raise HTTPException(413, too_large(max_bytes))
+    receiver = _Receiver(video_path, max_bytes)
+    parser = MultipartParser(params[b"boundary"], receiver.callbacks())
+    received = 0
+    try:
+        async for chunk in request.stream():
+            received += len(chunk)
+            parser.write(chunk)
+            await anyio.to_thread.run_sync(receiver.flush)
+        parser.finalize()
+    except UploadError as error:
+        receiver.close()
+        video_path.unlink(missing_ok=True)
+        if error.status_code == 413:
+            await _drain(request)
+        raise HTTPException(error.status_code, error.detail) from None
+    except FormParserError as error:
+        receiver.close()
+        video_path.unlink(missing_ok=True)
+        raise HTTPException(
+            422,
+            f"the multipart body is malformed ({error}); send multipart/form-data with a "
+            "'video' file part",
+        ) from None
+    except BaseException:
+        receiver.close()
+        video_path.unlink(missing_ok=True)
+        raise
+    receiver.close()
+    if VIDEO_PART not in receiver.seen:
+        video_path.unlink(missing_ok=True)
+        raise HTTPException(
+            422,
+            "the upload has no 'video' part: send the video file as the multipart file part "
+            "named 'video'",
+        )
+    options = bytes(receiver.options) if receiver.options is not None else None
+    return ReceivedUpload(video_path, receiver.filename, receiver.size, options)
+
+
+async def _drain(request: Request) -> None:
+    drained = 0
+    try:
+        async for chunk in request.stream():
+            drained += len(chunk)
+            if drained > _DRAIN_BYTES:
+                break
+    except Exception:
+        log.debug("client went away while its too-large upload was drained")

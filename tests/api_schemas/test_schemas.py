@@ -1,0 +1,88 @@
+"""The public models and their exported JSON Schema."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import jsonschema
+import pytest
+from pydantic import ValidationError
+
+from api_schemas import JobOptions, Trajectories
+from api_schemas.export import SCHEMA_PATH, build_schema, render
+from tests.conftest import REPO_ROOT
+
+
+def test_exported_schema_is_up_to_date():
+    assert SCHEMA_PATH.read_text() == render(), (
+        "api_schemas/schema.json is out of date: run python -m api_schemas.export"
+    )
+
+
+def test_export_command_checks_the_file(tmp_path):
+    stale = tmp_path / "schema.json"
+    stale.write_text("{}\n")
+    command = [sys.executable, "-m", "api_schemas.export", "--out", str(stale)]
+    check = subprocess.run([*command, "--check"], cwd=REPO_ROOT, capture_output=True, text=True)
+    assert check.returncode == 1 and "out of date" in check.stderr
+    assert subprocess.run(command, cwd=REPO_ROOT, capture_output=True).returncode == 0
+    assert json.loads(stale.read_text()) == build_schema()
+    check = subprocess.run([*command, "--check"], cwd=REPO_ROOT, capture_output=True)
+    assert check.returncode == 0
+
+
+def test_default_options_and_their_schema_agree():
+    schema = {**build_schema(), "$ref": "#/$defs/JobOptions"}
+    defaults = JobOptions().model_dump(mode="json")
+    jsonschema.validate(defaults, schema)
+    assert defaults["formats"] == ["json", "mcap", "mot", "mp4"] and defaults["mode"] == "people"
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"colour": "red"}, "Extra inputs are not permitted"),  # unknown field
+        ({"detector": {"name": "yolo"}}, "'default' or 'dpm'"),  # unknown detector
+        ({"frame_step": 0}, "greater than or equal to 1"),  # no frame would be tracked
+        ({"formats": []}, "at least 1 item"),  # nothing to write
+        ({"formats": ["json", "json"]}, "must not repeat"),  # a format twice
+        ({"mode": "single_target"}, "needs first_box"),  # single target without its box
+        ({"first_box": {"x": 1, "y": 1, "w": 5, "h": 5}}, "is for mode 'single_target'"),
+        (
+            {"mode": "single_target", "first_box": {"x": 1, "y": 1, "w": 0, "h": 5}},
+            "greater than 0",
+        ),  # an empty box
+    ],
+)
+def test_invalid_options_are_rejected(options, message):
+    with pytest.raises(ValidationError, match=message):
+        JobOptions.model_validate(options)
+
+
+def test_trajectories_reject_scores_outside_unit_interval():
+    point = {
+        "frame_index": 0,
+        "timestamp": 0.0,
+        "box": {"x": 0, "y": 0, "w": 1, "h": 1},
+        "score": 1.5,
+        "occluded": False,
+    }
+    document = {
+        "mode": "people",
+        "video": {
+            "width": 4,
+            "height": 4,
+            "frames_announced": 1,
+            "frames_read": 1,
+            "frame_step": 1,
+        },
+        "part_names": [],
+        "frames_processed": 1,
+        "tracks": [{"track_id": 1, "frames": [point]}],
+    }
+    with pytest.raises(ValidationError, match="less than or equal to 1"):
+        Trajectories.model_validate(document)
+    point["score"] = 0.5
+    Trajectories.model_validate(document)

@@ -1,0 +1,81 @@
+"""`vtrack analyze`: the service's pipeline on a file, without a server."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import jsonschema
+import pytest
+
+from tests.conftest import REPO_ROOT
+from tests.service.conftest import schema_for
+
+
+def vtrack(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "service.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPO_ROOT,
+    )
+
+
+@pytest.mark.slow
+def test_analyze_writes_the_requested_results(pets_short, tmp_path):
+    out = tmp_path / "out"
+    result = vtrack("analyze", pets_short, "--out-dir", out, "--format", "json,mot,mp4")
+    assert result.returncode == 0, result.stderr
+    assert {p.name for p in out.iterdir()} == {
+        "annotated.mp4",
+        "trajectories.json",
+        "tracks_mot.txt",
+    }
+    document = json.loads((out / "trajectories.json").read_text())
+    jsonschema.validate(document, schema_for("Trajectories"))
+    assert document["job_id"] is None and document["video"]["filename"] == pets_short.name
+    assert document["frames_processed"] == 8
+    assert cv2.VideoCapture(str(out / "annotated.mp4")).get(cv2.CAP_PROP_FRAME_COUNT) == 8
+    assert "tracked 8 frames" in result.stderr
+
+
+def test_analyze_follows_one_box_every_other_frame(pets_short, tmp_path):
+    out = tmp_path / "single"
+    result = vtrack(
+        "analyze",
+        pets_short,
+        "--out-dir",
+        out,
+        "--format",
+        "json",
+        "--box",
+        "150,130,28,65",
+        "--frame-step",
+        "2",
+        "--quiet",
+        "--preset",
+        "rcsk_gray",
+    )
+    assert result.returncode == 0, result.stderr
+    document = json.loads((out / "trajectories.json").read_text())
+    assert document["mode"] == "single_target" and document["frames_processed"] == 4
+    (track,) = document["tracks"]
+    assert [p["frame_index"] for p in track["frames"]] == [0, 2, 4, 6]
+    assert track["frames"][0]["box"] == {"x": 150.0, "y": 130.0, "w": 28.0, "h": 65.0}
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--format", "json,avi"], "comma-separated list"),  # unknown format
+        (["--frame-step", "0"], "greater than or equal to 1"),  # invalid option
+        (["--box", "900,10,20,20"], "outside"),  # first box outside the frame
+    ],
+)
+def test_analyze_rejects_bad_arguments(pets_short, tmp_path, args, message):
+    result = vtrack("analyze", pets_short, "--out-dir", tmp_path / "o", *args)
+    assert result.returncode == 2
+    assert message in result.stderr

@@ -1,0 +1,269 @@
+"""The HTTP API against a real server on loopback: upload, follow, download, validate."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+from concurrent.futures import ThreadPoolExecutor
+
+import cv2
+import jsonschema
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from tests.service.conftest import (
+    FAST_OPTIONS,
+    Server,
+    schema_for,
+    submit,
+    wait_for_state,
+)
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    server = Server(tmp_path_factory.mktemp("api") / "data", workers=2).start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="module")
+def client(server):
+    with server.client() as client:
+        yield client
+
+
+@pytest.fixture(scope="module")
+def finished_job(client, pets_cut):
+    """One job with every output, followed to its end through the event stream."""
+    response = submit(client, pets_cut, {"formats": ["json", "mcap", "mot", "mp4"]})
+    assert response.status_code == 202, response.text
+    created = response.json()
+    assert response.headers["location"] == created["status_url"]
+    events = []
+    with client.stream("GET", created["events_url"], timeout=120.0) as stream:
+        assert stream.headers["content-type"].startswith("text/event-stream")
+        name = None
+        for line in stream.iter_lines():
+            if line.startswith("event: "):
+                name = line.removeprefix("event: ")
+            elif line.startswith("data: "):
+                events.append((name, json.loads(line.removeprefix("data: "))))
+                if name == "end":
+                    break
+    status = client.get(created["status_url"]).json()
+    return created, events, status
+
+
+def test_events_stream_progress_to_the_end(finished_job):
+    _created, events, status = finished_job
+    names = [name for name, _ in events]
+    assert names[-1] == "end" and set(names[:-1]) <= {"progress"}
+    assert events[-1][1]["state"] == "succeeded", events[-1]
+    for _, event in events:
+        jsonschema.validate(event, schema_for("ProgressEvent"))
+    done = [event["progress"]["frames_done"] for _, event in events]
+    assert done == sorted(done) and done[-1] == 24
+    assert any(event["state"] == "running" for _, event in events)
+    assert status["state"] == "succeeded" and status["progress"]["fraction"] == 1.0
+    assert set(status["links"]["results"]) == {"json", "mcap", "mot", "mp4"}
+    jsonschema.validate(status, schema_for("JobStatus"))
+
+
+def _download(client, status, fmt):
+    response = client.get(status["links"]["results"][fmt])
+    assert response.status_code == 200, response.text
+    return response
+
+
+def test_json_result_matches_the_schema(client, finished_job):
+    _, _, status = finished_job
+    response = _download(client, status, "json")
+    assert response.headers["content-type"] == "application/json"
+    document = response.json()
+    jsonschema.validate(document, schema_for("Trajectories"))
+    assert document["job_id"] == status["id"] and document["mode"] == "people"
+    assert document["video"]["frames_read"] == 24 and document["frames_processed"] == 24
+    assert (document["video"]["width"], document["video"]["height"]) == (480, 360)
+    assert document["tracks"], "nobody was tracked in 2.4 s of PETS09-S2L1"
+    for track in document["tracks"]:
+        stamps = [point["timestamp"] for point in track["frames"]]
+        assert stamps == sorted(stamps)
+        for point in track["frames"]:
+            # Capture times come from the video position (10 fps), not the clock.
+            assert point["timestamp"] == pytest.approx(point["frame_index"] / 10.0)
+            assert [p["name"] for p in point["parts"]] == document["part_names"]
+
+
+def test_mot_result_lists_the_json_boxes(client, finished_job):
+    _, _, status = finished_job
+    text = _download(client, status, "mot").text
+    rows = np.array([[float(v) for v in line.split(",")] for line in text.splitlines()])
+    assert rows.shape[1] == 10
+    assert np.all(rows[:, 7:] == -1) and np.all(rows[:, 0] >= 1)
+    trajectories = _download(client, status, "json").json()
+    expected = sorted(
+        (p["frame_index"] + 1, t["track_id"], p["box"]["x"], p["box"]["y"])
+        for t in trajectories["tracks"]
+        for p in t["frames"]
+    )
+    got = sorted((int(r[0]), int(r[1]), r[2], r[3]) for r in rows)
+    assert len(got) == len(expected)
+    for (f1, i1, x1, y1), (f2, i2, x2, y2) in zip(got, expected, strict=True):
+        assert (f1, i1) == (f2, i2)
+        assert x1 == pytest.approx(x2, abs=0.01) and y1 == pytest.approx(y2, abs=0.01)
+
+
+def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client, finished_job):
+    _, _, status = finished_job
+    data = _download(client, status, "mcap").content
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    topics = {c.topic: c for c in summary.channels.values()}
+    assert set(topics) == {"/camera/image", "/camera/annotations", "/tracks"}
+    schema_names = {
+        topic: summary.schemas[channel.schema_id].name for topic, channel in topics.items()
+    }
+    assert schema_names == {
+        "/camera/image": "foxglove.CompressedImage",
+        "/camera/annotations": "foxglove.ImageAnnotations",
+        "/tracks": "vtrack.FrameTracks",
+    }
+    for channel in topics.values():
+        assert channel.message_encoding == "json"
+        assert summary.schemas[channel.schema_id].encoding == "jsonschema"
+    counts = summary.statistics.channel_message_counts
+    assert {
+        channel.topic: counts[cid] for cid, channel in summary.channels.items()
+    } == dict.fromkeys(topics, 24)
+    schemas = {
+        topic: json.loads(summary.schemas[channel.schema_id].data)
+        for topic, channel in topics.items()
+    }
+    by_topic: dict[str, list] = {topic: [] for topic in topics}
+    for _schema, channel, message in reader.iter_messages():
+        document = json.loads(message.data)
+        jsonschema.validate(document, schemas[channel.topic])
+        by_topic[channel.topic].append((message.log_time, message.publish_time, document))
+    images, annotations, tracks = (
+        by_topic["/camera/image"],
+        by_topic["/camera/annotations"],
+        by_topic["/tracks"],
+    )
+    # The capture time of frame i at 10 fps, in every place a time is written.
+    expected = [round(i * 1e8) for i in range(24)]
+    for rows in (images, annotations, tracks):
+        assert [log for log, _, _ in rows] == expected
+        assert [publish for _, publish, _ in rows] == expected
+    for (_, _, image), (_, _, annotation), (_, _, frame) in zip(
+        images, annotations, tracks, strict=True
+    ):
+        stamp = image["timestamp"]
+        assert all(p["timestamp"] == stamp for p in annotation["points"])
+        assert all(t["timestamp"] == stamp for t in annotation["texts"])
+        decoded = cv2.imdecode(
+            np.frombuffer(base64.b64decode(image["data"]), np.uint8),
+            cv2.IMREAD_COLOR,
+        )
+        assert image["format"] == "jpeg" and decoded.shape == (360, 480, 3)
+        loops = [p for p in annotation["points"] if p["type"] == 2]
+        assert len(loops) == len(frame["tracks"])
+        assert sorted(t["text"] for t in annotation["texts"]) == sorted(
+            str(t["track_id"]) for t in frame["tracks"]
+        )
+        for loop, track in zip(loops, frame["tracks"], strict=True):
+            box = track["box"]
+            assert loop["points"][0] == pytest.approx({"x": box["x"], "y": box["y"]})
+            assert loop["points"][2] == pytest.approx(
+                {"x": box["x"] + box["w"], "y": box["y"] + box["h"]}
+            )
+    assert any(frame["tracks"] for _, _, frame in tracks)
+    assert any(p["type"] == 1 for _, _, a in annotations for p in a["points"])  # parts
+
+
+def test_mp4_result_decodes(client, finished_job, tmp_path):
+    _, _, status = finished_job
+    response = _download(client, status, "mp4")
+    assert response.headers["content-type"] == "video/mp4"
+    path = tmp_path / "annotated.mp4"
+    path.write_bytes(response.content)
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    capture.release()
+    assert len(frames) == 24 and frames[0].shape == (360, 480, 3)
+
+
+def test_three_uploads_at_once(client, pets_short):
+    with ThreadPoolExecutor(3) as pool:
+        responses = list(pool.map(lambda _: submit(client, pets_short, FAST_OPTIONS), range(3)))
+    assert [r.status_code for r in responses] == [202, 202, 202], [r.text for r in responses]
+    ids = [r.json()["id"] for r in responses]
+    assert len(set(ids)) == 3
+    for job_id in ids:
+        status = wait_for_state(client, job_id, ("succeeded", "failed"))
+        assert status["state"] == "succeeded", status
+        document = client.get(f"/v1/jobs/{job_id}/result").json()
+        assert document["job_id"] == job_id and document["frames_processed"] == 8
+    listed = {job["id"] for job in client.get("/v1/jobs").json()["jobs"]}
+    assert set(ids) <= listed
+    assert {
+        j["id"] for j in client.get("/v1/jobs", params={"state": "succeeded"}).json()["jobs"]
+    } >= set(ids)
+
+
+def test_unfinished_job_has_no_result_yet_and_can_be_cancelled_then_deleted(client, pets_cut):
+    job_id = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
+    early = client.get(f"/v1/jobs/{job_id}/result", params={"format": "json"})
+    assert early.status_code == 409
+    assert "results are served once it has succeeded" in early.json()["detail"]
+    cancel = client.delete(f"/v1/jobs/{job_id}")
+    assert cancel.status_code in (200, 202), cancel.text
+    status = wait_for_state(client, job_id, ("cancelled", "succeeded", "failed"), timeout=60)
+    assert status["state"] == "cancelled", status
+    gone = client.get(f"/v1/jobs/{job_id}/result")
+    assert gone.status_code == 409 and "cancelled" in gone.json()["detail"]
+    assert client.delete(f"/v1/jobs/{job_id}").status_code == 204
+    assert client.get(f"/v1/jobs/{job_id}").status_code == 404
+
+
+def test_truncated_video_is_accepted_and_tracked_as_far_as_it_decodes(client, pets_cut, tmp_path):
+    data = pets_cut.read_bytes()
+    truncated = tmp_path / "truncated.avi"
+    truncated.write_bytes(data[: len(data) // 2])
+    response = submit(client, truncated, FAST_OPTIONS)
+    assert response.status_code == 202, response.text
+    status = wait_for_state(client, response.json()["id"], ("succeeded", "failed"))
+    assert status["state"] == "succeeded", status
+    read = status["progress"]["frames_done"]
+    assert 0 < read < 24 and status["progress"]["frames_total"] == read
+    assert any(f"ended after {read} of the 24 frames" in w for w in status["warnings"])
+
+
+def test_metrics_count_jobs_by_state_and_frames(client, finished_job):
+    text = client.get("/metrics").text
+    values = {}
+    for line in text.splitlines():
+        if line and not line.startswith("#"):
+            name, value = line.rsplit(" ", 1)
+            values[name] = float(value)
+    assert values['vtrack_jobs{state="succeeded"}'] >= 1
+    assert values["vtrack_frames_processed_total"] >= 24
+    assert values["vtrack_job_processing_seconds_count"] >= 1
+    assert values["vtrack_workers_alive"] == 2
+
+
+def test_docs_and_openapi_are_served(client):
+    assert client.get("/docs").status_code == 200
+    spec = client.get("/openapi.json").json()
+    assert {"/v1/jobs", "/v1/jobs/{job_id}", "/v1/jobs/{job_id}/result"} <= set(spec["paths"])
+    body = spec["paths"]["/v1/jobs"]["post"]["requestBody"]["content"]["multipart/form-data"]
+    assert body["schema"]["required"] == ["video"]

@@ -1,0 +1,202 @@
+"""Every bad request gets its status code and a sentence saying what to do; tokens; limits.
+
+One server for the module, configured strictly: a bearer token, a 400 kB upload limit and a
+one-second job time limit.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.service.conftest import Server, submit, wait_for, wait_for_state
+
+pytestmark = pytest.mark.slow
+
+TOKEN = "s3cret-token"
+LIMIT = 400_000
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    server = Server(
+        tmp_path_factory.mktemp("strict") / "data",
+        workers=1,
+        api_token=TOKEN,
+        max_upload_bytes=LIMIT,
+        job_timeout=1.0,
+    ).start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="module")
+def client(server):
+    with server.client() as client:
+        yield client
+
+
+def _write(path, data):
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("make_video", "options", "status", "message"),
+    [
+        # Bytes that no decoder reads as video.
+        (lambda d, v: _write(d / "junk.avi", b"\x00not a video" * 500), None, 415, "not a video"),
+        # A text file with a video's name.
+        (lambda d, v: _write(d / "notes.mp4", b"hello\n" * 100), None, 415, "not a video"),
+        # An empty video part.
+        (lambda d, v: _write(d / "empty.avi", b""), None, 415, "is empty"),
+        # Only the first 2 kB of a real video: the header without a frame.
+        (lambda d, v: _write(d / "head.avi", v.read_bytes()[:2048]), None, 415, "not a video"),
+        # A misspelt option.
+        (lambda d, v: v, {"formats": ["json"], "frame_stp": 2}, 422, "unknown option 'frame_stp'"),
+        # An unknown nested option.
+        (lambda d, v: v, {"tracker": {"particle": 10}}, 422, "unknown option 'tracker.particle'"),
+        # A value out of range.
+        (lambda d, v: v, {"tracker": {"particles": 1}}, 422, "tracker.particles"),
+        # An unknown output format.
+        (lambda d, v: v, {"formats": ["avi"]}, 422, "formats.0"),
+        # Single-target mode without its first box.
+        (lambda d, v: v, {"mode": "single_target"}, 422, "needs first_box"),
+        # A first box outside the 480x360 frame.
+        (
+            lambda d, v: v,
+            {"mode": "single_target", "first_box": {"x": 900, "y": 10, "w": 20, "h": 40}},
+            422,
+            "outside",
+        ),
+        # An unknown correlation preset.
+        (
+            lambda d, v: v,
+            {"mode": "single_target", "first_box": {"x": 9, "y": 9, "w": 9, "h": 9}, "preset": "x"},
+            422,
+            "unknown preset",
+        ),
+        # The DPM detector on a service without a model.
+        (lambda d, v: v, {"detector": {"name": "dpm"}}, 422, "VTRACK_DPM_MODEL"),
+    ],
+)
+def test_bad_upload(client, tmp_path, pets_short, make_video, options, status, message):
+    response = submit(client, make_video(tmp_path, pets_short), options)
+    assert response.status_code == status, response.text
+    assert message in response.json()["detail"]
+
+
+def test_options_that_are_not_json(client, pets_short):
+    files = {"video": ("v.avi", pets_short.read_bytes())}
+    response = client.post("/v1/jobs", files=files, data={"options": "{frame_step: 2"})
+    assert response.status_code == 422
+    assert "invalid job options" in response.json()["detail"]
+
+
+def test_missing_video_part(client):
+    response = client.post("/v1/jobs", files={"options": (None, json.dumps({"frame_step": 1}))})
+    assert response.status_code == 422
+    assert "no 'video' part" in response.json()["detail"]
+
+
+def test_unexpected_part(client, pets_short):
+    files = {"video": ("v.avi", pets_short.read_bytes()), "movie": ("m.avi", b"x")}
+    response = client.post("/v1/jobs", files=files)
+    assert response.status_code == 422
+    assert "unexpected form part 'movie'" in response.json()["detail"]
+
+
+def test_body_that_is_not_multipart(client, pets_short):
+    response = client.post(
+        "/v1/jobs", content=pets_short.read_bytes(), headers={"Content-Type": "video/x-msvideo"}
+    )
+    assert response.status_code == 415
+    assert "multipart/form-data" in response.json()["detail"]
+
+
+def test_too_large_upload_with_a_declared_length(client, pets_cut):
+    assert pets_cut.stat().st_size > LIMIT
+    response = submit(client, pets_cut)
+    assert response.status_code == 413
+    assert "VTRACK_MAX_UPLOAD_BYTES" in response.json()["detail"]
+
+
+def test_too_large_upload_streamed_without_a_length(client, server, pets_cut):
+    # A chunked body: the limit is enforced while receiving, and the partial file is removed.
+    boundary = "vtrack-test-boundary"
+
+    def body():
+        yield (
+            f'--{boundary}\r\nContent-Disposition: form-data; name="video"; filename="big.avi"'
+            "\r\nContent-Type: video/x-msvideo\r\n\r\n"
+        ).encode()
+        data = pets_cut.read_bytes()
+        for start in range(0, len(data), 65536):
+            yield data[start : start + 65536]
+        yield f"\r\n--{boundary}--\r\n".encode()
+
+    response = client.post(
+        "/v1/jobs",
+        content=body(),
+        headers={"Content-Type": f"multipart/form-data; boundary={boundary}"},
+    )
+    assert response.status_code == 413
+    assert "larger than this service accepts" in response.json()["detail"]
+    assert not any((server.data_dir / "uploads").iterdir())
+
+
+def test_unknown_job(client):
+    for path in ("/v1/jobs/nope", "/v1/jobs/nope/result", "/v1/jobs/nope/events"):
+        response = client.get(path)
+        assert response.status_code == 404
+        assert "no job 'nope'" in response.json()["detail"]
+    assert client.delete("/v1/jobs/nope").status_code == 404
+
+
+def test_unknown_result_format(client):
+    response = client.get("/v1/jobs/nope/result", params={"format": "avi"})
+    assert response.status_code == 422
+    assert "format" in response.json()["detail"]
+
+
+@pytest.mark.parametrize(
+    ("method", "path"),
+    [
+        ("GET", "/v1/jobs"),
+        ("POST", "/v1/jobs"),
+        ("GET", "/v1/jobs/some-id"),
+        ("GET", "/v1/jobs/some-id/result"),
+        ("GET", "/v1/jobs/some-id/events"),
+        ("DELETE", "/v1/jobs/some-id"),
+        ("GET", "/metrics"),
+    ],
+)
+@pytest.mark.parametrize("token", ["", "wrong-token"])
+def test_endpoints_need_the_token(server, method, path, token):
+    with server.client(token=token) as anonymous:
+        response = anonymous.request(method, path)
+    assert response.status_code == 401
+    assert response.headers["www-authenticate"] == "Bearer"
+    assert "Authorization: Bearer" in response.json()["detail"]
+
+
+def test_health_needs_no_token(server):
+    with server.client(token="") as anonymous:
+        assert anonymous.get("/healthz").status_code == 200
+        assert anonymous.get("/readyz").status_code == 200
+
+
+def test_job_over_the_time_limit_fails_and_the_service_goes_on(client, pets_short):
+    # Upscaled detection makes 8 frames take well over the one-second limit.
+    response = submit(client, pets_short, {"formats": ["json"], "detector": {"upscale": 2.0}})
+    assert response.status_code == 202, response.text
+    status = wait_for_state(client, response.json()["id"], ("succeeded", "failed"), timeout=60)
+    assert status["state"] == "failed"
+    assert "exceeded the time limit of 1 s" in status["error"]
+
+    def replaced():
+        metrics = client.get("/metrics").text
+        return "vtrack_workers_replaced_total 1.0" in metrics and client.get("/readyz").is_success
+
+    wait_for(replaced, 30, "a new worker after the time limit")

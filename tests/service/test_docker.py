@@ -1,0 +1,190 @@
+"""The Docker files, checked without a Docker engine (there is none on our machines).
+
+The Dockerfile's install steps are replayed in a fresh virtual environment: its COPY steps
+copy from the repository into a scratch build folder, its ``pip``/``python`` RUN steps run there
+with the environment's interpreter (other RUN steps, such as creating the system user, need a
+container and are only checked for presence). The installed ``vtrack`` must then start and pass
+the image's own HEALTHCHECK command. The compose file must parse and name files that exist.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import venv
+from pathlib import Path
+
+import httpx
+import pytest
+import yaml
+
+from tests.conftest import REPO_ROOT
+from tests.service.conftest import free_port, wait_for
+
+DOCKER = REPO_ROOT / "docker"
+
+
+def instructions(path: Path) -> list[tuple[str, str]]:
+    """``(INSTRUCTION, arguments)`` of a Dockerfile, continuation lines joined."""
+    steps, pending = [], ""
+    for raw in path.read_text().splitlines():
+        line = raw.strip()
+        if not pending and (not line or line.startswith("#")):
+            continue
+        if line.endswith("\\"):
+            pending += line[:-1] + " "
+            continue
+        line, pending = pending + line, ""
+        keyword, _, rest = line.partition(" ")
+        steps.append((keyword.upper(), rest.strip()))
+    return steps
+
+
+@pytest.fixture(scope="module")
+def dockerfile():
+    return instructions(DOCKER / "Dockerfile")
+
+
+def test_dockerfile_shape(dockerfile):
+    keywords = [k for k, _ in dockerfile]
+    base = dict(dockerfile)["FROM"]
+    assert base.startswith("python:3.11") and "slim" in base
+    # A non-root user runs the service, with a health check, on the exposed port.
+    user = [args for k, args in dockerfile if k == "USER"]
+    assert user and user[-1] not in ("root", "0")
+    assert keywords.index("USER") < keywords.index("CMD")
+    assert "HEALTHCHECK" in keywords and "/healthz" in dict(dockerfile)["HEALTHCHECK"]
+    assert dict(dockerfile)["EXPOSE"] == "8000"
+    assert "vtrack" in dict(dockerfile)["CMD"]
+    # The dependency layer comes before the sources are copied, so code changes reuse it.
+    copies = [args.split()[0] for k, args in dockerfile if k == "COPY"]
+    assert copies[0] == "pyproject.toml"
+    first_source = keywords.index("COPY", keywords.index("COPY") + 1)
+    pip_steps = [i for i, (k, a) in enumerate(dockerfile) if k == "RUN" and "pip install" in a]
+    assert pip_steps[0] < first_source < pip_steps[-1]
+    # Models and the Color Names table are mounted, not baked in.
+    volumes = dict(dockerfile)["VOLUME"]
+    assert "/models" in volumes and "/data" in volumes
+    for source in copies:
+        assert (REPO_ROOT / source).exists(), f"COPY names {source}, which is not in the repo"
+
+
+def _replay(dockerfile, build: Path, env_dir: Path) -> None:
+    """Run the Dockerfile's COPY and pip/python RUN steps in ``build`` with ``env_dir``."""
+    venv.EnvBuilder(with_pip=True, clear=True).create(env_dir)
+    bindir = env_dir / "bin"
+    replayed = 0
+    for keyword, args in dockerfile:
+        if keyword == "COPY":
+            source, target = args.split()
+            destination = (build / target).resolve()
+            if (REPO_ROOT / source).is_dir():
+                shutil.copytree(REPO_ROOT / source, destination, dirs_exist_ok=True)
+            else:
+                destination.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(REPO_ROOT / source, destination if target != "./" else build)
+        elif keyword == "RUN":
+            command = shlex.split(args)
+            if command[0] not in ("pip", "python"):
+                continue
+            command[0] = str(bindir / command[0])
+            result = subprocess.run(command, cwd=build, capture_output=True, text=True)
+            assert result.returncode == 0, f"RUN {args}\n{result.stdout}\n{result.stderr}"
+            replayed += 1
+    assert replayed >= 3
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path):
+    build, env_dir = tmp_path / "app", tmp_path / "env"
+    build.mkdir()
+    _replay(dockerfile, build, env_dir)
+    bindir = env_dir / "bin"
+    elsewhere = tmp_path / "elsewhere"  # not the build folder: import the installed package
+    elsewhere.mkdir()
+    clean_env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
+    clean_env.pop("PYTHONPATH", None)
+    for command in (
+        [str(bindir / "vtrack"), "--help"],
+        [str(bindir / "python"), "-c", "import service.app, api_schemas, tracking.pipeline"],
+    ):
+        result = subprocess.run(
+            command, cwd=elsewhere, capture_output=True, text=True, env=clean_env
+        )
+        assert result.returncode == 0, result.stderr
+    # Start the installed service and run the image's HEALTHCHECK command against it.
+    port = free_port()
+    env = {**clean_env, "VTRACK_PORT": str(port), "VTRACK_DATA_DIR": str(tmp_path / "data")}
+    server = subprocess.Popen(
+        [str(bindir / "vtrack"), "serve", "--workers", "1"],
+        cwd=elsewhere,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+
+        def up():
+            try:
+                return httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2).status_code == 200
+            except httpx.TransportError:
+                return False
+
+        wait_for(up, 60, "the installed service")
+        healthcheck = json.loads(dict(dockerfile)["HEALTHCHECK"].split("CMD", 1)[1])
+        healthcheck[0] = str(bindir / healthcheck[0])
+        assert subprocess.run(healthcheck, env=env, cwd=elsewhere).returncode == 0
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+def _json5(path: Path) -> dict:
+    """Our JSON5 files are JSON plus whole-line // comments."""
+    lines = [line for line in path.read_text().splitlines() if not line.strip().startswith("//")]
+    return json.loads("\n".join(lines))
+
+
+def test_compose_file_parses_and_names_files_that_exist(dockerfile):
+    compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+    services = compose["services"]
+    assert set(services) == {"vtrack", "zenoh"}
+    service = services["vtrack"]
+    context = (DOCKER / service["build"]["context"]).resolve()
+    assert context == REPO_ROOT.resolve()
+    assert (context / service["build"]["dockerfile"]).is_file()
+    assert service["ports"] == ["8000:8000"]
+    assert "zenoh" in service["depends_on"]
+    for name, spec in services.items():
+        for volume in spec.get("volumes", []):
+            source = volume.split(":")[0]
+            if source.startswith("."):
+                assert (DOCKER / source).exists(), f"{name} mounts {source}, which does not exist"
+            else:
+                assert source in compose["volumes"], f"{name} mounts unknown volume {source}"
+    for key, value in service["environment"].items():
+        assert key.startswith("VTRACK_") and isinstance(value, str)
+    zenoh = services["zenoh"]
+    assert zenoh["image"].startswith("eclipse/zenoh:")
+    config_path = zenoh["command"][zenoh["command"].index("-c") + 1]
+    mounted = {v.split(":")[1]: v.split(":")[0] for v in zenoh["volumes"]}
+    config = _json5(DOCKER / mounted[config_path])
+    assert config["mode"] == "router"
+    assert config["listen"]["endpoints"] == ["tcp/0.0.0.0:7447"]
+    assert config["scouting"]["multicast"]["enabled"] is False
+    assert zenoh["ports"] == ["7447:7447"]
+
+
+def test_compose_environment_names_real_settings():
+    from service.settings import Settings
+
+    compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+    known = {f"VTRACK_{name.upper()}" for name in Settings.model_fields}
+    text = (DOCKER / "compose.yaml").read_text()
+    named = {word.strip(":") for word in text.split() if word.startswith("VTRACK_")}
+    assert named <= known, named - known
+    assert set(compose["services"]["vtrack"]["environment"]) <= known

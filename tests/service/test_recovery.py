@@ -1,0 +1,70 @@
+"""Jobs survive the service: a restart mid-job, and a worker killed mid-job."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import pytest
+
+from service.jobs.store import JobStore
+from tests.service.conftest import FAST_OPTIONS, submit, wait_for, wait_for_frames, wait_for_state
+
+pytestmark = pytest.mark.slow
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie (dead, not yet reaped) counts as gone.
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().split(") ", 1)[1][0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _worker_pid(data_dir, job_id) -> int:
+    store = JobStore(data_dir / "jobs.sqlite3")
+    try:
+        return store.get(job_id).worker_pid
+    finally:
+        store.close()
+
+
+def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_server, pets_cut):
+    first = make_server(workers=1)
+    with first.client() as client:
+        job_id = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
+        wait_for_frames(client, job_id, 3)
+    worker = _worker_pid(first.data_dir, job_id)
+    first.kill()
+    # The orphaned worker notices that its service is gone and stops by itself.
+    wait_for(lambda: not _alive(worker), 20, f"the orphaned worker {worker} to stop")
+
+    second = make_server(data_dir=first.data_dir, workers=1)
+    with second.client() as client:
+        status = wait_for_state(client, job_id, ("succeeded", "failed"))
+        assert status["state"] == "succeeded", status
+        assert status["attempts"] == 2
+        document = client.get(f"/v1/jobs/{job_id}/result").json()
+        assert document["frames_processed"] == 24
+    assert not list((first.data_dir / "results" / job_id).glob(".attempt-*"))
+
+
+def test_a_killed_worker_fails_its_job_and_the_next_job_succeeds(make_server, pets_cut, pets_short):
+    server = make_server(workers=1)
+    with server.client() as client:
+        doomed = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
+        following = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        wait_for_frames(client, doomed, 3)
+        os.kill(_worker_pid(server.data_dir, doomed), signal.SIGKILL)
+        status = wait_for_state(client, doomed, ("succeeded", "failed"))
+        assert status["state"] == "failed"
+        assert "worker process running this job died (killed by SIGKILL)" in status["error"]
+        assert client.get(f"/v1/jobs/{doomed}/result").status_code == 409
+        status = wait_for_state(client, following, ("succeeded", "failed"))
+        assert status["state"] == "succeeded", status
+        assert client.get("/readyz").json()["workers_ready"] == 1

@@ -1,0 +1,76 @@
+"""The job store on its own: claims, fencing of stale workers, requeue after a stop."""
+
+from __future__ import annotations
+
+import pytest
+
+from api_schemas.jobs import JobState
+from service.jobs.store import JobStore
+
+
+@pytest.fixture
+def store(tmp_path):
+    store = JobStore(tmp_path / "jobs.sqlite3")
+    yield store
+    store.close()
+
+
+def _job(store, job_id="a"):
+    return store.create(job_id, {"formats": ["json"]}, store.path.parent / "v", store.path.parent)
+
+
+def test_jobs_are_claimed_oldest_first_once(store):
+    for job_id in ("first", "second"):
+        _job(store, job_id)
+    assert store.claim(11).id == "first"
+    assert store.claim(12).id == "second"
+    assert store.claim(13) is None
+    assert store.counts_by_state()[JobState.running] == 2
+
+
+def test_a_stale_attempt_cannot_write(store, tmp_path):
+    _job(store)
+    stale = store.claim(11)
+    # The service died; the next one requeues the job and another worker takes it.
+    assert store.requeue_orphans(max_attempts=3) == (["a"], [])
+    current = store.claim(22)
+    assert current.attempts == 2
+    assert not store.report_progress(stale, 11, 5, 1.0, 5)
+    assert not store.finish(stale, 11, JobState.succeeded)
+    assert store.report_progress(current, 22, 5, 1.0, 5)
+    assert store.finish(current, 22, JobState.succeeded, results={"json": "t.json"})
+    record = store.get("a")
+    assert record.state == JobState.succeeded and record.results == {"json": "t.json"}
+    assert store.counters()["frames_processed"] == 5
+
+
+def test_a_job_interrupted_too_often_fails(store):
+    _job(store)
+    store.claim(1)
+    assert store.requeue_orphans(max_attempts=2) == (["a"], [])
+    assert store.get("a").state == JobState.queued
+    store.claim(1)
+    assert store.requeue_orphans(max_attempts=2) == ([], ["a"])
+    record = store.get("a")
+    assert record.state == JobState.failed and "2 times" in record.error
+
+
+def test_cancel_queued_at_once_running_through_the_worker(store):
+    _job(store, "queued")
+    assert store.request_cancel("queued") == JobState.cancelled
+    _job(store, "running")
+    job = store.claim(7)
+    assert store.request_cancel("running") == JobState.running
+    assert store.cancel_requested("running")
+    assert not store.report_progress(job, 7, 1, None, 1)
+    assert store.request_cancel("missing") is None
+
+
+def test_a_failed_job_records_its_duration_in_the_histogram(store):
+    _job(store)
+    store.claim(3)
+    assert store.fail_running("a", "boom", worker_pid=4) is False  # not that worker's
+    assert store.fail_running("a", "boom", worker_pid=3)
+    counters = store.counters()
+    assert counters["jobs_failed"] == 1 and counters["processing_count"] == 1
+    assert counters["processing_le_1"] == 1
