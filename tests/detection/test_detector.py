@@ -203,3 +203,23 @@ def test_heights_without_a_level_give_no_scores(detector, pets_frame):
 def test_bad_config_is_rejected(options):
     with pytest.raises(ValueError):
         DpmConfig(**options)
+
+
+def test_five_levels_per_octave_still_find_the_person(inria_model, pets, pets_frame):
+    # parts then sit 5 levels below their root (still exactly twice the resolution)
+    coarse = DpmDetector(inria_model, DpmConfig(levels_per_octave=5))
+    assert coarse.interval == 5
+    gt = pets.gt[0][1]
+    region, heights = _person_region(gt)
+    found = coarse.detect_region(pets_frame, region, heights)
+    assert match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
+
+
+def test_threads_give_the_same_detections(inria_model, pets_frame):
+    crop = pets_frame[190:330, 220:320]  # the person at (258, 219), 33 x 89 px
+    one = DpmDetector(inria_model, DpmConfig(workers=1)).detect(crop)
+    two = DpmDetector(inria_model, DpmConfig(workers=2)).detect(crop)
+    np.testing.assert_array_equal(one.boxes, two.boxes)
+    np.testing.assert_array_equal(one.scores, two.scores)
+    np.testing.assert_array_equal(one.parts, two.parts)
+    assert len(one) >= 1

@@ -75,6 +75,28 @@ def root_grid(model: DpmModel, shape: tuple[int, ...]) -> tuple[int, int]:
     return max(shape[0] - min_h + 1, 0), max(shape[1] - min_w + 1, 0)
 
 
+def _anchor_groups(origins: np.ndarray, rect_h: int, rect_w: int) -> list[list[int]]:
+    """Symbols whose rectangles overlap enough to share one response computation.
+
+    All rectangles have the same size; a group's responses are computed on the union of its
+    rectangles, so symbols join a group (in order of their top edge) while the union stays
+    within 1.5 times one rectangle. On a whole frame every part lands in one group; on a
+    region of interest, anchors far apart (head and feet) get their own.
+    """
+    order = np.lexsort((origins[:, 1], origins[:, 0]))
+    groups: list[list[int]] = []
+    for j in order:
+        if groups:
+            members = [*groups[-1], int(j)]
+            h = origins[members, 0].max() - origins[members, 0].min() + rect_h
+            w = origins[members, 1].max() - origins[members, 1].min() + rect_w
+            if h * w <= 1.5 * rect_h * rect_w:
+                groups[-1].append(int(j))
+                continue
+        groups.append([int(j)])
+    return groups
+
+
 def _symbol_tables(
     features: np.ndarray,
     symbols: list[FilterSymbol],
@@ -111,18 +133,14 @@ def _symbol_tables(
         reach = int(window)
         rect_h, rect_w = step * (ny - 1) + 2 * reach + 1, step * (nx - 1) + 2 * reach + 1
         origins = offsets - reach
-        rows = (int(origins[:, 0].min()), int(origins[:, 0].max()) + rect_h)
-        cols = (int(origins[:, 1].min()), int(origins[:, 1].max()) + rect_w)
-        responses = filter_responses(features, [s.weights for s in symbols], rows, cols)
-        stack = np.stack(
-            [
-                r[
-                    o[0] - rows[0] : o[0] - rows[0] + rect_h,
-                    o[1] - cols[0] : o[1] - cols[0] + rect_w,
-                ]
-                for r, o in zip(responses, origins, strict=True)
-            ]
-        )
+        stack = np.empty((len(symbols), rect_h, rect_w), dtype=np.float32)
+        for group in _anchor_groups(origins, rect_h, rect_w):
+            rows = (int(origins[group, 0].min()), int(origins[group, 0].max()) + rect_h)
+            cols = (int(origins[group, 1].min()), int(origins[group, 1].max()) + rect_w)
+            responses = filter_responses(features, [symbols[j].weights for j in group], rows, cols)
+            for j, r in zip(group, responses, strict=True):
+                top, left = origins[j, 0] - rows[0], origins[j, 1] - cols[0]
+                stack[j] = r[top : top + rect_h, left : left + rect_w]
         out, ix, iy = bounded_distance_transform(
             stack, weights, reach, rows=(reach, step, ny), cols=(reach, step, nx)
         )
