@@ -5,6 +5,9 @@ to the project's ``opencv-python-headless`` (both provide the ``cv2`` package). 
 therefore keeps a second environment at ``<repo>/.venv-peers`` with the contrib build of exactly
 the OpenCV version installed here, and runs ``benchmarks/peers/opencv_trackers.py`` with its
 interpreter. The environment is created once and reused while its requirements stay the same.
+
+:func:`ensure_env` does the same for any pinned set of requirements (``benchmarks/_mot_env.py``
+builds the environment of the multi-object-tracking peers and TrackEval with it).
 """
 
 from __future__ import annotations
@@ -63,11 +66,11 @@ def _run(command: list[str], timeout: float) -> subprocess.CompletedProcess[str]
     return subprocess.run(command, capture_output=True, text=True, timeout=timeout, check=False)
 
 
-def _works(python: Path) -> bool:
+def _works(python: Path, check_snippet: str = _CHECK_SNIPPET) -> bool:
     if not python.is_file():
         return False
     try:
-        return _run([str(python), "-c", _CHECK_SNIPPET], timeout=120.0).returncode == 0
+        return _run([str(python), "-c", check_snippet], timeout=120.0).returncode == 0
     except (OSError, subprocess.TimeoutExpired):
         return False
 
@@ -76,12 +79,23 @@ def _tail(text: str, lines: int = 15) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def ensure_peer_env(env_dir: Path = DEFAULT_PEER_ENV) -> Path:
-    """Create the peer environment if needed and return its Python interpreter.
+def ensure_env(env_dir: Path, requirements: list[str], check_snippet: str, purpose: str) -> Path:
+    """Create the virtual environment at ``env_dir`` if needed and return its interpreter.
 
-    An existing environment is reused when its marker file lists the same requirements and it
-    imports ``cv2`` with KCF and CSRT; otherwise it is rebuilt (``venv --clear``) and the
-    requirements are installed with pip.
+    An existing environment is reused when its marker file lists the same ``requirements`` and
+    its interpreter runs ``check_snippet``; otherwise it is rebuilt (``venv --clear``, with this
+    interpreter's Python) and the requirements are installed with pip.
+
+    Parameters
+    ----------
+    env_dir:
+        Folder of the environment (``<repo>/.venv-*``, ignored by git).
+    requirements:
+        Pinned pip requirements, e.g. ``["trackers==2.6.1"]``.
+    check_snippet:
+        Python code that exits with 0 only when the environment works.
+    purpose:
+        What the environment is for, in messages ("the peer environment").
 
     Raises
     ------
@@ -89,17 +103,16 @@ def ensure_peer_env(env_dir: Path = DEFAULT_PEER_ENV) -> Path:
         If the environment cannot be created or pip cannot install the requirements (for
         example without network access); the message carries pip's last lines.
     """
-    requirements = peer_requirements()
     python = env_python(env_dir)
     marker = env_dir / MARKER_FILE
     try:
         recorded = json.loads(marker.read_text())
     except (OSError, ValueError):
         recorded = None
-    if recorded == {"requirements": requirements} and _works(python):
+    if recorded == {"requirements": requirements} and _works(python, check_snippet):
         return python
 
-    logger.info("creating the peer environment %s with %s", env_dir, " ".join(requirements))
+    logger.info("creating %s %s with %s", purpose, env_dir, " ".join(requirements))
     marker.unlink(missing_ok=True)
     try:
         created = _run([sys.executable, "-m", "venv", "--clear", str(env_dir)], timeout=300.0)
@@ -121,7 +134,7 @@ def ensure_peer_env(env_dir: Path = DEFAULT_PEER_ENV) -> Path:
             timeout=PIP_TIMEOUT_SECONDS,
         )
     except subprocess.TimeoutExpired as exc:
-        raise PeerEnvError(f"creating the peer environment took over {exc.timeout:.0f} s") from exc
+        raise PeerEnvError(f"creating {purpose} took over {exc.timeout:.0f} s") from exc
     except OSError as exc:
         raise PeerEnvError(f"could not run {exc.filename}: {exc.strerror}") from exc
     if installed.returncode != 0:
@@ -129,7 +142,22 @@ def ensure_peer_env(env_dir: Path = DEFAULT_PEER_ENV) -> Path:
             f"pip could not install {' '.join(requirements)} into {env_dir} (no network, or no "
             f"wheel for this platform?):\n{_tail(installed.stderr or installed.stdout)}"
         )
-    if not _works(python):
-        raise PeerEnvError(f"{python} cannot import cv2 with TrackerKCF and TrackerCSRT")
+    if not _works(python, check_snippet):
+        raise PeerEnvError(f"{purpose} at {env_dir} does not pass its check: {check_snippet}")
     marker.write_text(json.dumps({"requirements": requirements}))
     return python
+
+
+def ensure_peer_env(env_dir: Path = DEFAULT_PEER_ENV) -> Path:
+    """Create the OpenCV peer environment if needed and return its Python interpreter.
+
+    An existing environment is reused when its marker file lists the same requirements and it
+    imports ``cv2`` with KCF and CSRT; otherwise it is rebuilt (see :func:`ensure_env`).
+
+    Raises
+    ------
+    PeerEnvError
+        If the environment cannot be created or pip cannot install the requirements (for
+        example without network access); the message carries pip's last lines.
+    """
+    return ensure_env(env_dir, peer_requirements(), _CHECK_SNIPPET, "the peer environment")
