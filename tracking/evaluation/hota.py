@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from tracking.detection.nms import box_iou
+
 ALPHAS = np.arange(0.05, 0.96, 0.05)
 """Localisation thresholds the scores are averaged over."""
 
@@ -25,16 +27,6 @@ class HotaScores:
     det_a: float
     ass_a: float
     loc_a: float
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x2 = np.minimum(a[:, None, 0] + a[:, None, 2], b[None, :, 0] + b[None, :, 2])
-    y2 = np.minimum(a[:, None, 1] + a[:, None, 3], b[None, :, 1] + b[None, :, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    union = a[:, None, 2] * a[:, None, 3] + b[None, :, 2] * b[None, :, 3] - inter
-    return np.where(union > _EPS, inter / np.maximum(union, _EPS), 0.0)
 
 
 def hota(ground_truth: np.ndarray, tracks: np.ndarray) -> HotaScores:
@@ -57,7 +49,7 @@ def hota(ground_truth: np.ndarray, tracks: np.ndarray) -> HotaScores:
     per_frame = []
     for f in frames:
         g, t = gt[:, 0] == f, tr[:, 0] == f
-        per_frame.append((gt_index[g], tr_index[t], _iou(gt[g, 2:6], tr[t, 2:6])))
+        per_frame.append((gt_index[g], tr_index[t], box_iou(gt[g, 2:6], tr[t, 2:6])))
 
     # Pass 1: how strongly each gt id and tracker id co-occur, over the whole sequence.
     potential = np.zeros((len(gt_ids), len(tr_ids)))

@@ -10,10 +10,11 @@ import numpy as np
 
 from tracking.correlation import CorrelationTracker
 from tracking.detection.base import Detections, Detector
+from tracking.detection.nms import box_iou
 from tracking.features.maps import FeatureMap
 from tracking.filtering import RbpfState, estimate, predict, resample, update
 from tracking.people import parts as part_model
-from tracking.people.association import assign, iou_matrix
+from tracking.people.association import assign
 from tracking.people.body import EMBEDDED_BODY, BodyModel
 from tracking.people.config import PeopleTrackerConfig
 from tracking.people.likelihoods import dense_score_log_likelihood, detection_log_likelihood
@@ -212,7 +213,7 @@ class MultiPersonTracker:
         """
         c = self.config
         dets = current.detections
-        overlap = iou_matrix(_normalised(self._predicted_boxes()), _normalised(dets.boxes))
+        overlap = box_iou(_normalised(self._predicted_boxes()), _normalised(dets.boxes))
         for track in self._tracks:
             track.measured, track.detection = False, -1
         taken = np.zeros(len(dets), dtype=bool)
@@ -385,7 +386,7 @@ class MultiPersonTracker:
         # overlap as much, but stand at different depths: a duplicate also has the same bottom
         # edge and height (within a tenth of the height).
         if len(self._tracks) > 1:
-            overlap = iou_matrix(boxes, boxes)
+            overlap = box_iou(boxes, boxes)
             np.fill_diagonal(overlap, 0.0)
             bottom = boxes[:, 1] + boxes[:, 3]
             heights = boxes[:, 3]
@@ -410,7 +411,7 @@ class MultiPersonTracker:
                 taken[track.detection] = True
         existing = self._predicted_boxes()
         covered = (
-            iou_matrix(_normalised(dets.boxes), _normalised(existing)).max(axis=1) >= c.match_iou
+            box_iou(_normalised(dets.boxes), _normalised(existing)).max(axis=1) >= c.match_iou
             if len(existing)
             else np.zeros(len(dets), dtype=bool)
         )
