@@ -16,6 +16,9 @@ against 0.847 / 0.535). ``--step 1`` uses every frame.
   to the ground truth per frame, area under the precision envelope; ``tracking.detection.metrics``);
 * log-average miss rate over FPPI 1e-2..1e0 (Dollár et al. 2012), and a miss-rate/FPPI plot.
 
+Boxes are compared in 0-based image pixels, the detectors' convention: ``MotSequence.gt`` and
+``MotDetections`` move the files' 1-based boxes (``tracking/detection/sequences.py``).
+
 Each detector runs at an evaluation threshold below its operating one so that its whole
 precision/recall curve is seen: the DPM at ``model.thresh - 1``, the embedded default at SVM
 score -0.5; OpenCV's peer runs as OpenCV does by default (score 0, its own grouping); the public

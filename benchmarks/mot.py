@@ -35,9 +35,11 @@ removed as a distractor match; the files here have no classes (8th column -1), w
 MOT16/17 preprocessing rejects.
 
 Coordinates: MOTChallenge files are 1-based; our tracker gets the public detections moved to
-0-based image coordinates and its boxes are written back 1-based
-(``tracking/evaluation/mot.py``). The peers never look at pixels (BoT-SORT's motion compensation
-aside, to which a pixel is nothing) and keep the file's coordinates throughout.
+0-based image coordinates (:class:`tracking.detection.MotDetections` moves them, see
+``tracking/detection/sequences.py``) and its boxes are written back 1-based (``track_rows`` in
+``tracking/evaluation/mot.py``); the ground truth goes to TrackEval as the file has it. The
+peers never look at pixels (BoT-SORT's motion compensation aside, to which a pixel is nothing)
+and keep the file's coordinates throughout.
 
 Speed: frames per second of the trackers' ``update`` calls only (not image decoding, file
 reading, or building the detections), median over ``--repeats`` runs by fresh trackers (the
@@ -77,8 +79,7 @@ from tracking.evaluation.mot import (
     estimates_to_rows,
     find_mot_sequences,
     limit_frames,
-    mot_to_image_boxes,
-    read_mot_file,
+    read_mot_rows,
     read_sequence_info,
     write_mot_file,
 )
@@ -268,12 +269,10 @@ def build_ours(names: Sequence[str], dpm: Path) -> dict[str, OurTracker]:
 
 
 def public_detections(sequence: SequenceInfo) -> object:
-    """The sequence's ``det/det.txt`` as :class:`MotDetections`, moved to 0-based boxes."""
+    """The sequence's ``det/det.txt`` as :class:`MotDetections` (0-based boxes)."""
     from tracking.detection import MotDetections
 
-    rows = read_mot_file(sequence.det_path, min_columns=7)
-    rows[:, 2:6] = mot_to_image_boxes(rows[:, 2:6])
-    return MotDetections(rows)
+    return MotDetections.from_file(sequence.det_path)
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -360,7 +359,8 @@ def write_results(outcome: Outcome, folder: Path) -> None:
 def prepare_ground_truth(outcome: Outcome, folder: Path) -> None:
     """``folder/<sequence>/gt/gt.txt``: each ground truth cut to the frames that were run."""
     for sequence in outcome.sequences:
-        rows = limit_frames(read_mot_file(sequence.gt_path), outcome.frames[sequence.name])
+        rows = read_mot_rows(sequence.gt_path, min_columns=6)  # file units, written back as is
+        rows = limit_frames(rows, outcome.frames[sequence.name])
         target = folder / sequence.name / "gt" / "gt.txt"
         target.parent.mkdir(parents=True)
         # gt rows as they are (flag, class, visibility columns kept)

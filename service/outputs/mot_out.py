@@ -1,8 +1,9 @@
 """MOTChallenge text: ``frame,id,x,y,w,h,score,-1,-1,-1`` per track and frame.
 
-Frames count from 1 (the video's first frame is frame 1), as evaluation tools (TrackEval, the
-MOTChallenge devkit) expect; boxes are pixels with a 0-based top-left corner, as in the
-benchmark's own files.
+MOTChallenge's own conventions, so that the file scores against a ``gt.txt`` as it is (TrackEval,
+the MOTChallenge devkit): frames count from 1 (the video's first frame is frame 1) and so do
+pixels: ``x`` and ``y`` are the JSON result's 0-based corner plus 1
+(:func:`tracking.detection.sequences.image_to_mot_boxes`).
 """
 
 from __future__ import annotations
@@ -12,17 +13,16 @@ from pathlib import Path
 from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
+from tracking.detection.sequences import image_to_mot_boxes
 
 
 def mot_rows(message: FrameTracksMessage) -> list[str]:
-    rows = []
-    for track in message.tracks:
-        b = track.box
-        rows.append(
-            f"{message.frame_index + 1},{track.track_id},{b.x:.2f},{b.y:.2f},{b.w:.2f},{b.h:.2f},"
-            f"{track.score:.4f},-1,-1,-1"
-        )
-    return rows
+    boxes = image_to_mot_boxes([[t.box.x, t.box.y, t.box.w, t.box.h] for t in message.tracks])
+    return [
+        f"{message.frame_index + 1},{track.track_id},{x:.2f},{y:.2f},{w:.2f},{h:.2f},"
+        f"{track.score:.4f},-1,-1,-1"
+        for track, (x, y, w, h) in zip(message.tracks, boxes.tolist(), strict=True)
+    ]
 
 
 class MotWriter:

@@ -9,6 +9,7 @@ import pytest
 
 from tracking.detection.calibrate import main
 from tracking.detection.calibration import load_calibration
+from tracking.detection.sequences import image_to_mot_boxes
 
 
 @pytest.fixture
@@ -20,7 +21,7 @@ def small_sequence(tmp_path, pets):
     rows = []
     for new, old in enumerate(range(0, 600, 100), start=1):
         shutil.copy(pets.frames[old], root / "img1" / f"{new:06d}.jpg")
-        for x, y, w, h in pets.gt[old]:
+        for x, y, w, h in image_to_mot_boxes(pets.gt[old]):  # back to the file's 1-based pixels
             rows.append(f"{new},1,{x},{y},{w},{h},1,-1,-1,-1")
     (root / "gt" / "gt.txt").write_text("\n".join(rows) + "\n")
     return root

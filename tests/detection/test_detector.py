@@ -77,7 +77,7 @@ def _person_region(gt_box):
 
 
 def test_region_of_interest_finds_the_person(detector, pets, pets_frame):
-    gt = pets.gt[0][1]  # 33 x 89 px person at (258, 219)
+    gt = pets.gt[0][1]  # 33 x 89 px person at (257, 218)
     region, heights = _person_region(gt)
     detections = detector.detect_region(pets_frame, region, heights)
     assert len(detections) >= 1
@@ -216,7 +216,7 @@ def test_five_levels_per_octave_still_find_the_person(inria_model, pets, pets_fr
 
 
 def test_threads_give_the_same_detections(inria_model, pets_frame):
-    crop = pets_frame[190:330, 220:320]  # the person at (258, 219), 33 x 89 px
+    crop = pets_frame[190:330, 220:320]  # the person at (257, 218), 33 x 89 px
     one = DpmDetector(inria_model, DpmConfig(workers=1)).detect(crop)
     two = DpmDetector(inria_model, DpmConfig(workers=2)).detect(crop)
     np.testing.assert_array_equal(one.boxes, two.boxes)

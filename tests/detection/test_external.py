@@ -1,7 +1,8 @@
-"""MOTChallenge det.txt reading and detections handed in by the caller."""
+"""MOTChallenge det.txt reading (0-based boxes) and detections handed in by the caller."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -12,7 +13,7 @@ from tracking.detection.external import (
     SubmittedDetections,
     detections_from_arrays,
 )
-from tracking.detection.sequences import MotFormatError, read_mot_rows
+from tracking.detection.sequences import MotFormatError, MotSequence, read_mot_rows
 from tracking.types import Box
 
 
@@ -20,8 +21,8 @@ def test_public_detections_of_pets(pets):
     dets = MotDetections.from_file(pets.detections_file)
     assert isinstance(dets, Detector)
     first = dets.for_frame(0)  # rows with frame == 1
-    # det.txt line 1: 1,-1,243.00,218.00,45.00,90.00,0.87006,-1,-1,-1
-    assert first.boxes[0].tolist() == [243.0, 218.0, 45.0, 90.0]
+    # det.txt line 1: 1,-1,243.00,218.00,45.00,90.00,0.87006,-1,-1,-1 (1-based pixels)
+    assert first.boxes[0].tolist() == [242.0, 217.0, 45.0, 90.0]
     assert first.scores[0] == pytest.approx(0.87006)
     assert first.probabilities[0] == pytest.approx(0.87006)  # conf clipped to [0, 1]
     assert first.parts.shape == (len(first), 0, 4)
@@ -37,10 +38,10 @@ def test_detect_walks_through_the_frames_and_seek_jumps(pets):
     np.testing.assert_array_equal(b.boxes, dets.for_frame(1).boxes)
     dets.seek(0)
     np.testing.assert_array_equal(dets.detect(None).boxes, a.boxes)
-    region = Box(240, 240, 40, 40)  # around the first box's centre (265.5, 263)
+    region = Box(240, 240, 40, 40)  # around the first box's centre (264.5, 262)
     dets.seek(0)
     inside = dets.detect_region(None, region)
-    assert len(inside) == 1 and inside.boxes[0, 0] == 243.0
+    assert len(inside) == 1 and inside.boxes[0, 0] == 242.0
 
 
 def test_calibration_and_confidence_filter(tmp_path):
@@ -80,7 +81,35 @@ def test_missing_file_and_empty_file(tmp_path):
 def test_whitespace_separated_rows(tmp_path):
     path = tmp_path / "det.txt"
     path.write_text("2 -1 10 20 30 60 0.8 -1 -1 -1\n")
-    assert MotDetections.from_file(path).for_frame(1).boxes.tolist() == [[10, 20, 30, 60]]
+    assert MotDetections.from_file(path).for_frame(1).boxes.tolist() == [[9, 19, 30, 60]]
+
+
+def test_file_pixel_1_1_is_image_pixel_0_0(tmp_path):
+    # MOTChallenge counts frames and pixels from 1; detections come out 0-based in both
+    path = tmp_path / "det.txt"
+    path.write_text("1,-1,1,1,30,60,0.9,-1,-1,-1\n3,-1,101.5,51.25,20,40,0.8,-1,-1,-1\n")
+    dets = MotDetections.from_file(path)
+    assert dets.for_frame(0).boxes.tolist() == [[0, 0, 30, 60]]
+    assert dets.for_frame(2).boxes.tolist() == [[100.5, 50.25, 20, 40]]
+    assert read_mot_rows(path)[:, 2:6].tolist() == [[1, 1, 30, 60], [101.5, 51.25, 20, 40]]
+
+
+def test_ground_truth_boxes_are_0_based(tmp_path):
+    (tmp_path / "img1").mkdir()
+    (tmp_path / "gt").mkdir()
+    for number in (1, 2):
+        cv2.imwrite(str(tmp_path / "img1" / f"{number:06d}.jpg"), np.zeros((8, 8, 3), np.uint8))
+    (tmp_path / "gt" / "gt.txt").write_text(
+        "1,1,1,1,10,20,1,-1,-1,-1\n2,1,5,7,10,20,1,-1,-1,-1\n2,2,9,9,4,4,0,-1,-1,-1\n"
+    )
+    sequence = MotSequence.open(tmp_path)
+    assert sequence.gt[0].tolist() == [[0, 0, 10, 20]]
+    assert sequence.gt[1].tolist() == [[4, 6, 10, 20]]  # the flag-0 row is left out
+
+
+def test_pets_ground_truth_is_the_file_moved_by_one_pixel(pets):
+    file_rows = read_mot_rows(pets.path / "gt" / "gt.txt")
+    np.testing.assert_array_equal(pets.gt[0], file_rows[file_rows[:, 0] == 1, 2:6] - [1, 1, 0, 0])
 
 
 def test_submitted_detections_per_frame():

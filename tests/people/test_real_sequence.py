@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from tracking.detection import MotDetections, MotSequence
+from tracking.detection.sequences import read_mot_rows
 from tracking.evaluation.hota import hota
+from tracking.evaluation.mot import estimates_to_rows
 from tracking.people import MultiPersonTracker
 
 FRAMES = 150
@@ -24,15 +26,11 @@ def test_pets09_on_public_detections_scores_above_the_floor(shared_data):
     tracker = MultiPersonTracker()
     rows = []
     for index in range(FRAMES):
-        found = detections.for_frame(index)
-        # MOTChallenge files count pixels from 1; the tracker from 0.
-        shifted = np.array([1.0, 1.0, 0.0, 0.0])
-        frame_detections = type(found)(
-            found.boxes - shifted, found.scores, found.probabilities, found.parts, found.part_names
+        # detections with 0-based boxes in, rows written back 1-based like the file's
+        tracks = tracker.update(
+            sequence.read_frame(index), index / 7.0, detections.for_frame(index)
         )
-        for track in tracker.update(sequence.read_frame(index), index / 7.0, frame_detections):
-            b = track.box
-            rows.append([index + 1, track.track_id, b.x + 1, b.y + 1, b.w, b.h])
-    ground_truth = np.loadtxt(shared_data / "mot" / "PETS09-S2L1" / "gt" / "gt.txt", delimiter=",")
+        rows.append(estimates_to_rows(index, tracks))
+    ground_truth = read_mot_rows(sequence.path / "gt" / "gt.txt")  # file units
     ground_truth = ground_truth[ground_truth[:, 0] <= FRAMES]
-    assert hota(ground_truth, np.array(rows)).hota > 0.40
+    assert hota(ground_truth, np.concatenate(rows)).hota > 0.40

@@ -99,7 +99,7 @@ def test_json_result_matches_the_schema(client, finished_job):
             assert [p["name"] for p in point["parts"]] == document["part_names"]
 
 
-def test_mot_result_lists_the_json_boxes(client, finished_job):
+def test_mot_result_lists_the_json_boxes_in_mot_pixels(client, finished_job):
     _, _, status = finished_job
     text = _download(client, status, "mot").text
     rows = np.array([[float(v) for v in line.split(",")] for line in text.splitlines()])
@@ -107,7 +107,8 @@ def test_mot_result_lists_the_json_boxes(client, finished_job):
     assert np.all(rows[:, 7:] == -1) and np.all(rows[:, 0] >= 1)
     trajectories = _download(client, status, "json").json()
     expected = sorted(
-        (p["frame_index"] + 1, t["track_id"], p["box"]["x"], p["box"]["y"])
+        # MOTChallenge counts frames and pixels from 1; the JSON from 0.
+        (p["frame_index"] + 1, t["track_id"], p["box"]["x"] + 1, p["box"]["y"] + 1)
         for t in trajectories["tracks"]
         for p in t["frames"]
     )

@@ -5,9 +5,11 @@ live stream an upstream detector publishes its boxes next to the frames. Both be
 :class:`~tracking.detection.base.Detections` as our own detectors produce, and both implement
 the :class:`~tracking.detection.base.Detector` protocol: ``detect(frame)`` returns the
 detections of the *current frame index* and advances it (a sequence is read in order), or the
-caller positions it with ``seek(index)``. Frame indices here are 0-based; MOTChallenge files
-count frames from 1, so index ``i`` reads the rows with ``frame == i + 1``. They have no dense
-scores (``dense_scores`` returns ``None``) and no parts.
+caller positions it with ``seek(index)``. Frame indices and boxes here are 0-based, as
+everywhere in the project; MOTChallenge files count frames and pixels from 1, so index ``i``
+reads the rows with ``frame == i + 1`` and a row's ``x, y`` become ``x - 1, y - 1``
+(:func:`~tracking.detection.sequences.mot_to_image_boxes`; the file's pixel ``(1, 1)`` is the
+image's ``(0, 0)``). They have no dense scores (``dense_scores`` returns ``None``) and no parts.
 
 Probabilities: a calibration if one is given, else the file's confidence clipped to ``[0, 1]``
 (the public detections of PETS09-S2L1 and TUD-Stadtmitte have confidences in ``[0.5, 1]``).
@@ -24,7 +26,7 @@ import numpy as np
 from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.regions import checked_region
-from tracking.detection.sequences import read_mot_rows
+from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows
 from tracking.types import Box
 
 __all__ = ["MotDetections", "SubmittedDetections", "detections_from_arrays"]
@@ -131,12 +133,15 @@ class _Cursor:
 
 @dataclass(slots=True)
 class MotDetections:
-    """Detections read from a MOTChallenge ``det.txt``.
+    """Detections read from a MOTChallenge ``det.txt``, handed out with 0-based boxes.
 
     Attributes
     ----------
     rows:
-        ``(N, >= 7)`` the file's rows ``frame, id, x, y, w, h, conf, ...``.
+        ``(N, >= 7)`` the file's rows ``frame, id, x, y, w, h, conf, ...`` in file units (frames
+        and pixels 1-based), as :func:`~tracking.detection.sequences.read_mot_rows` returns them;
+        after construction, only the rows kept (confidence, positive size). The boxes of
+        :meth:`for_frame` are these moved to 0-based pixels.
     calibration:
         Maps the confidence column to probabilities; ``None``: confidence clipped to ``[0, 1]``.
     min_confidence:
@@ -149,6 +154,7 @@ class MotDetections:
     part_names: tuple[str, ...] = ()
     _cursor: _Cursor = field(default_factory=_Cursor, repr=False)
     _by_frame: dict[int, np.ndarray] = field(init=False, repr=False)
+    _boxes: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         rows = np.asarray(self.rows, dtype=np.float64)
@@ -157,6 +163,7 @@ class MotDetections:
         rows = rows[rows[:, 6] >= self.min_confidence]
         rows = rows[(rows[:, 4] > 0) & (rows[:, 5] > 0)]
         self.rows = rows
+        self._boxes = mot_to_image_boxes(rows[:, 2:6])
         frames = rows[:, 0].astype(np.int64)
         order = np.argsort(frames, kind="stable")
         uniq, start = np.unique(frames[order], return_index=True)
@@ -179,9 +186,12 @@ class MotDetections:
         return max(self._by_frame, default=-1) + 1
 
     def for_frame(self, index: int) -> Detections:
-        """Detections of 0-based frame ``index`` (file rows with ``frame == index + 1``)."""
-        rows = self.rows[self._by_frame.get(int(index), np.zeros(0, dtype=np.int64))]
-        return detections_from_arrays(rows[:, 2:6], rows[:, 6], calibration=self.calibration)
+        """Detections of 0-based frame ``index`` (file rows with ``frame == index + 1``), boxes
+        with a 0-based corner (the file's ``x - 1, y - 1``)."""
+        picked = self._by_frame.get(int(index), np.zeros(0, dtype=np.int64))
+        return detections_from_arrays(
+            self._boxes[picked], self.rows[picked, 6], calibration=self.calibration
+        )
 
     def seek(self, index: int) -> None:
         """Make ``index`` (0-based) the frame the next :meth:`detect` returns."""

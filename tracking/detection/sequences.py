@@ -1,4 +1,5 @@
-"""MOTChallenge sequences as the detection benchmark and the calibration command read them.
+"""MOTChallenge files: the one reader of their rows, the pixel convention, and sequences as the
+detection benchmark and the calibration command read them.
 
 Layout (MOTChallenge 2015): ``<seq>/img1/NNNNNN.jpg`` (frame ``N``, 1-based),
 ``<seq>/gt/gt.txt`` and ``<seq>/det/det.txt`` with comma-separated rows
@@ -9,6 +10,21 @@ Ground truth: in MOT15-style ``gt.txt`` the 7th column is a flag, 0 meaning "ign
 (MOT16+ also puts a class in column 8 and a visibility in column 9; rows whose class is not 1,
 pedestrian, are ignored when the column is present and positive). In the PETS09-S2L1 and
 TUD-Stadtmitte files shipped here every row has flag 1 and class -1, so every row counts.
+
+Coordinates. MOTChallenge files are 1-based in frames *and* pixels ("all frame numbers, target
+IDs and bounding boxes are 1-based", motchallenge.net/instructions): ``x = 1`` is the first pixel
+column. The project's boxes (:class:`tracking.types.Box`,
+:class:`~tracking.detection.base.Detections`) have a 0-based top-left corner. The move between
+the two is made here and only here:
+
+- :func:`read_mot_rows` returns a file's rows as written (file units: frames and pixels 1-based);
+  use it for anything that is written back as MOTChallenge text (ground truth for TrackEval);
+- :func:`mot_to_image_boxes` moves a file's ``x, y, w, h`` to 0-based image boxes (``x, y``
+  minus 1). :attr:`MotSequence.gt` and :class:`~tracking.detection.external.MotDetections` hand
+  out boxes moved by it, so ground truth, public detections and our detectors' boxes compare
+  directly;
+- :func:`image_to_mot_boxes` is its inverse, for writing boxes back
+  (:func:`tracking.evaluation.mot.track_rows`).
 """
 
 from __future__ import annotations
@@ -21,7 +37,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["MotFormatError", "MotSequence", "read_mot_rows"]
+__all__ = [
+    "MOT_PIXEL_ORIGIN",
+    "MotFormatError",
+    "MotSequence",
+    "image_to_mot_boxes",
+    "mot_to_image_boxes",
+    "read_mot_rows",
+]
+
+MOT_PIXEL_ORIGIN = 1.0
+"""Coordinate of the first pixel in MOTChallenge files (0 in the project's boxes)."""
 
 
 class MotFormatError(ValueError):
@@ -29,9 +55,12 @@ class MotFormatError(ValueError):
 
 
 def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndarray:
-    """Rows of a MOTChallenge text file as a float64 array ``(N, C)``, ``C >= min_columns``.
+    """Rows of a MOTChallenge text file as a float64 array ``(N, C)``, ``C >= min_columns``, in
+    file units: the numbers as written, frames and box corners 1-based (for 0-based boxes see
+    :func:`mot_to_image_boxes`).
 
-    Blank lines are skipped; separators may be commas or whitespace.
+    Blank lines are skipped; separators may be commas or whitespace. Rows longer than the
+    shortest are cut to its length.
 
     Raises
     ------
@@ -72,6 +101,23 @@ def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndar
     return np.array([r[:width] for r in rows], dtype=np.float64)
 
 
+def mot_to_image_boxes(boxes: object) -> np.ndarray:
+    """``(N, 4)`` ``x, y, w, h`` of a MOTChallenge file -> 0-based image boxes (x, y minus 1).
+
+    Returns a new array; sizes are unchanged.
+    """
+    out = np.array(boxes, dtype=np.float64, copy=True).reshape(-1, 4)
+    out[:, :2] -= MOT_PIXEL_ORIGIN
+    return out
+
+
+def image_to_mot_boxes(boxes: object) -> np.ndarray:
+    """``(N, 4)`` 0-based image boxes -> MOTChallenge ``x, y, w, h`` (x, y plus 1)."""
+    out = np.array(boxes, dtype=np.float64, copy=True).reshape(-1, 4)
+    out[:, :2] += MOT_PIXEL_ORIGIN
+    return out
+
+
 @dataclass(frozen=True)
 class MotSequence:
     """One MOTChallenge sequence folder.
@@ -85,7 +131,8 @@ class MotSequence:
     frames:
         Image files, frame 1 first.
     gt:
-        Ground-truth boxes per 0-based frame index (``(M, 4)`` ``x, y, w, h``).
+        Ground-truth boxes per 0-based frame index (``(M, 4)`` ``x, y, w, h``), 0-based pixels
+        (the file's boxes moved by :func:`mot_to_image_boxes`).
     """
 
     path: Path
@@ -124,7 +171,8 @@ class MotSequence:
         if rows.shape[1] >= 8:
             keep &= (rows[:, 7] <= 0) | (rows[:, 7] == 1)  # MOT16+: class 1 = pedestrian
         rows = rows[keep]
-        gt = {i: rows[rows[:, 0] == i + 1, 2:6].copy() for i in range(len(frames))}
+        boxes = mot_to_image_boxes(rows[:, 2:6])
+        gt = {i: boxes[rows[:, 0] == i + 1] for i in range(len(frames))}
         return cls(path=path, name=name, frames=frames, gt=gt)
 
     def __len__(self) -> int:

@@ -12,11 +12,17 @@ Pixel convention. MOTChallenge states that "all frame numbers, target IDs and bo
 1-based" (motchallenge.net/instructions): ``bb_left = 1`` is the first pixel column. The
 project's boxes (:class:`tracking.types.Box`, :class:`tracking.detection.Detections`) have a
 0-based top-left corner. So a box read from ``det.txt`` or ``gt.txt`` is moved by ``-1`` in x and
-y before the tracker sees it (:func:`mot_to_image_boxes`), and a box the tracker reports is
-moved by ``+1`` when it is written (:func:`track_rows`). ``gt.txt``, ``det.txt`` and our result
-files then share one convention, and IoU against the ground truth is exact. A tracker that never
-looks at pixels (SORT, ByteTrack, OC-SORT) can take the file's boxes as they are and write them
-back unchanged: the shift cancels.
+y before the tracker sees it (:func:`mot_to_image_boxes`, applied by
+:class:`tracking.detection.MotDetections` and :attr:`tracking.detection.MotSequence.gt`), and a
+box the tracker reports is moved by ``+1`` when it is written (:func:`track_rows`). ``gt.txt``,
+``det.txt`` and our result files then share one convention, and IoU against the ground truth is
+exact. A tracker that never looks at pixels (SORT, ByteTrack, OC-SORT) can take the file's boxes
+as they are and write them back unchanged: the shift cancels.
+
+Reading the text files, the exception and the two box conversions are those of
+:mod:`tracking.detection.sequences` (re-exported here): :func:`read_mot_rows` returns rows in
+file units, as written; :data:`MotFileError` is
+:class:`~tracking.detection.sequences.MotFormatError`.
 
 The evaluation itself (HOTA, CLEAR MOT, identity metrics) is TrackEval's; it runs in its own
 environment (``benchmarks/_mot_env.py``) and reads the files written here.
@@ -33,6 +39,13 @@ from pathlib import Path
 
 import numpy as np
 
+from tracking.detection.sequences import (
+    MOT_PIXEL_ORIGIN,
+    MotFormatError,
+    image_to_mot_boxes,
+    mot_to_image_boxes,
+    read_mot_rows,
+)
 from tracking.tracks import TrackEstimate
 
 __all__ = [
@@ -46,20 +59,16 @@ __all__ = [
     "image_to_mot_boxes",
     "limit_frames",
     "mot_to_image_boxes",
-    "read_mot_file",
+    "read_mot_rows",
     "read_sequence_info",
     "track_rows",
     "write_mot_file",
 ]
 
-MOT_PIXEL_ORIGIN = 1.0
-"""Coordinate of the first pixel in MOTChallenge files (0 in the project's boxes)."""
-
 RESULT_COLUMNS = 10
 
-
-class MotFileError(ValueError):
-    """A MOTChallenge sequence folder or text file is missing or malformed."""
+MotFileError = MotFormatError
+"""A MOTChallenge sequence folder or text file is missing or malformed (a ValueError)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,63 +183,9 @@ def find_mot_sequences(root: str | os.PathLike[str]) -> list[Path]:
     return found
 
 
-def read_mot_file(path: str | os.PathLike[str], min_columns: int = 6) -> np.ndarray:
-    """Rows of a ``gt.txt``, ``det.txt`` or result file as ``(N, C)`` float64, in file units
-    (frames and boxes 1-based).
-
-    Values may be separated by commas or whitespace; blank lines are skipped. Rows longer than
-    the shortest are cut to its length.
-
-    Raises
-    ------
-    MotFileError
-        If the file cannot be read, or a line has fewer than ``min_columns`` values or a value
-        that is not a finite number; the message names the line.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MotFileError(f"cannot read {path}: {exc}") from exc
-    rows: list[list[float]] = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        fields = line.replace(",", " ").split()
-        if not fields:
-            continue
-        try:
-            values = [float(v) for v in fields]
-        except ValueError:
-            raise MotFileError(
-                f"{path}:{number}: expected numbers 'frame,id,x,y,w,h,...', got {line.strip()!r}"
-            ) from None
-        if len(values) < min_columns or not all(map(math.isfinite, values[:min_columns])):
-            raise MotFileError(
-                f"{path}:{number}: expected {min_columns} finite values, got {line.strip()!r}"
-            )
-        rows.append(values)
-    if not rows:
-        return np.zeros((0, min_columns))
-    width = min(len(r) for r in rows)
-    return np.array([r[:width] for r in rows], dtype=np.float64)
-
-
 def limit_frames(rows: np.ndarray, frames: int) -> np.ndarray:
     """The rows of the first ``frames`` frames (column 0 is the 1-based frame)."""
     return rows[rows[:, 0] <= frames]
-
-
-def mot_to_image_boxes(boxes: np.ndarray) -> np.ndarray:
-    """``(N, 4)`` ``x, y, w, h`` of a MOTChallenge file -> 0-based image boxes (x, y minus 1)."""
-    out = np.array(boxes, dtype=np.float64, copy=True).reshape(-1, 4)
-    out[:, :2] -= MOT_PIXEL_ORIGIN
-    return out
-
-
-def image_to_mot_boxes(boxes: np.ndarray) -> np.ndarray:
-    """``(N, 4)`` 0-based image boxes -> MOTChallenge ``x, y, w, h`` (x, y plus 1)."""
-    out = np.array(boxes, dtype=np.float64, copy=True).reshape(-1, 4)
-    out[:, :2] += MOT_PIXEL_ORIGIN
-    return out
 
 
 def track_rows(
