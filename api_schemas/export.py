@@ -16,6 +16,15 @@ from pydantic.json_schema import models_json_schema
 
 from api_schemas.common import ErrorResponse
 from api_schemas.jobs import JobCreated, JobList, JobOptions, JobStatus, ProgressEvent
+from api_schemas.streams import (
+    FrameAttachment,
+    StreamDetail,
+    StreamList,
+    StreamSpec,
+    StreamStatus,
+    StreamTracksMessage,
+    UpstreamDetections,
+)
 from api_schemas.tracks import FrameTracksMessage, Trajectories
 
 PUBLIC_MODELS: tuple[type[BaseModel], ...] = (
@@ -26,6 +35,13 @@ PUBLIC_MODELS: tuple[type[BaseModel], ...] = (
     ProgressEvent,
     Trajectories,
     FrameTracksMessage,
+    StreamSpec,
+    StreamStatus,
+    StreamDetail,
+    StreamList,
+    FrameAttachment,
+    UpstreamDetections,
+    StreamTracksMessage,
     ErrorResponse,
 )
 SCHEMA_PATH = Path(__file__).with_name("schema.json")

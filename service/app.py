@@ -20,14 +20,19 @@ from service.jobs.store import JobStore
 from service.jobs.submit import resources
 from service.jobs.workers import WorkerPool
 from service.metrics import make_registry
-from service.routers import health, jobs, metrics
+from service.routers import health, jobs, metrics, streams
 from service.settings import Settings
+from service.streams.manager import StreamManager
+from service.streams.store import StreamStore
 
 log = logging.getLogger("service")
 
 DESCRIPTION = """Upload a surveillance video, get back who walked where: one trajectory per
 person (box, body parts, confidence, occlusion), as JSON, MCAP (opens in Foxglove), MOTChallenge
 text and an annotated MP4. Jobs run in worker processes and survive a restart of the service.
+
+Or track cameras live: frames published on Zenoh in, tracks published back as they are computed
+(`/v1/streams`).
 """
 
 
@@ -66,17 +71,32 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     )
     pool = WorkerPool(store, config, settings.workers, settings.job_timeout)
     pool.start()
+    streams = StreamManager(
+        StreamStore(settings.database_path),
+        settings.zenoh,
+        settings.zenoh_prefix,
+        settings.streams_dir,
+        config.resources,
+        frame_limit=settings.stream_frame_limit,
+        log_level=settings.log_level,
+    )
+    if settings.zenoh_enabled:
+        streams.start(settings.streams)
+    else:
+        streams.unavailable = "live streams are off (VTRACK_ZENOH_ENABLED=false)"
     app.state.settings = settings
     app.state.store = store
     app.state.pool = pool
-    app.state.registry = make_registry(store, pool)
+    app.state.streams = streams
+    app.state.registry = make_registry(store, pool, streams)
     log.info("data in %s; %d workers", settings.data_dir.resolve(), settings.workers)
     try:
         yield
     finally:
+        streams.shutdown()
         pool.stop()
         store.close()
-        for name in ("pool", "store", "registry"):
+        for name in ("pool", "store", "registry", "streams"):
             delattr(app.state, name)
 
 
@@ -108,6 +128,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.include_router(health.router)
     app.include_router(jobs.router)
+    app.include_router(streams.router)
     app.include_router(metrics.router)
     return app
 

@@ -207,6 +207,12 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_stream_commands(commands: argparse._SubParsersAction) -> None:
+    from service.streams.cli import add_commands
+
+    add_commands(commands)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -283,6 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--data-dir", type=Path, help="job store and files (VTRACK_DATA_DIR)")
     serve.add_argument("--log-level", help="debug, info, warning... (VTRACK_LOG_LEVEL)")
     serve.set_defaults(handler=_serve)
+    add_stream_commands(commands)
     return parser
 
 

@@ -11,6 +11,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from service.jobs.store import JobStore
 from service.jobs.workers import WorkerPool
 from service.settings import Settings
+from service.streams.manager import StreamManager
 
 _bearer = HTTPBearer(auto_error=False, description="The token set in VTRACK_API_TOKEN.")
 
@@ -27,9 +28,14 @@ def get_pool(request: Request) -> WorkerPool:
     return request.app.state.pool
 
 
+def get_streams(request: Request) -> StreamManager:
+    return request.app.state.streams
+
+
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 StoreDep = Annotated[JobStore, Depends(get_store)]
 PoolDep = Annotated[WorkerPool, Depends(get_pool)]
+StreamsDep = Annotated[StreamManager, Depends(get_streams)]
 
 
 def require_token(

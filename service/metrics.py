@@ -1,4 +1,4 @@
-"""Prometheus metrics, read from the job store at scrape time.
+"""Prometheus metrics, read from the job store and the stream manager at scrape time.
 
 Workers are separate processes, so counts live where every process can add to them: the
 ``counters`` table of the job store (they also survive restarts). The collector turns them into
@@ -18,12 +18,14 @@ from prometheus_client.registry import Collector
 from api_schemas.jobs import JobState
 from service.jobs.store import DURATION_BUCKETS, JobStore
 from service.jobs.workers import WorkerPool
+from service.streams.manager import StreamManager
 
 
 class ServiceCollector(Collector):
-    def __init__(self, store: JobStore, pool: WorkerPool) -> None:
+    def __init__(self, store: JobStore, pool: WorkerPool, streams: StreamManager) -> None:
         self._store = store
         self._pool = pool
+        self._streams = streams
 
     def collect(self):
         jobs = GaugeMetricFamily(
@@ -60,9 +62,40 @@ class ServiceCollector(Collector):
             "Worker processes replaced after they died or overran (since start).",
             value=self._pool.replaced,
         )
+        yield from self._stream_metrics()
+
+    def _stream_metrics(self):
+        by_state = GaugeMetricFamily("vtrack_streams", "Live streams, by state.", labels=["state"])
+        for state, count in self._streams.counts().items():
+            by_state.add_metric([state], count)
+        yield by_state
+        frames = CounterMetricFamily(
+            "vtrack_stream_frames",
+            "Frames of live streams since their worker started, by camera and fate "
+            "(in, processed, skipped, malformed).",
+            labels=["camera", "fate"],
+        )
+        latency = GaugeMetricFamily(
+            "vtrack_stream_latency_seconds",
+            "Median processing latency of a stream's recent frames.",
+            labels=["camera"],
+        )
+        for status in self._streams.list():
+            c = status.counters
+            for fate, value in (
+                ("in", c.frames_in),
+                ("processed", c.frames_processed),
+                ("skipped", c.frames_skipped),
+                ("malformed", c.malformed),
+            ):
+                frames.add_metric([status.camera, fate], value)
+            if status.latency is not None:
+                latency.add_metric([status.camera], status.latency)
+        yield frames
+        yield latency
 
 
-def make_registry(store: JobStore, pool: WorkerPool) -> CollectorRegistry:
+def make_registry(store: JobStore, pool: WorkerPool, streams: StreamManager) -> CollectorRegistry:
     registry = CollectorRegistry(auto_describe=False)
-    registry.register(ServiceCollector(store, pool))
+    registry.register(ServiceCollector(store, pool, streams))
     return registry

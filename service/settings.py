@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from api_schemas.streams import StreamSpec
+from service.streams.session import DEFAULT_LISTEN, ZenohOptions
 
 
 def _default_workers() -> int:
@@ -58,14 +62,64 @@ class Settings(BaseSettings):
         default=0.2, gt=0, le=5, description="Seconds an idle worker waits between job checks."
     )
     log_level: str = Field(default="info", description="Logging level of the service.")
+    zenoh_enabled: bool = Field(
+        default=True, description="Open a Zenoh session and serve live streams (/v1/streams)."
+    )
+    zenoh_mode: Literal["peer", "client"] = Field(
+        default="peer",
+        description="'peer': cameras and workers meet at the service's listen endpoint; "
+        "'client': everything goes through the router(s) in VTRACK_ZENOH_CONNECT.",
+    )
+    zenoh_listen: list[str] = Field(
+        default_factory=lambda: list(DEFAULT_LISTEN),
+        description="JSON list of endpoints the service's Zenoh session listens on (peer mode).",
+    )
+    zenoh_connect: list[str] = Field(
+        default_factory=list,
+        description='JSON list of endpoints to connect to, e.g. ["tcp/zenoh:7447"] (a router).',
+    )
+    zenoh_config: Path | None = Field(
+        default=None,
+        description="A Zenoh JSON5 configuration file to start from (the settings above apply "
+        "over it; multicast scouting stays as the file says).",
+    )
+    zenoh_prefix: str = Field(
+        default="vtrack",
+        pattern=r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$",
+        description="First chunk(s) of every key expression: <prefix>/cameras/<camera>/frames.",
+    )
+    streams: list[StreamSpec] = Field(
+        default_factory=list,
+        description="JSON list of streams started with the service, each like the body of "
+        'POST /v1/streams, e.g. [{"camera": "gate"}].',
+    )
+    stream_frame_limit: int = Field(
+        default=32 * 1024**2,
+        ge=1024,
+        description="Largest frame payload in bytes a stream accepts (larger ones are counted "
+        "as malformed).",
+    )
 
-    @field_validator("dpm_model", "color_names")
+    @field_validator("dpm_model", "color_names", "zenoh_config")
     @classmethod
     def _existing_file(cls, value: Path | None, info) -> Path | None:
         if value is not None and not value.is_file():
             variable = f"VTRACK_{info.field_name.upper()}"
             raise ValueError(f"{variable} names {value}, which is not a file")
         return value
+
+    @property
+    def zenoh(self) -> ZenohOptions:
+        return ZenohOptions(
+            mode=self.zenoh_mode,
+            listen=tuple(self.zenoh_listen),
+            connect=tuple(self.zenoh_connect),
+            config_file=self.zenoh_config,
+        )
+
+    @property
+    def streams_dir(self) -> Path:
+        return self.data_dir / "streams"
 
     @property
     def database_path(self) -> Path:

@@ -22,6 +22,7 @@ from typing import Any
 
 import cv2
 from mcap.writer import CompressionType, Writer
+from pydantic import BaseModel
 
 from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
@@ -91,7 +92,14 @@ def _encode(document: dict[str, Any]) -> bytes:
 
 
 class McapWriter:
-    def __init__(self, path: Path, info: StreamInfo) -> None:
+    """``message_model`` is the model of the ``/tracks`` messages (its JSON Schema is stored)."""
+
+    def __init__(
+        self,
+        path: Path,
+        info: StreamInfo,
+        message_model: type[BaseModel] = FrameTracksMessage,
+    ) -> None:
         self.path = path
         self._file = path.open("wb")
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
@@ -100,7 +108,11 @@ class McapWriter:
         for topic, name, schema in (
             (IMAGE_TOPIC, "foxglove.CompressedImage", foxglove.COMPRESSED_IMAGE_SCHEMA),
             (ANNOTATIONS_TOPIC, "foxglove.ImageAnnotations", foxglove.IMAGE_ANNOTATIONS_SCHEMA),
-            (TRACKS_TOPIC, "vtrack.FrameTracks", FrameTracksMessage.model_json_schema()),
+            (
+                TRACKS_TOPIC,
+                f"vtrack.{message_model.__name__.removesuffix('Message')}",
+                message_model.model_json_schema(),
+            ),
         ):
             schema_id = self._writer.register_schema(name, "jsonschema", _encode(schema))
             self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from service.deps import PoolDep, StoreDep
+from service.deps import PoolDep, StoreDep, StreamsDep
 
 router = APIRouter(tags=["health"])
 
@@ -20,7 +20,7 @@ def healthz() -> dict[str, str]:
     summary="The service can take jobs: the store opens and a worker is ready",
     responses={503: {"description": "Not ready (yet): no worker process is ready."}},
 )
-def readyz(store: StoreDep, pool: PoolDep) -> JSONResponse:
+def readyz(store: StoreDep, pool: PoolDep, streams: StreamsDep) -> JSONResponse:
     counts = store.counts_by_state()
     ready = pool.ready()
     body = {
@@ -28,6 +28,8 @@ def readyz(store: StoreDep, pool: PoolDep) -> JSONResponse:
         "workers": pool.size,
         "workers_ready": ready,
         "jobs": {state.value: n for state, n in counts.items()},
+        "streams": streams.counts(),
+        "zenoh": streams.unavailable or "ok",
     }
     if not ready:
         body["detail"] = "no worker process is ready yet; try again in a few seconds"

@@ -97,6 +97,10 @@ class Server:
         self.token = settings.get("api_token")
 
     @property
+    def zenoh_listen(self) -> tuple[str, ...]:
+        return tuple(json.loads(self.settings["zenoh_listen"]))
+
+    @property
     def url(self) -> str:
         return f"http://127.0.0.1:{self.port}"
 
@@ -108,6 +112,8 @@ class Server:
     def start(self, timeout: float = 60.0) -> Server:
         self.port = free_port()
         env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
+        # Each server gets its own Zenoh port, so that servers of parallel tests never meet.
+        self.settings.setdefault("zenoh_listen", json.dumps([f"tcp/127.0.0.1:{free_port()}"]))
         env.update({f"VTRACK_{k.upper()}": str(v) for k, v in self.settings.items()})
         command = [
             sys.executable,

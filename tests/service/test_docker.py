@@ -188,3 +188,14 @@ def test_compose_environment_names_real_settings():
     named = {word.strip(":") for word in text.split() if word.startswith("VTRACK_")}
     assert named <= known, named - known
     assert set(compose["services"]["vtrack"]["environment"]) <= known
+
+
+def test_compose_environment_parses_and_reaches_the_router(monkeypatch):
+    from service.settings import Settings
+
+    compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+    for key, value in compose["services"]["vtrack"]["environment"].items():
+        monkeypatch.setenv(key, value)
+    settings = Settings()
+    router = compose["services"]["zenoh"]["ports"][0].split(":")[1]
+    assert settings.zenoh.connect == (f"tcp/zenoh:{router}",)

@@ -1,0 +1,238 @@
+"""Live streams over Zenoh: the messages on the wire and the REST models that manage streams.
+
+Key expressions, under a configurable prefix (``vtrack`` by default), for camera ``<camera>``:
+
+- ``<prefix>/cameras/<camera>/frames`` (in): one sample per frame. The payload is a JPEG
+  (encoding ``image/jpeg``) or raw pixels (any other encoding; ``width``, ``height`` and
+  ``format`` in the attachment). The attachment is a :class:`FrameAttachment` as JSON.
+- ``<prefix>/cameras/<camera>/detections`` (in, optional): :class:`UpstreamDetections` as JSON,
+  matched to frames by sequence number; used instead of the service's detector when present.
+- ``<prefix>/cameras/<camera>/tracks`` (out): one :class:`StreamTracksMessage` as JSON per
+  processed frame.
+- ``<prefix>/trackers/<camera>/<instance>`` (liveliness token): present while an instance of
+  the service tracks that camera.
+- ``<prefix>/cameras/<camera>/tracks/current`` (queryable): answers with the latest
+  :class:`StreamTracksMessage`.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from enum import StrEnum
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions
+from api_schemas.tracks import FrameTracksMessage
+
+CAMERA_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$"
+"""Camera names: one key-expression chunk (no ``/``, ``*``, ``$``, ``?`` or ``#``)."""
+
+
+class PixelFormat(StrEnum):
+    """Layout of a raw frame payload: 8 bits per channel, rows packed without padding."""
+
+    rgb8 = "rgb8"
+    bgr8 = "bgr8"
+    mono8 = "mono8"
+
+    @property
+    def channels(self) -> int:
+        return 1 if self is PixelFormat.mono8 else 3
+
+
+class FrameAttachment(BaseModel):
+    """The attachment (JSON) of every frame sample."""
+
+    model_config = ConfigDict(extra="ignore")
+
+    sequence: int = Field(ge=0, description="Frame counter of the camera, increasing by one.")
+    timestamp: float = Field(
+        ge=0,
+        allow_inf_nan=False,
+        description="Capture time in seconds (Unix time recommended). Tracks carry it back, "
+        "and the tracker's motion model runs on it.",
+    )
+    width: int | None = Field(default=None, ge=1, le=16384, description="Raw frames only.")
+    height: int | None = Field(default=None, ge=1, le=16384, description="Raw frames only.")
+    format: PixelFormat | None = Field(default=None, description="Raw frames only.")
+
+
+class UpstreamDetection(BaseModel):
+    """One person found by an upstream detector, in pixels of the frame."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    x: float = Field(allow_inf_nan=False)
+    y: float = Field(allow_inf_nan=False)
+    w: float = Field(gt=0, allow_inf_nan=False)
+    h: float = Field(gt=0, allow_inf_nan=False)
+    score: float = Field(
+        allow_inf_nan=False,
+        description="Detector confidence; clipped to [0, 1], it is taken as the probability "
+        "that the box holds a person.",
+    )
+
+
+class UpstreamDetections(BaseModel):
+    """The payload on the ``detections`` key: one frame's detections."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sequence: int = Field(ge=0, description="Sequence number of the frame they belong to.")
+    detections: list[UpstreamDetection]
+
+
+class StreamTracksMessage(FrameTracksMessage):
+    """The payload on the ``tracks`` key: every person tracked in one frame of a stream.
+
+    ``frame_index`` counts the frames this stream has tracked; ``timestamp`` is the frame's
+    capture time as the camera stamped it.
+    """
+
+    model_config = ConfigDict(extra="forbid", title="StreamTracks")
+
+    camera: str
+    sequence: int = Field(ge=0, description="The frame's sequence number from its attachment.")
+    latency: float = Field(
+        ge=0, description="Seconds from the frame's arrival at the tracker to this message."
+    )
+    frames_skipped: int = Field(
+        ge=0,
+        description="Frames that arrived since the previous message and were skipped because "
+        "tracking was behind (latest-first).",
+    )
+    detections: str = Field(
+        description="Where this frame's detections came from: 'upstream' (the detections "
+        "key) or 'service' (the service's own detector)."
+    )
+
+
+# -- REST --------------------------------------------------------------------------------------
+
+
+class StreamState(StrEnum):
+    """Where a stream is in its life."""
+
+    starting = "starting"
+    """The worker process is starting and opening its Zenoh session."""
+    waiting = "waiting"
+    """Subscribed; no frame has arrived yet."""
+    running = "running"
+    """Frames are arriving and being tracked."""
+    idle = "idle"
+    """No frame for ``idle_after`` seconds; tracks end after ``end_tracks_after``."""
+    failed = "failed"
+    """The worker keeps dying; see ``error``."""
+    stopped = "stopped"
+    """Stopped on request (``DELETE``); the record stays until deleted again."""
+
+
+class StreamSpec(BaseModel):
+    """A stream to track: the body of ``POST /v1/streams`` (or one entry of VTRACK_STREAMS)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    camera: str = Field(
+        pattern=CAMERA_PATTERN,
+        description="Camera name: frames are read from <prefix>/cameras/<camera>/frames. "
+        "It is also the stream's id.",
+    )
+    detector: DetectorOptions = Field(default_factory=DetectorOptions)
+    tracker: PeopleTrackerOptions = Field(default_factory=PeopleTrackerOptions)
+    record: bool = Field(
+        default=False,
+        description="Record frames and tracks to MCAP; downloadable once the stream stops.",
+    )
+    idle_after: float = Field(
+        default=2.0, gt=0, le=600, description="Seconds without a frame before 'idle'."
+    )
+    end_tracks_after: float = Field(
+        default=10.0,
+        gt=0,
+        le=3600,
+        description="Seconds without a frame before the tracks end; a camera that comes back "
+        "later starts new tracks.",
+    )
+    detections_wait: float = Field(
+        default=0.05,
+        ge=0,
+        le=5,
+        description="When the camera has an upstream detector (its detections key has spoken "
+        "in the last 5 s), seconds to wait for a frame's detections before falling back to "
+        "the service's detector.",
+    )
+
+
+class StreamCounters(BaseModel):
+    """What a stream has seen since it started."""
+
+    frames_in: int = Field(ge=0, description="Frame samples received.")
+    frames_processed: int = Field(ge=0, description="Frames tracked (a tracks message each).")
+    frames_skipped: int = Field(ge=0, description="Frames dropped because tracking was behind.")
+    malformed: int = Field(
+        ge=0, description="Samples (frames or detections) that could not be used."
+    )
+    detections_in: int = Field(ge=0, description="Upstream detection messages received.")
+    detections_used: int = Field(ge=0, description="Frames tracked with upstream detections.")
+    restarts: int = Field(
+        ge=0, description="Times the tracker started over (camera idle, clock going back)."
+    )
+
+
+class StreamStatus(BaseModel):
+    """The public view of a stream."""
+
+    id: str
+    camera: str
+    state: StreamState
+    created_at: datetime
+    stopped_at: datetime | None = None
+    counters: StreamCounters
+    fps: float | None = Field(default=None, ge=0, description="Frames tracked per second, lately.")
+    latency: float | None = Field(
+        default=None, ge=0, description="Median processing latency of recent frames, seconds."
+    )
+    latency_p95: float | None = Field(default=None, ge=0)
+    last_frame_at: datetime | None = Field(default=None, description="Arrival of the last frame.")
+    errors: list[str] = Field(
+        default_factory=list, description="The latest problems (bad payloads...), newest last."
+    )
+    error: str | None = Field(default=None, description="Why the stream failed.")
+    worker_pid: int | None = None
+    worker_starts: int = Field(ge=0, description="Worker processes started for this stream.")
+    keys: dict[str, str] = Field(description="Zenoh key expressions of this stream.")
+    recordings: list[str] = Field(
+        default_factory=list,
+        description="URLs of the finished MCAP recordings (a recording is finished when its "
+        "worker stops: DELETE, a service restart).",
+    )
+    spec: StreamSpec
+
+
+class StreamDetail(StreamStatus):
+    """``GET /v1/streams/{id}``: the status and the current tracks."""
+
+    tracks: StreamTracksMessage | None = Field(
+        default=None, description="The latest tracks message (None before the first frame)."
+    )
+
+
+class StreamList(BaseModel):
+    streams: list[StreamStatus]
+
+
+__all__ = [
+    "CAMERA_PATTERN",
+    "FrameAttachment",
+    "PixelFormat",
+    "StreamCounters",
+    "StreamDetail",
+    "StreamList",
+    "StreamSpec",
+    "StreamState",
+    "StreamStatus",
+    "StreamTracksMessage",
+    "UpstreamDetection",
+    "UpstreamDetections",
+]

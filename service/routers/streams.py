@@ -1,0 +1,113 @@
+"""``/v1/streams``: start, watch and stop live tracking of cameras that publish on Zenoh."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TypeVar
+
+from fastapi import APIRouter, HTTPException, Response, status
+from fastapi.responses import FileResponse
+
+from api_schemas.common import ErrorResponse
+from api_schemas.streams import StreamDetail, StreamList, StreamSpec, StreamStatus
+from service.analysis import OptionsError
+from service.deps import AuthDep, StreamsDep
+from service.streams.manager import StreamConflict, StreamNotFound
+from service.streams.session import ZenohUnavailable
+
+router = APIRouter(prefix="/v1/streams", tags=["streams"], dependencies=[AuthDep])
+
+T = TypeVar("T")
+
+_ERRORS = {code: {"model": ErrorResponse} for code in (401, 404, 409, 422, 503)}
+
+
+def _not_found(stream_id: str) -> HTTPException:
+    return HTTPException(
+        status.HTTP_404_NOT_FOUND,
+        f"no stream {stream_id!r}: it was never started or was deleted (GET /v1/streams lists "
+        "the streams)",
+    )
+
+
+def _call(stream_id: str, method: Callable[[str], T]) -> T:
+    """``method(stream_id)``, with 404 for an unknown stream."""
+    try:
+        return method(stream_id)
+    except StreamNotFound:
+        raise _not_found(stream_id) from None
+
+
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    response_model=StreamStatus,
+    responses=_ERRORS,
+    summary="Start tracking a camera",
+)
+def create_stream(spec: StreamSpec, streams: StreamsDep, response: Response) -> StreamStatus:
+    """Subscribe to ``<prefix>/cameras/<camera>/frames`` and publish tracks on
+    ``<prefix>/cameras/<camera>/tracks``, in a worker process of its own. 409 when the camera is
+    tracked already (by this instance or, as its liveliness token shows, by another)."""
+    try:
+        created = streams.create(spec)
+    except ZenohUnavailable as error:
+        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, str(error)) from None
+    except StreamConflict as error:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from None
+    except OptionsError as error:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, str(error)) from None
+    response.headers["Location"] = f"/v1/streams/{created.id}"
+    return created
+
+
+@router.get("", response_model=StreamList, summary="List the streams")
+def list_streams(streams: StreamsDep) -> StreamList:
+    return StreamList(streams=streams.list())
+
+
+@router.get(
+    "/{stream_id}",
+    response_model=StreamDetail,
+    responses=_ERRORS,
+    summary="A stream's status and current tracks",
+)
+def get_stream(stream_id: str, streams: StreamsDep) -> StreamDetail:
+    return _call(stream_id, streams.detail)
+
+
+@router.delete(
+    "/{stream_id}",
+    response_model=StreamStatus,
+    responses={**_ERRORS, 204: {"description": "A stopped stream was deleted."}},
+    summary="Stop a stream (then, a second time, delete it)",
+)
+def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Response:
+    """A running stream is stopped: its worker ends, its recording is finished, and its final
+    status is returned (200). A stopped stream is deleted with its recordings (204)."""
+    current = _call(stream_id, streams.status)
+    if current.state.value != "stopped":
+        return _call(stream_id, streams.stop)
+    try:
+        streams.remove(stream_id)
+    except StreamNotFound:
+        raise _not_found(stream_id) from None
+    except StreamConflict as error:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from None
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.get(
+    "/{stream_id}/recordings/{name}",
+    responses={**_ERRORS, 200: {"content": {"application/octet-stream": {}}}},
+    summary="Download a finished MCAP recording",
+)
+def get_recording(stream_id: str, name: str, streams: StreamsDep) -> FileResponse:
+    recordings = {p.name: p for p in _call(stream_id, streams.recordings)}
+    if name not in recordings:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            f"stream {stream_id!r} has no finished recording {name!r}; a recording is finished "
+            f"when the stream stops (its status lists them: {sorted(recordings) or 'none yet'})",
+        )
+    return FileResponse(recordings[name], media_type="application/octet-stream", filename=name)

@@ -1,0 +1,222 @@
+"""``vtrack publish`` and ``vtrack subscribe``: a camera and a consumer for the live streams."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+
+from service.streams.keys import StreamKeys
+from service.streams.session import ZenohOptions, ZenohUnavailable
+
+
+def _zenoh_options(args: argparse.Namespace) -> ZenohOptions:
+    """The service's Zenoh settings (VTRACK_ZENOH_*), with ``--connect``/``--mode`` over them."""
+    from service.settings import Settings
+
+    settings = Settings()
+    options = settings.zenoh
+    if args.connect:
+        options = ZenohOptions(mode=options.mode, listen=(), connect=tuple(args.connect))
+    if args.mode:
+        options = ZenohOptions(args.mode, options.listen, options.connect, options.config_file)
+    return options
+
+
+def _keys(args: argparse.Namespace) -> StreamKeys:
+    from service.settings import Settings
+
+    return StreamKeys(args.prefix or Settings().zenoh_prefix, args.camera)
+
+
+def _publish(args: argparse.Namespace) -> int:
+    from service.streams.tools import member_session, publish_frames, video_frames
+    from tracking.detection import MotDetections
+
+    try:
+        frames, fps = video_frames(args.source)
+        detections = None
+        if args.detections is not None:
+            table = MotDetections.from_file(args.detections)
+            detections = table.for_frame
+    except (ValueError, OSError) as error:
+        print(f"vtrack publish: {error}", file=sys.stderr)
+        return 2
+    rate = args.fps or fps or 25.0
+    keys = _keys(args)
+    try:
+        session = member_session(_zenoh_options(args))
+    except ZenohUnavailable as error:
+        print(f"vtrack publish: {error}", file=sys.stderr)
+        return 1
+    print(
+        f"vtrack publish: {args.source} on {keys.frames} at {rate:g} fps (Ctrl-C stops)",
+        file=sys.stderr,
+        flush=True,
+    )
+    sent = 0
+    try:
+        while True:
+            report = publish_frames(
+                session,
+                keys,
+                frames,
+                rate,
+                raw=args.raw,
+                quality=args.quality,
+                detections=detections,
+                detections_scale=args.detections_scale,
+                first_sequence=sent,
+                wait_for_subscriber=args.wait if sent == 0 else 0.0,
+                limit=None if args.limit is None else args.limit - sent,
+            )
+            sent += report.frames
+            if not args.loop or (args.limit is not None and sent >= args.limit):
+                break
+            frames, _ = video_frames(args.source)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        session.close()
+    print(f"vtrack publish: {sent} frames sent", file=sys.stderr)
+    return 0
+
+
+def _subscribe(args: argparse.Namespace) -> int:
+    from service.streams.tools import (
+        current_tracks,
+        follow_tracks,
+        member_session,
+        reach_tracker,
+    )
+
+    keys = _keys(args)
+    try:
+        session = member_session(_zenoh_options(args))
+    except ZenohUnavailable as error:
+        print(f"vtrack subscribe: {error}", file=sys.stderr)
+        return 1
+    out = args.output.open("a") if args.output else sys.stdout
+    done = threading.Event()
+    received = 0
+    lock = threading.Lock()
+
+    def show(message, arrived: float) -> None:
+        nonlocal received
+        with lock:
+            if done.is_set():
+                return
+            document = message.model_dump(mode="json")
+            if not args.output and not args.json:
+                people = ", ".join(
+                    f"#{t.track_id} ({t.box.x:.0f},{t.box.y:.0f} {t.box.w:.0f}x{t.box.h:.0f})"
+                    for t in message.tracks
+                )
+                line = (
+                    f"seq {message.sequence} t={message.timestamp:.3f} "
+                    f"latency {1000 * message.latency:.0f} ms skipped {message.frames_skipped}: "
+                    f"{people or 'nobody'}"
+                )
+            else:
+                line = json.dumps(document, separators=(",", ":"))
+            out.write(line + "\n")
+            out.flush()
+            received += 1
+            if args.count is not None and received >= args.count:
+                done.set()
+
+    try:
+        if args.current:
+            message = current_tracks(session, keys)
+            if message is None:
+                print(f"vtrack subscribe: no tracker answered on {keys.current}", file=sys.stderr)
+                return 1
+            show(message, time.time())
+            return 0
+        subscriber = follow_tracks(session, keys, show)
+        if not reach_tracker(session, keys, timeout=5.0):
+            print(
+                f"vtrack subscribe: no tracker of camera {args.camera} answers yet (is the "
+                "stream started?); listening anyway",
+                file=sys.stderr,
+            )
+        print(
+            f"vtrack subscribe: following {keys.tracks} (Ctrl-C stops)", file=sys.stderr, flush=True
+        )
+        done.wait(args.duration)
+        subscriber.undeclare()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        session.close()
+        if args.output:
+            out.close()
+    return 0
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    """The ``publish`` and ``subscribe`` subcommands of ``vtrack``."""
+
+    def zenoh_arguments(parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--camera", required=True, help="camera name (the key's chunk)")
+        parser.add_argument("--prefix", help="key prefix (VTRACK_ZENOH_PREFIX, default vtrack)")
+        parser.add_argument(
+            "--connect",
+            action="append",
+            metavar="ENDPOINT",
+            help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
+            "the service's VTRACK_ZENOH_LISTEN and VTRACK_ZENOH_CONNECT)",
+        )
+        parser.add_argument("--mode", choices=("peer", "client"), help="Zenoh mode")
+
+    publish = commands.add_parser(
+        "publish",
+        help="publish a video file or webcam to Zenoh as a camera, at its frame rate",
+        description="Publish frames as a camera does: JPEG (or raw rgb8) on "
+        "<prefix>/cameras/<camera>/frames with sequence number and capture time attached.",
+    )
+    publish.add_argument("source", help="video file, image folder, or webcam:N")
+    zenoh_arguments(publish)
+    publish.add_argument("--fps", type=float, help="frames per second (default: the video's)")
+    publish.add_argument("--loop", action="store_true", help="start over at the end")
+    publish.add_argument("--limit", type=int, help="stop after this many frames")
+    publish.add_argument(
+        "--wait",
+        type=float,
+        default=5.0,
+        help="seconds to wait for a tracker to subscribe before the first frame (default 5)",
+    )
+    publish.add_argument("--raw", action="store_true", help="raw rgb8 pixels instead of JPEG")
+    publish.add_argument("--quality", type=int, default=90, help="JPEG quality (default 90)")
+    publish.add_argument(
+        "--detections",
+        type=Path,
+        help="MOTChallenge det.txt to publish as an upstream detector, frame by frame",
+    )
+    publish.add_argument(
+        "--detections-scale",
+        type=float,
+        default=1.0,
+        help="multiply the detections' boxes by this (e.g. 0.625: PETS 768x576 boxes on the "
+        "480x360 video)",
+    )
+    publish.set_defaults(handler=_publish)
+
+    subscribe = commands.add_parser(
+        "subscribe",
+        help="print or record a camera's tracks from Zenoh",
+        description="Follow <prefix>/cameras/<camera>/tracks: one line per frame, or JSON lines "
+        "with --json or --output.",
+    )
+    zenoh_arguments(subscribe)
+    subscribe.add_argument("--output", type=Path, help="append JSON lines to this file")
+    subscribe.add_argument("--json", action="store_true", help="print JSON lines")
+    subscribe.add_argument("--count", type=int, help="stop after this many messages")
+    subscribe.add_argument("--duration", type=float, help="stop after this many seconds")
+    subscribe.add_argument(
+        "--current", action="store_true", help="ask for the current tracks once and exit"
+    )
+    subscribe.set_defaults(handler=_subscribe)

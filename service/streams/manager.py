@@ -1,0 +1,388 @@
+"""The service side of live streams: a worker process per stream, started, watched, stopped.
+
+:class:`StreamManager` lives in the service process. It opens the hub Zenoh session (the one
+cameras and workers meet at), starts a spawned worker per stream, and keeps each stream's latest
+status from the reports its worker sends over a queue. A supervisor thread restarts a worker
+that died, waiting longer after each quick death, and gives up (state ``failed``) after
+:data:`MAX_QUICK_DEATHS` in a row.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+import queue
+import shutil
+import threading
+import time
+import uuid
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from api_schemas.jobs import JobOptions
+from api_schemas.streams import (
+    StreamCounters,
+    StreamDetail,
+    StreamSpec,
+    StreamState,
+    StreamStatus,
+    StreamTracksMessage,
+)
+from service.analysis import PipelineResources, check_options
+from service.jobs.workers import describe_exit
+from service.streams.keys import StreamKeys
+from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from service.streams.store import StreamRecord, StreamStore
+from service.streams.tools import trackers_of
+from service.streams.worker import StreamContext, stream_main
+
+log = logging.getLogger(__name__)
+
+MAX_QUICK_DEATHS = 5
+"""Worker deaths in a row, each within :data:`QUICK` seconds of its start, before giving up."""
+QUICK = 30.0
+STOP_GRACE = 10.0
+"""Seconds a stopping worker gets to close its recording and session before it is killed."""
+
+
+class StreamConflict(Exception):
+    """The camera is tracked already (here or by another instance)."""
+
+
+class StreamNotFound(KeyError):
+    pass
+
+
+@dataclass(slots=True)
+class _Stream:
+    record: StreamRecord
+    process: Any = None
+    stop: Any = None
+    updates: Any = None
+    started_at: float = 0.0
+    starts: int = 0
+    quick_deaths: int = 0
+    restart_at: float | None = None
+    state: StreamState = StreamState.starting
+    error: str | None = None
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+class StreamManager:
+    """Every stream of this service instance."""
+
+    def __init__(
+        self,
+        store: StreamStore,
+        zenoh: ZenohOptions,
+        prefix: str,
+        streams_dir: Path,
+        resources: PipelineResources,
+        *,
+        frame_limit: int = 32 * 1024**2,
+        log_level: str = "info",
+        check_interval: float = 0.1,
+    ) -> None:
+        self._store = store
+        self._zenoh = zenoh
+        self._prefix = prefix
+        self._streams_dir = streams_dir
+        self._resources = resources
+        self._frame_limit = frame_limit
+        self._log_level = log_level
+        self._check_interval = check_interval
+        self.instance = uuid.uuid4().hex[:12]
+        self._ctx = multiprocessing.get_context("spawn")
+        self._streams: dict[str, _Stream] = {}
+        self._lock = threading.RLock()
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._hub = None
+        self.unavailable: str | None = None
+
+    # -- lifecycle -------------------------------------------------------------------------
+
+    def start(self, configured: list[StreamSpec]) -> None:
+        """Open the hub session; start the configured streams and those the store holds."""
+        try:
+            self._hub = open_session(self._zenoh.hub_config())
+        except ZenohUnavailable as error:
+            self.unavailable = f"Zenoh is unavailable: {error}"
+            log.error("%s; live streams are off", self.unavailable)
+            return
+        for spec in configured:
+            self._store.put(spec)
+        for record in self._store.all():
+            stream = _Stream(record)
+            if record.stopped_at is not None:
+                stream.state = StreamState.stopped
+            self._streams[record.id] = stream
+            if record.stopped_at is None:
+                self._spawn(stream)
+        self._thread = threading.Thread(target=self._supervise, name="vtrack-streams")
+        self._thread.daemon = True
+        self._thread.start()
+        log.info("Zenoh session %s open; %d streams", self._hub.zid(), len(self._streams))
+
+    def shutdown(self) -> None:
+        """Stop every worker; the streams start again with the next service."""
+        self._stopping.set()
+        if self._thread is not None:
+            self._thread.join()
+        with self._lock:
+            streams = list(self._streams.values())
+        for stream in streams:
+            self._halt(stream)
+        if self._hub is not None:
+            self._hub.close()
+            self._hub = None
+
+    # -- requests --------------------------------------------------------------------------
+
+    def create(self, spec: StreamSpec) -> StreamStatus:
+        """Start tracking a camera.
+
+        Raises
+        ------
+        ZenohUnavailable
+            The service has no Zenoh session.
+        StreamConflict
+            The camera is tracked already, here or by another instance.
+        OptionsError
+            Options that cannot run here (e.g. detector 'dpm' without a model).
+        """
+        self._require_zenoh()
+        check_options(_as_job_options(spec), self._resources)
+        keys = self._keys(spec.camera)
+        others = [i for i in trackers_of(self._hub, keys) if i != self.instance]
+        if others:
+            raise StreamConflict(
+                f"camera {spec.camera} is tracked already by another instance "
+                f"({', '.join(others)}; see the liveliness tokens {keys.trackers})"
+            )
+        with self._lock:
+            existing = self._streams.get(spec.camera)
+            if existing is not None and existing.state is not StreamState.stopped:
+                raise StreamConflict(f"camera {spec.camera} is tracked already by this service")
+            stream = _Stream(self._store.put(spec))
+            self._streams[spec.camera] = stream
+            self._spawn(stream)
+            return self._status(stream)
+
+    def stop(self, stream_id: str) -> StreamStatus:
+        """Stop a stream; its record and recordings stay until :meth:`remove`."""
+        stream = self._get(stream_id)
+        self._halt(stream)
+        with self._lock:
+            stopped = self._store.mark_stopped(stream_id)
+            stream.record = StreamRecord(
+                stream.record.id, stream.record.spec, stream.record.created_at, stopped
+            )
+            stream.state = StreamState.stopped
+            stream.restart_at = None
+            return self._status(stream)
+
+    def remove(self, stream_id: str) -> None:
+        """Forget a stopped stream and delete its recordings."""
+        with self._lock:
+            stream = self._get(stream_id)
+            if stream.state is not StreamState.stopped:
+                raise StreamConflict(f"stream {stream_id} is running; stop it first")
+            self._store.delete(stream_id)
+            del self._streams[stream_id]
+        shutil.rmtree(self.recordings_dir(stream_id), ignore_errors=True)
+
+    def list(self) -> list[StreamStatus]:
+        with self._lock:
+            return [self._status(s) for s in self._streams.values()]
+
+    def detail(self, stream_id: str) -> StreamDetail:
+        with self._lock:
+            stream = self._get(stream_id)
+            status = self._status(stream)
+            tracks = stream.report.get("tracks")
+        current = StreamTracksMessage.model_validate_json(tracks) if tracks else None
+        return StreamDetail(**status.model_dump(), tracks=current)
+
+    def status(self, stream_id: str) -> StreamStatus:
+        with self._lock:
+            return self._status(self._get(stream_id))
+
+    def recordings_dir(self, stream_id: str) -> Path:
+        return self._streams_dir / stream_id
+
+    def recordings(self, stream_id: str) -> list[Path]:
+        """Finished recordings of a stream, oldest first."""
+        self._get(stream_id)
+        folder = self.recordings_dir(stream_id)
+        return sorted(folder.glob("*.mcap")) if folder.is_dir() else []
+
+    def counts(self) -> dict[str, int]:
+        """Streams per state (for /metrics and /readyz)."""
+        with self._lock:
+            counts: dict[str, int] = {}
+            for stream in self._streams.values():
+                state = self._state(stream).value
+                counts[state] = counts.get(state, 0) + 1
+            return counts
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _require_zenoh(self) -> None:
+        if self._hub is None:
+            raise ZenohUnavailable(self.unavailable or "the stream manager is not started")
+
+    def _keys(self, camera: str) -> StreamKeys:
+        return StreamKeys(self._prefix, camera)
+
+    def _get(self, stream_id: str) -> _Stream:
+        with self._lock:
+            stream = self._streams.get(stream_id)
+        if stream is None:
+            raise StreamNotFound(stream_id)
+        return stream
+
+    def _spawn(self, stream: _Stream) -> None:
+        spec = stream.record.spec
+        context = StreamContext(
+            spec=spec,
+            prefix=self._prefix,
+            zenoh=self._zenoh,
+            instance=self.instance,
+            resources=self._resources,
+            recordings_dir=self.recordings_dir(spec.camera),
+            frame_limit=self._frame_limit,
+            log_level=self._log_level,
+        )
+        stream.stop = self._ctx.Event()
+        stream.updates = self._ctx.Queue()
+        stream.process = self._ctx.Process(
+            target=stream_main,
+            args=(context, os.getpid(), stream.stop, stream.updates),
+            name=f"vtrack-stream-{spec.camera}",
+            daemon=True,
+        )
+        stream.process.start()
+        stream.started_at = time.monotonic()
+        stream.starts += 1
+        stream.state = StreamState.starting
+        stream.restart_at = None
+        log.info("stream %s: worker %d started", spec.camera, stream.process.pid)
+
+    def _halt(self, stream: _Stream) -> None:
+        process = stream.process
+        if process is None:
+            return
+        stream.stop.set()
+        process.join(STOP_GRACE)
+        if process.is_alive():
+            log.warning("stream %s: worker did not stop in time; killed", stream.record.id)
+            process.kill()
+            process.join(5.0)
+        self._drain(stream)
+        process.close()
+        stream.process = None
+        stream.updates.close()
+
+    def _drain(self, stream: _Stream) -> None:
+        while True:
+            try:
+                update = stream.updates.get_nowait()
+            except (queue.Empty, OSError, ValueError):
+                return
+            if update.get("state") == StreamState.failed.value:
+                stream.error = update.get("error")
+                continue
+            stream.report = update
+            if stream.state is StreamState.starting:
+                stream.state = StreamState.waiting
+
+    def _supervise(self) -> None:
+        while not self._stopping.wait(self._check_interval):
+            try:
+                with self._lock:
+                    for stream in list(self._streams.values()):
+                        self._check(stream)
+            except Exception:
+                log.exception("stream supervision failed; trying again")
+
+    def _check(self, stream: _Stream) -> None:
+        if stream.state is StreamState.stopped:
+            return
+        if stream.process is None:
+            if stream.restart_at is not None and time.monotonic() >= stream.restart_at:
+                self._spawn(stream)
+            return
+        self._drain(stream)
+        if stream.process.is_alive():
+            if stream.quick_deaths and time.monotonic() - stream.started_at > QUICK:
+                stream.quick_deaths = 0
+                stream.error = None
+            return
+        how = describe_exit(stream.process.exitcode)
+        lived = time.monotonic() - stream.started_at
+        stream.process.close()
+        stream.process = None
+        stream.quick_deaths = stream.quick_deaths + 1 if lived < QUICK else 1
+        reason = stream.error or f"the worker process died ({how})"
+        if stream.quick_deaths >= MAX_QUICK_DEATHS:
+            stream.state = StreamState.failed
+            stream.error = f"{reason}; gave up after {stream.quick_deaths} quick restarts"
+            log.error("stream %s failed: %s", stream.record.id, stream.error)
+            return
+        delay = min(2.0 ** (stream.quick_deaths - 1), 30.0)
+        stream.error = f"{reason}; restarting in {delay:g} s"
+        stream.restart_at = time.monotonic() + delay
+        log.warning("stream %s: %s", stream.record.id, stream.error)
+
+    def _state(self, stream: _Stream) -> StreamState:
+        if stream.state in (StreamState.stopped, StreamState.failed, StreamState.starting):
+            return stream.state
+        if stream.process is None:
+            return StreamState.starting
+        return StreamState(stream.report.get("state", StreamState.waiting.value))
+
+    def _status(self, stream: _Stream) -> StreamStatus:
+        report = stream.report
+        record = stream.record
+        counters = report.get("counters") or StreamCounters(
+            frames_in=0,
+            frames_processed=0,
+            frames_skipped=0,
+            malformed=0,
+            detections_in=0,
+            detections_used=0,
+            restarts=0,
+        )
+        last = report.get("last_frame_at")
+        recordings = sorted(self.recordings_dir(record.id).glob("*.mcap"))
+        return StreamStatus(
+            id=record.id,
+            camera=record.spec.camera,
+            state=self._state(stream),
+            created_at=_utc(record.created_at),
+            stopped_at=_utc(record.stopped_at) if record.stopped_at else None,
+            counters=counters,
+            fps=report.get("fps"),
+            latency=report.get("latency"),
+            latency_p95=report.get("latency_p95"),
+            last_frame_at=_utc(last) if last else None,
+            errors=report.get("errors", []),
+            error=stream.error if stream.state is not StreamState.stopped else None,
+            worker_pid=stream.process.pid if stream.process is not None else None,
+            worker_starts=stream.starts,
+            keys=self._keys(record.spec.camera).as_dict(),
+            recordings=[f"/v1/streams/{record.id}/recordings/{p.name}" for p in recordings],
+            spec=record.spec,
+        )
+
+
+def _utc(timestamp: float) -> datetime:
+    return datetime.fromtimestamp(timestamp, tz=UTC)
+
+
+def _as_job_options(spec: StreamSpec) -> JobOptions:
+    return JobOptions(detector=spec.detector, tracker=spec.tracker)

@@ -1,0 +1,103 @@
+"""Frame and detection payloads: bytes off the wire -> checked numpy frames and detections.
+
+Everything a camera can get wrong (no attachment, an attachment that is not the schema, a JPEG
+that does not decode, raw bytes of the wrong size) raises :class:`PayloadError` with one
+sentence saying what; the stream counts it, reports it and goes on with the next frame.
+"""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+from pydantic import ValidationError
+
+from api_schemas.streams import FrameAttachment, PixelFormat, UpstreamDetections
+from tracking.detection.base import Detections
+from tracking.detection.external import detections_from_arrays
+
+JPEG = "image/jpeg"
+RAW = "application/octet-stream"
+MAX_PIXELS = 8192 * 8192
+
+
+class PayloadError(ValueError):
+    """A sample that is not a usable frame or detection message."""
+
+
+def _first_line(error: ValidationError) -> str:
+    item = error.errors()[0]
+    where = ".".join(str(p) for p in item.get("loc", ())) or "message"
+    return f"{where}: {item.get('msg')}"
+
+
+def parse_attachment(attachment: bytes | None) -> FrameAttachment:
+    """The frame's :class:`FrameAttachment`; raises :class:`PayloadError`."""
+    if not attachment:
+        raise PayloadError("frame without attachment: sequence and timestamp are required")
+    try:
+        return FrameAttachment.model_validate_json(attachment)
+    except ValidationError as error:
+        raise PayloadError(f"bad frame attachment ({_first_line(error)})") from None
+
+
+def decode_frame(payload: bytes, encoding: str, attachment: FrameAttachment) -> np.ndarray:
+    """The frame as RGB uint8 ``(H, W, 3)``; raises :class:`PayloadError`.
+
+    ``encoding`` ``image/jpeg`` (any ``image/*`` OpenCV reads) is decoded; anything else is
+    raw pixels laid out as the attachment's ``width``, ``height`` and ``format`` say.
+    """
+    if encoding.startswith("image/"):
+        buffer = np.frombuffer(payload, dtype=np.uint8)
+        bgr = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
+        if bgr is None:
+            raise PayloadError(f"{encoding} payload of {len(payload)} bytes does not decode")
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    a = attachment
+    if a.width is None or a.height is None or a.format is None:
+        raise PayloadError(
+            f"raw frame (encoding {encoding or 'none'}) needs width, height and format in its "
+            "attachment; or send image/jpeg"
+        )
+    if a.width * a.height > MAX_PIXELS:
+        raise PayloadError(f"raw frame of {a.width}x{a.height} is larger than this service takes")
+    expected = a.width * a.height * a.format.channels
+    if len(payload) != expected:
+        raise PayloadError(
+            f"raw {a.format.value} frame of {a.width}x{a.height} needs {expected} bytes, "
+            f"got {len(payload)}"
+        )
+    pixels = np.frombuffer(payload, dtype=np.uint8)
+    if a.format is PixelFormat.mono8:
+        return cv2.cvtColor(pixels.reshape(a.height, a.width), cv2.COLOR_GRAY2RGB)
+    image = pixels.reshape(a.height, a.width, 3)
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if a.format is PixelFormat.bgr8 else image.copy()
+
+
+def parse_detections(payload: bytes) -> UpstreamDetections:
+    """An upstream detections message; raises :class:`PayloadError`."""
+    try:
+        return UpstreamDetections.model_validate_json(payload)
+    except ValidationError as error:
+        raise PayloadError(f"bad detections message ({_first_line(error)})") from None
+
+
+def to_detections(message: UpstreamDetections) -> Detections:
+    """Upstream detections as the tracker takes them."""
+    boxes = [[d.x, d.y, d.w, d.h] for d in message.detections]
+    return detections_from_arrays(boxes, [d.score for d in message.detections])
+
+
+def encode_jpeg(rgb: np.ndarray, quality: int = 90) -> bytes:
+    """An RGB frame as JPEG bytes (what a camera gateway publishes)."""
+    bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+    ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:
+        raise ValueError("JPEG encoding failed")
+    return data.tobytes()
+
+
+def frame_attachment(sequence: int, timestamp: float, **raw: object) -> bytes:
+    """The attachment bytes of one frame sample."""
+    return json.dumps({"sequence": sequence, "timestamp": timestamp, **raw}).encode()

@@ -1,0 +1,96 @@
+"""Zenoh session configuration for the service process, its stream workers and the CLI tools.
+
+The service process opens the *hub* session: in peer mode it listens on ``VTRACK_ZENOH_LISTEN``
+(loopback by default), so cameras, stream workers and subscribers on this machine find each
+other through it without multicast scouting and without a router. Every other session connects
+to the hub (and to ``VTRACK_ZENOH_CONNECT``, e.g. the compose file's router) and, in peer mode,
+listens on an ephemeral loopback port so that the peers it learns of by gossip can reach it
+directly. A forked session is dead, so each worker opens its own after it starts (DESIGN.md §7).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import zenoh
+
+DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
+
+
+@dataclass(frozen=True, slots=True)
+class ZenohOptions:
+    """How to reach the Zenoh network (picklable: it crosses the spawn boundary).
+
+    Attributes
+    ----------
+    mode:
+        ``"peer"`` (default) or ``"client"`` (everything goes through a router).
+    listen:
+        Endpoints the hub session listens on.
+    connect:
+        Endpoints every session connects to (a router, other hubs).
+    config_file:
+        A Zenoh JSON5 configuration to start from; the fields above are applied over it.
+    """
+
+    mode: Literal["peer", "client"] = "peer"
+    listen: tuple[str, ...] = DEFAULT_LISTEN
+    connect: tuple[str, ...] = ()
+    config_file: Path | None = field(default=None)
+
+    def hub_config(self) -> zenoh.Config:
+        """The service process's session: listens for the others."""
+        config = self._base()
+        if self.mode == "peer" and self.listen:
+            config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
+        if self.connect:
+            config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
+        return config
+
+    def member_config(self) -> zenoh.Config:
+        """A stream worker's or a CLI tool's session: connects to the hub and the router."""
+        config = self._base()
+        endpoints = [*self.connect]
+        if self.mode == "peer":
+            endpoints = [*(_reachable(e) for e in self.listen), *endpoints]
+            config.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
+        if endpoints:
+            config.insert_json5("connect/endpoints", json.dumps(endpoints))
+        return config
+
+    def _base(self) -> zenoh.Config:
+        config = (
+            zenoh.Config.from_file(str(self.config_file))
+            if self.config_file is not None
+            else zenoh.Config()
+        )
+        config.insert_json5("mode", json.dumps(self.mode))
+        # Multicast scouting would make every instance on the LAN talk to every camera: off,
+        # unless a configuration file turns it on.
+        if self.config_file is None:
+            config.insert_json5("scouting/multicast/enabled", "false")
+        return config
+
+
+def _reachable(endpoint: str) -> str:
+    """A listen endpoint as another local process connects to it (0.0.0.0 -> 127.0.0.1)."""
+    for wildcard in ("0.0.0.0", "[::]"):
+        endpoint = endpoint.replace(f"/{wildcard}:", "/127.0.0.1:")
+    return endpoint
+
+
+def open_session(config: zenoh.Config) -> zenoh.Session:
+    """Open a session; Zenoh's error (a busy port, no router) comes back as ``ZenohUnavailable``."""
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        # Zenoh's messages end with source locations ("at /root/.cargo/..."): not for users.
+        raise ZenohUnavailable(re.sub(r"\s+at /[^\s\]]+", "", str(error)).strip()) from None
+
+
+class ZenohUnavailable(RuntimeError):
+    """The Zenoh session could not be opened."""

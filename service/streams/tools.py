@@ -1,0 +1,221 @@
+"""Tools for users of the streams: publish a video (or a webcam) as a camera, follow tracks.
+
+``vtrack publish`` and ``vtrack subscribe`` (see :mod:`service.cli`) are thin wrappers around
+:func:`publish_frames` and :func:`follow_tracks`; tests and ``benchmarks/stream.py`` call these
+directly.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import zenoh
+
+from api_schemas.streams import StreamTracksMessage, UpstreamDetection, UpstreamDetections
+from service.frames import open_frames
+from service.streams.keys import StreamKeys
+from service.streams.payloads import encode_jpeg, frame_attachment
+from service.streams.session import ZenohOptions, open_session
+from tracking.detection.base import Detections
+
+
+@dataclass(slots=True)
+class PublishReport:
+    """What :func:`publish_frames` sent."""
+
+    frames: int
+    seconds: float
+    late: int
+    """Frames sent more than one frame period after their schedule (the source was slow)."""
+
+
+def video_frames(source: str) -> tuple[Iterator[np.ndarray], float | None]:
+    """RGB frames of a video file, an image folder, or a webcam (``webcam:0`` or ``0``)."""
+    device = source.removeprefix("webcam:")
+    if device.isdigit():
+        capture = cv2.VideoCapture(int(device))
+        if not capture.isOpened():
+            raise ValueError(f"cannot open webcam {device}")
+        fps = capture.get(cv2.CAP_PROP_FPS) or None
+
+        def read() -> Iterator[np.ndarray]:
+            try:
+                while True:
+                    ok, bgr = capture.read()
+                    if not ok:
+                        return
+                    yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+            finally:
+                capture.release()
+
+        return read(), fps
+    frames = open_frames(Path(source))
+    return iter(frames), frames.fps
+
+
+def publish_frames(
+    session: zenoh.Session,
+    keys: StreamKeys,
+    frames: Iterator[np.ndarray],
+    fps: float | None,
+    *,
+    raw: bool = False,
+    quality: int = 90,
+    detections: Callable[[int], Detections | None] | None = None,
+    detections_scale: float = 1.0,
+    first_sequence: int = 0,
+    limit: int | None = None,
+    on_sent: Callable[[int, float], None] | None = None,
+    stop: threading.Event | None = None,
+    wait_for_subscriber: float = 0.0,
+    block: bool = False,
+) -> PublishReport:
+    """Publish ``frames`` on ``keys.frames`` at ``fps`` frames per second (as fast as possible
+    when ``None``), as a camera does: JPEG (or raw ``rgb8`` with ``raw``), with sequence number
+    and capture time (Unix time) in the attachment.
+
+    ``detections(i)``, when given, supplies the detections of the ``i``-th frame, published on
+    ``keys.detections`` right after the frame (an upstream detector), its boxes multiplied by
+    ``detections_scale`` (detections made on larger frames). ``on_sent(sequence, t)``
+    is called with each frame's publication time (``time.time()``). With
+    ``wait_for_subscriber``, the first frame waits up to that many seconds for a subscriber
+    (a tracker) to be known: a session that has just opened reaches the others a moment later.
+    Frames that the network cannot take at once are dropped, as Zenoh does by default for live
+    data; with ``block`` the publisher waits instead (every frame reaches the tracker, which
+    then skips what it cannot follow).
+    """
+    congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
+    frame_publisher = session.declare_publisher(keys.frames, congestion_control=congestion)
+    detection_publisher = session.declare_publisher(
+        keys.detections, encoding=zenoh.Encoding.APPLICATION_JSON
+    )
+    if wait_for_subscriber > 0:
+        waiting = [frame_publisher] + ([detection_publisher] if detections else [])
+        _wait_for_subscribers(waiting, wait_for_subscriber)
+    period = 1.0 / fps if fps else 0.0
+    started = time.perf_counter()
+    sent = late = 0
+    try:
+        for index, rgb in enumerate(frames):
+            if (limit is not None and sent >= limit) or (stop is not None and stop.is_set()):
+                break
+            due = started + index * period
+            wait = due - time.perf_counter()
+            if wait > 0:
+                time.sleep(wait)
+            elif period and -wait > period:
+                late += 1
+            sequence = first_sequence + index
+            stamp = time.time()
+            if raw:
+                height, width = rgb.shape[:2]
+                payload = np.ascontiguousarray(rgb, dtype=np.uint8).tobytes()
+                extra = {"width": width, "height": height, "format": "rgb8"}
+                encoding = zenoh.Encoding.APPLICATION_OCTET_STREAM
+            else:
+                payload, extra, encoding = encode_jpeg(rgb, quality), {}, zenoh.Encoding.IMAGE_JPEG
+            frame_publisher.put(
+                payload, encoding=encoding, attachment=frame_attachment(sequence, stamp, **extra)
+            )
+            if on_sent is not None:
+                on_sent(sequence, stamp)
+            found = detections(index) if detections is not None else None
+            if found is not None:
+                message = detections_message(sequence, found, detections_scale)
+                detection_publisher.put(message.model_dump_json())
+            sent += 1
+    finally:
+        frame_publisher.undeclare()
+        detection_publisher.undeclare()
+    return PublishReport(frames=sent, seconds=time.perf_counter() - started, late=late)
+
+
+SETTLE = 0.3
+"""Seconds between learning of a subscriber and reaching it: in peer mode the subscription
+is announced through the hub before gossip has connected the two sessions directly, and what is
+published in between is lost."""
+
+
+def _wait_for_subscribers(publishers: list[zenoh.Publisher], timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if all(p.matching_status.matching for p in publishers):
+            time.sleep(min(SETTLE, max(deadline - time.monotonic(), 0.0)))
+            return
+        time.sleep(0.02)
+
+
+def detections_message(
+    sequence: int, detections: Detections, scale: float = 1.0
+) -> UpstreamDetections:
+    """Detections as an upstream detector publishes them, boxes multiplied by ``scale``."""
+    boxes = (detections.boxes * scale).tolist()
+    items = [
+        UpstreamDetection(x=b[0], y=b[1], w=b[2], h=b[3], score=float(s))
+        for b, s in zip(boxes, detections.probabilities, strict=True)
+    ]
+    return UpstreamDetections(sequence=sequence, detections=items)
+
+
+def follow_tracks(
+    session: zenoh.Session,
+    keys: StreamKeys,
+    on_message: Callable[[StreamTracksMessage, float], None],
+) -> zenoh.Subscriber:
+    """Subscribe to a camera's tracks: ``on_message(message, received)`` for each, with its
+    arrival time (``time.time()``). Undeclare the returned subscriber to stop."""
+
+    def received(sample: zenoh.Sample) -> None:
+        now = time.time()
+        on_message(StreamTracksMessage.model_validate_json(sample.payload.to_bytes()), now)
+
+    return session.declare_subscriber(keys.tracks, received)
+
+
+def current_tracks(
+    session: zenoh.Session, keys: StreamKeys, timeout: float = 2.0
+) -> StreamTracksMessage | None:
+    """Ask the camera's tracker for its latest tracks (its queryable); None without answer.
+
+    A session that has just opened knows the tracker only once gossip has connected them (a
+    fraction of a second), so the question is repeated until ``timeout``.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        for reply in session.get(keys.current, timeout=max(deadline - time.monotonic(), 0.1)):
+            if reply.ok is not None:
+                return StreamTracksMessage.model_validate_json(reply.ok.payload.to_bytes())
+        if time.monotonic() >= deadline:
+            return None
+        time.sleep(0.1)
+
+
+def reach_tracker(session: zenoh.Session, keys: StreamKeys, timeout: float = 5.0) -> bool:
+    """Wait until the camera's tracker answers a query (with tracks or without): then this
+    session is connected to it, and its tracks messages reach this session's subscribers."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if any(True for _ in session.get(keys.current, timeout=0.5)):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def trackers_of(session: zenoh.Session, keys: StreamKeys, timeout: float = 1.0) -> list[str]:
+    """Instances whose liveliness token says they track this camera (as this session knows)."""
+    found = []
+    for reply in session.liveliness().get(keys.trackers, timeout=timeout):
+        if reply.ok is not None:
+            found.append(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+    return sorted(found)
+
+
+def member_session(options: ZenohOptions) -> zenoh.Session:
+    """A session that joins the service's Zenoh network as a camera or consumer does."""
+    return open_session(options.member_config())

@@ -1,0 +1,409 @@
+"""Inside a stream worker process: frames from Zenoh in, tracks to Zenoh out, live.
+
+One process per stream, started with the "spawn" method; it opens its own Zenoh session
+(a forked one is dead). Zenoh delivers samples on its own threads; the subscriber callbacks only
+check the attachment and drop the sample into a one-frame slot (:class:`LatestFrame`), so the
+frame the tracker takes next is always the newest and a slow tracker skips frames instead of
+queueing them. The main thread tracks, publishes, and reports its status to the service
+process over a queue a few times per second.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import os
+import signal
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from api_schemas.jobs import JobOptions
+from api_schemas.streams import StreamCounters, StreamSpec, StreamState, StreamTracksMessage
+from api_schemas.tracks import VideoInfo
+from service.analysis import PipelineResources, build_pipeline
+from service.convert import track_state
+from service.frames import TimedFrame
+from service.outputs.base import RunSummary, StreamInfo
+from service.outputs.mcap_out import McapWriter
+from service.streams.keys import StreamKeys
+from service.streams.payloads import (
+    PayloadError,
+    decode_frame,
+    frame_attachment,
+    parse_attachment,
+    parse_detections,
+    to_detections,
+)
+from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from tracking.detection.base import Detections
+from tracking.pipeline import FramePipeline
+
+log = logging.getLogger(__name__)
+
+UPSTREAM_ACTIVE = 5.0
+"""Seconds after the last upstream detections message during which the camera counts as having
+an upstream detector (and frames wait ``detections_wait`` for theirs)."""
+
+RECENT = 100
+"""Frames over which latency percentiles and the frame rate are computed."""
+
+
+@dataclass(frozen=True, slots=True)
+class StreamContext:
+    """What a stream worker needs (picklable: it crosses the spawn boundary)."""
+
+    spec: StreamSpec
+    prefix: str
+    zenoh: ZenohOptions
+    instance: str
+    resources: PipelineResources = field(default_factory=PipelineResources)
+    recordings_dir: Path | None = None
+    frame_limit: int = 32 * 1024**2
+    log_level: str = "info"
+    status_interval: float = 0.25
+
+
+@dataclass(slots=True)
+class Incoming:
+    """A frame sample as it arrived, attachment checked, pixels not decoded yet."""
+
+    payload: bytes
+    encoding: str
+    attachment: Any  # FrameAttachment
+    arrived: float  # time.perf_counter()
+
+
+class LatestFrame:
+    """A one-frame slot: a new frame replaces an untaken one, which counts as skipped."""
+
+    def __init__(self) -> None:
+        self._ready = threading.Condition()
+        self._frame: Incoming | None = None
+        self.skipped = 0
+
+    def offer(self, frame: Incoming) -> None:
+        with self._ready:
+            if self._frame is not None:
+                self.skipped += 1
+            self._frame = frame
+            self._ready.notify()
+
+    def take(self, timeout: float) -> Incoming | None:
+        with self._ready:
+            if self._frame is None:
+                self._ready.wait(timeout)
+            frame, self._frame = self._frame, None
+            return frame
+
+
+class UpstreamBuffer:
+    """Upstream detections by frame sequence number, the newest ``capacity`` kept."""
+
+    def __init__(self, capacity: int = 256) -> None:
+        self._arrived = threading.Condition()
+        self._by_sequence: collections.OrderedDict[int, Detections] = collections.OrderedDict()
+        self._capacity = capacity
+        self.last_seen: float | None = None  # time.monotonic()
+        self.received = 0
+
+    def offer(self, sequence: int, detections: Detections) -> None:
+        with self._arrived:
+            self._by_sequence[sequence] = detections
+            self._by_sequence.move_to_end(sequence)
+            while len(self._by_sequence) > self._capacity:
+                self._by_sequence.popitem(last=False)
+            self.last_seen = time.monotonic()
+            self.received += 1
+            self._arrived.notify_all()
+
+    def active(self) -> bool:
+        seen = self.last_seen
+        return seen is not None and time.monotonic() - seen < UPSTREAM_ACTIVE
+
+    def take(self, sequence: int, wait: float) -> Detections | None:
+        """The detections of frame ``sequence``, waiting up to ``wait`` s for them to arrive."""
+        with self._arrived:
+            self._arrived.wait_for(lambda: sequence in self._by_sequence, timeout=wait)
+            return self._by_sequence.pop(sequence, None)
+
+
+class StreamWorker:
+    """One camera's live tracking loop; :meth:`run` returns when ``stop`` is set."""
+
+    def __init__(self, context: StreamContext, report) -> None:
+        self.context = context
+        self.spec = context.spec
+        self.keys = StreamKeys(context.prefix, context.spec.camera)
+        self._report = report
+        self._latest = LatestFrame()
+        self._upstream = UpstreamBuffer()
+        self._lock = threading.Lock()  # guards the counters the Zenoh threads touch
+        self._frames_in = 0
+        self._malformed = 0
+        self._processed = 0
+        self._used_upstream = 0
+        self._restarts = 0
+        self._skipped_reported = 0
+        self._errors: collections.deque[str] = collections.deque(maxlen=5)
+        self._latencies: collections.deque[float] = collections.deque(maxlen=RECENT)
+        self._done_at: collections.deque[float] = collections.deque(maxlen=RECENT)
+        self._last_arrival: float | None = None  # time.monotonic()
+        self._last_frame_wall: float | None = None
+        self._last_timestamp: float | None = None
+        self._id_offset = 0
+        self._max_id = 0
+        self._current: StreamTracksMessage | None = None
+        self._current_json: bytes | None = None
+        self._state = StreamState.waiting
+        self._pipeline: FramePipeline | None = None
+        self._recorder: McapWriter | None = None
+        self._recording_path: Path | None = None
+        self._last_report = 0.0
+
+    # -- Zenoh callbacks (Zenoh's threads) ---------------------------------------------------
+
+    def _on_frame(self, sample: zenoh.Sample) -> None:
+        arrived = time.perf_counter()
+        with self._lock:
+            self._frames_in += 1
+            self._last_arrival = time.monotonic()
+            self._last_frame_wall = time.time()
+        try:
+            size = len(sample.payload)
+            if size > self.context.frame_limit:
+                raise PayloadError(
+                    f"frame payload of {size} bytes is over the limit of "
+                    f"{self.context.frame_limit} (VTRACK_STREAM_FRAME_LIMIT)"
+                )
+            raw = sample.attachment.to_bytes() if sample.attachment is not None else None
+            attachment = parse_attachment(raw)
+        except PayloadError as error:
+            self._malformed_sample(str(error))
+            return
+        payload = sample.payload.to_bytes()
+        self._latest.offer(Incoming(payload, str(sample.encoding), attachment, arrived))
+
+    def _on_detections(self, sample: zenoh.Sample) -> None:
+        try:
+            message = parse_detections(sample.payload.to_bytes())
+            detections = to_detections(message)
+        except (PayloadError, ValueError) as error:
+            self._malformed_sample(str(error))
+            return
+        self._upstream.offer(message.sequence, detections)
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        current = self._current_json
+        if current is None:
+            query.reply_err(f"camera {self.spec.camera} has no tracks yet")
+        else:
+            query.reply(self.keys.current, current, encoding=zenoh.Encoding.APPLICATION_JSON)
+
+    def _malformed_sample(self, reason: str) -> None:
+        with self._lock:
+            self._malformed += 1
+            self._errors.append(reason)
+        log.warning("camera %s: %s", self.spec.camera, reason)
+
+    # -- the loop ----------------------------------------------------------------------------
+
+    def run(self, stop: threading.Event, parent_alive=lambda: True) -> None:
+        self._pipeline = self._new_pipeline()
+        session = open_session(self.context.zenoh.member_config())
+        try:
+            # Kept referenced: Zenoh undeclares what is garbage collected (the token at least).
+            declared = (
+                session.declare_subscriber(self.keys.frames, self._on_frame),
+                session.declare_subscriber(self.keys.detections, self._on_detections),
+                session.declare_queryable(self.keys.current, self._on_query),
+                session.liveliness().declare_token(self.keys.tracker_token(self.context.instance)),
+            )
+            publisher = session.declare_publisher(
+                self.keys.tracks, encoding=zenoh.Encoding.APPLICATION_JSON
+            )
+            log.info("camera %s: listening on %s", self.spec.camera, self.keys.frames)
+            self.report(force=True)
+            while not stop.is_set() and parent_alive():
+                frame = self._latest.take(timeout=0.1)
+                if frame is not None:
+                    self._track(frame, publisher)
+                else:
+                    self._check_idle()
+                self.report()
+            for entity in declared:
+                entity.undeclare()
+        finally:
+            self._close_recording()
+            session.close()
+        self.report(force=True)
+
+    def _new_pipeline(self) -> FramePipeline:
+        options = JobOptions(detector=self.spec.detector, tracker=self.spec.tracker)
+        return build_pipeline(options, self.context.resources)
+
+    def _restart(self, why: str) -> None:
+        """Start the tracker over; ids keep counting up so no id is ever reused."""
+        log.info("camera %s: tracks end: %s", self.spec.camera, why)
+        self._pipeline = self._new_pipeline()
+        self._id_offset = self._max_id
+        self._last_timestamp = None
+        self._current = None
+        self._current_json = None
+        self._restarts += 1
+
+    def _check_idle(self) -> None:
+        if self._last_arrival is None:
+            return
+        silent = time.monotonic() - self._last_arrival
+        if silent >= self.spec.end_tracks_after and self._last_timestamp is not None:
+            self._restart(f"no frame for {silent:.1f} s")
+        if silent >= self.spec.idle_after:
+            self._state = StreamState.idle
+
+    def _detections_for(self, sequence: int) -> tuple[Detections | None, str]:
+        if not self._upstream.active():
+            return None, "service"
+        found = self._upstream.take(sequence, self.spec.detections_wait)
+        return (found, "upstream") if found is not None else (None, "service")
+
+    def _track(self, frame: Incoming, publisher: zenoh.Publisher) -> None:
+        self._state = StreamState.running
+        attachment = frame.attachment
+        try:
+            image = decode_frame(frame.payload, frame.encoding, attachment)
+        except PayloadError as error:
+            self._malformed_sample(f"frame {attachment.sequence}: {error}")
+            return
+        if self._last_timestamp is not None and attachment.timestamp < self._last_timestamp:
+            self._restart(
+                f"frame {attachment.sequence} is stamped {attachment.timestamp:.3f}, before the "
+                f"previous frame ({self._last_timestamp:.3f}): the camera started over"
+            )
+        detections, source = self._detections_for(attachment.sequence)
+        assert self._pipeline is not None
+        try:
+            tracked = self._pipeline.process(image, attachment.timestamp, detections)
+        except ValueError as error:
+            self._malformed_sample(f"frame {attachment.sequence}: {error}")
+            self._restart("the tracker rejected a frame")
+            return
+        self._last_timestamp = attachment.timestamp
+        tracks = [track_state(t) for t in tracked.tracks]
+        for track in tracks:
+            track.track_id += self._id_offset
+            self._max_id = max(self._max_id, track.track_id)
+        skipped = self._latest.skipped
+        message = StreamTracksMessage(
+            frame_index=self._processed,
+            timestamp=attachment.timestamp,
+            tracks=tracks,
+            camera=self.spec.camera,
+            sequence=attachment.sequence,
+            latency=time.perf_counter() - frame.arrived,
+            frames_skipped=skipped - self._skipped_reported,
+            detections=source,
+        )
+        self._skipped_reported = skipped
+        body = message.model_dump_json().encode()
+        # The attachment repeats the frame's sequence number and capture time, so a consumer
+        # can pair tracks with frames without parsing the JSON.
+        publisher.put(body, attachment=frame_attachment(attachment.sequence, attachment.timestamp))
+        done = time.perf_counter()
+        self._current, self._current_json = message, body
+        self._processed += 1
+        self._used_upstream += source == "upstream"
+        self._latencies.append(done - frame.arrived)
+        self._done_at.append(done)
+        self._record(image, message)
+
+    # -- recording ---------------------------------------------------------------------------
+
+    def _record(self, image, message: StreamTracksMessage) -> None:
+        folder = self.context.recordings_dir
+        if not self.spec.record or folder is None:
+            return
+        if self._recorder is None:
+            folder.mkdir(parents=True, exist_ok=True)
+            stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+            self._recording_path = folder / f"{self.spec.camera}-{stamp}.mcap"
+            info = StreamInfo(
+                width=image.shape[1],
+                height=image.shape[0],
+                fps=0.0,
+                frame_step=1,
+                part_names=tuple(self._pipeline.part_names) if self._pipeline else (),
+                mode="people",
+            )
+            partial = self._recording_path.with_suffix(".mcap.partial")
+            self._recorder = McapWriter(partial, info, StreamTracksMessage)
+        frame = TimedFrame(message.frame_index, message.timestamp, image)
+        self._recorder.write(frame, message)
+
+    def _close_recording(self) -> None:
+        if self._recorder is None or self._recording_path is None:
+            return
+        video = VideoInfo(
+            width=1, height=1, frames_announced=0, frames_read=self._frames_in, frame_step=1
+        )
+        self._recorder.close(RunSummary(video=video, frames_processed=self._processed))
+        os.replace(self._recorder.path, self._recording_path)
+        log.info("camera %s: recording saved to %s", self.spec.camera, self._recording_path)
+        self._recorder = None
+
+    # -- status ------------------------------------------------------------------------------
+
+    def status(self) -> dict[str, Any]:
+        """Counters and recent figures, as plain data for the service process."""
+        with self._lock:
+            counters = StreamCounters(
+                frames_in=self._frames_in,
+                frames_processed=self._processed,
+                frames_skipped=self._latest.skipped,
+                malformed=self._malformed,
+                detections_in=self._upstream.received,
+                detections_used=self._used_upstream,
+                restarts=self._restarts,
+            )
+            errors = list(self._errors)
+            last_frame = self._last_frame_wall
+        latencies = sorted(self._latencies)
+        fps = None
+        if len(self._done_at) >= 2 and time.perf_counter() - self._done_at[-1] < 2.0:
+            fps = (len(self._done_at) - 1) / max(self._done_at[-1] - self._done_at[0], 1e-9)
+        return {
+            "state": self._state.value,
+            "counters": counters.model_dump(),
+            "fps": fps,
+            "latency": statistics.median(latencies) if latencies else None,
+            "latency_p95": latencies[int(0.95 * (len(latencies) - 1))] if latencies else None,
+            "last_frame_at": last_frame,
+            "errors": errors,
+            "tracks": self._current_json.decode() if self._current_json else None,
+        }
+
+    def report(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if force or now - self._last_report >= self.context.status_interval:
+            self._last_report = now
+            self._report(self.status())
+
+
+def stream_main(context: StreamContext, parent_pid: int, stop, updates) -> None:
+    """Entry point of a stream worker process."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.basicConfig(
+        level=context.log_level.upper(),
+        format=f"%(asctime)s %(levelname)s stream[{context.spec.camera}] %(name)s: %(message)s",
+    )
+    worker = StreamWorker(context, updates.put)
+    try:
+        worker.run(stop, parent_alive=lambda: os.getppid() == parent_pid)
+    except ZenohUnavailable as error:
+        updates.put({"state": StreamState.failed.value, "error": f"Zenoh: {error}"})
+        raise SystemExit(3) from None

@@ -1,0 +1,542 @@
+"""Live streams end to end: ``vtrack serve`` in a subprocess, cameras and consumers as real Zenoh
+sessions in this process (and the ``vtrack publish``/``subscribe`` tools in theirs), all on
+loopback. Waits poll with a deadline; nothing sleeps hoping something has happened.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+from itertools import islice
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+import zenoh
+from mcap.reader import make_reader
+
+from api_schemas.streams import StreamTracksMessage
+from service.streams.keys import StreamKeys
+from service.streams.payloads import encode_jpeg, frame_attachment
+from service.streams.session import ZenohOptions
+from service.streams.tools import (
+    current_tracks,
+    follow_tracks,
+    member_session,
+    publish_frames,
+    reach_tracker,
+    trackers_of,
+    video_frames,
+)
+from tests.conftest import REPO_ROOT
+from tests.service.conftest import PETS_VIDEO, Server, wait_for
+from tracking.detection import MotDetections
+
+pytestmark = pytest.mark.slow
+
+VTRACK = [sys.executable, "-m", "service.cli"]
+
+
+class Follower:
+    """A consumer of one camera's tracks, in this process."""
+
+    def __init__(self, session: zenoh.Session, keys: StreamKeys) -> None:
+        self.messages: list[tuple[StreamTracksMessage, float]] = []
+        self._lock = threading.Lock()
+        self._subscriber = follow_tracks(session, keys, self._received)
+
+    def _received(self, message: StreamTracksMessage, arrived: float) -> None:
+        with self._lock:
+            self.messages.append((message, arrived))
+
+    def received(self) -> list[StreamTracksMessage]:
+        with self._lock:
+            return [m for m, _ in self.messages]
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory) -> Server:
+    """One service for the module's tests; each test tracks its own camera."""
+    folder = tmp_path_factory.mktemp("streams")
+    server = Server(folder / "data", workers=1).start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="module")
+def session(server) -> zenoh.Session:
+    """This process's Zenoh session: the cameras and consumers of the tests."""
+    session = member_session(ZenohOptions(listen=server.zenoh_listen))
+    yield session
+    session.close()
+
+
+@pytest.fixture(scope="module")
+def pets_frames(shared_data) -> list[np.ndarray]:
+    frames, _ = video_frames(str(shared_data / PETS_VIDEO))
+    return list(islice(frames, 60))
+
+
+@pytest.fixture(scope="module")
+def public_detections(shared_data) -> MotDetections:
+    """The public detections of PETS09-S2L1 (768x576: scale 0.625 to the video)."""
+    return MotDetections.from_file(shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt")
+
+
+def start_stream(client: httpx.Client, session: zenoh.Session, camera: str, **spec) -> dict:
+    """POST the stream and wait until its worker listens and this session can reach it."""
+    response = client.post("/v1/streams", json={"camera": camera, **spec})
+    assert response.status_code == 201, response.text
+    keys = StreamKeys("vtrack", camera)
+
+    wait_for(
+        lambda: client.get(f"/v1/streams/{camera}").json()["state"] == "waiting",
+        60,
+        f"stream {camera} to listen",
+    )
+    assert reach_tracker(session, keys, timeout=30), f"the tracker of {camera} does not answer"
+    assert trackers_of(session, keys), "no liveliness token for a running stream"
+    return response.json()
+
+
+def status(client: httpx.Client, camera: str) -> dict:
+    response = client.get(f"/v1/streams/{camera}")
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def put_frame(session, keys, payload: bytes, attachment: bytes | None, encoding) -> None:
+    session.put(keys.frames, payload, encoding=encoding, attachment=attachment)
+
+
+def test_tracks_follow_the_frames_published_at_their_rate(server, session, pets_frames):
+    camera = "pets"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        created = start_stream(client, session, camera)
+        assert created["keys"]["frames"] == keys.frames
+        follower = Follower(session, keys)
+        sent: dict[int, float] = {}
+        report = publish_frames(
+            session, keys, iter(pets_frames[:40]), 10.0, on_sent=sent.__setitem__
+        )
+        assert report.frames == 40
+
+        def settled():
+            s = status(client, camera)
+            c = s["counters"]
+            done = c["frames_processed"] + c["frames_skipped"] + c["malformed"]
+            return s if c["frames_in"] == 40 and done == 40 else None
+
+        final = wait_for(settled, 60, "every frame to be tracked or skipped")
+        wait_for(
+            lambda: len(follower.received()) == final["counters"]["frames_processed"],
+            10,
+            "the last tracks messages",
+        )
+        follower.close()
+        messages = follower.received()
+
+        # Each message is a published frame: same sequence number, same capture timestamp.
+        assert len(messages) >= 30, "a 10 fps camera on loopback: most frames are tracked"
+        sequences = [m.sequence for m in messages]
+        assert sequences == sorted(sequences) and len(set(sequences)) == len(sequences)
+        for message in messages:
+            assert message.timestamp == sent[message.sequence]
+            assert message.camera == camera and message.detections == "service"
+            assert 0 <= message.latency < 5
+        assert [m.frame_index for m in messages] == list(range(len(messages)))
+        skipped = sum(m.frames_skipped for m in messages)
+        assert skipped == final["counters"]["frames_skipped"]
+        assert len(messages) + skipped == 40
+
+        # People walk through the scene: they are found and keep their ids.
+        people = [t for m in messages for t in m.tracks]
+        assert people, "nobody was tracked in 40 frames of PETS09-S2L1"
+        for track in people:
+            assert 0 <= track.box.x + track.box.w / 2 < 480
+            assert 0 <= track.box.y + track.box.h / 2 < 360
+        assert len({t.track_id for t in people}) < len(people)
+
+        # REST: counters, rate and latency, and the current tracks (as the queryable says).
+        assert final["state"] == "running"
+        assert final["counters"]["malformed"] == 0
+        assert final["fps"] is None or final["fps"] > 0
+        assert final["latency"] is not None and 0 < final["latency"] < 5
+        detail = status(client, camera)
+        assert detail["tracks"]["sequence"] == messages[-1].sequence
+        queried = current_tracks(session, keys)
+        assert queried is not None and queried.sequence == messages[-1].sequence
+        listed = client.get("/v1/streams").json()["streams"]
+        assert camera in {s["id"] for s in listed}
+        metrics = client.get("/metrics").text
+        assert 'vtrack_stream_frames_total{camera="pets",fate="in"} 40.0' in metrics
+        assert 'vtrack_streams{state="running"}' in metrics
+
+
+def test_a_camera_faster_than_the_tracker_is_skipped_not_queued(server, session, pets_frames):
+    camera = "flood"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera)
+        pid = status(client, camera)["worker_pid"]
+        follower = Follower(session, keys)
+        rss = []
+        # Raw frames (518 kB each) as fast as the tracker's link takes them, five rounds.
+        for _ in range(5):
+            publish_frames(session, keys, iter(pets_frames), None, raw=True, block=True)
+            rss.append(resident_kib(pid))
+        sent = 5 * len(pets_frames)
+
+        def settled():
+            c = status(client, camera)["counters"]
+            done = c["frames_processed"] + c["frames_skipped"]
+            return c if c["frames_in"] == sent and done == sent else None
+
+        counters = wait_for(settled, 60, "the stream to take every frame")
+        wait_for(
+            lambda: len(follower.received()) == counters["frames_processed"],
+            10,
+            "the last tracks messages",
+        )
+        follower.close()
+        assert counters["frames_skipped"] > sent / 2
+        assert sum(m.frames_skipped for m in follower.received()) == counters["frames_skipped"]
+        # Nothing queues: after the first round the worker's memory stays where it was.
+        assert max(rss[1:]) - rss[1] < 64 * 1024, f"worker memory grew: {rss} KiB"
+
+
+def resident_kib(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    raise AssertionError(f"no VmRSS for process {pid}")
+
+
+def test_malformed_payloads_are_counted_and_the_stream_goes_on(server, session, pets_frames):
+    camera = "broken"
+    keys = StreamKeys("vtrack", camera)
+    jpeg = encode_jpeg(pets_frames[0])
+    now = time.time()
+    bad = [
+        (jpeg, None, zenoh.Encoding.IMAGE_JPEG),  # no attachment
+        (jpeg, b"not json", zenoh.Encoding.IMAGE_JPEG),
+        (jpeg, json.dumps({"sequence": 1}).encode(), zenoh.Encoding.IMAGE_JPEG),  # no time
+        (b"\xff\xd8 not a jpeg", frame_attachment(2, now), zenoh.Encoding.IMAGE_JPEG),
+        (
+            b"\x00" * 100,
+            frame_attachment(3, now, width=480, height=360, format="rgb8"),
+            zenoh.Encoding.APPLICATION_OCTET_STREAM,
+        ),
+        (jpeg, frame_attachment(4, now), zenoh.Encoding.APPLICATION_OCTET_STREAM),  # raw, no size
+    ]
+    with server.client() as client:
+        start_stream(client, session, camera)
+        follower = Follower(session, keys)
+        for payload, attachment, encoding in bad:
+            put_frame(session, keys, payload, attachment, encoding)
+            # One at a time, so that none is skipped before it is looked at.
+            time.sleep(0.05)
+        wait_for(
+            lambda: status(client, camera)["counters"]["malformed"] == len(bad),
+            30,
+            "every bad payload to be counted",
+        )
+        put_frame(session, keys, jpeg, frame_attachment(9, time.time() + 1), "image/jpeg")
+        final = wait_for(
+            lambda: (s := status(client, camera))["counters"]["frames_processed"] == 1 and s,
+            30,
+            "the good frame to be tracked",
+        )
+        wait_for(lambda: follower.received(), 10, "the good frame's tracks")
+        follower.close()
+        assert final["state"] == "running"
+        assert follower.received()[0].sequence == 9
+        errors = " | ".join(final["errors"])
+        assert "needs 518400 bytes, got 100" in errors
+        assert "needs width, height and format" in errors
+        assert "does not decode" in errors
+
+
+def test_a_camera_that_stops_goes_idle_its_tracks_end_and_it_resumes(
+    server, session, pets_frames, public_detections
+):
+    camera = "door"
+    keys = StreamKeys("vtrack", camera)
+    # Upstream detections make the people certain (and the test cheap).
+    camera_options = {"detections": public_detections.for_frame, "detections_scale": 0.625}
+    with server.client() as client:
+        start_stream(client, session, camera, idle_after=0.5, end_tracks_after=1.5)
+        follower = Follower(session, keys)
+        publish_frames(
+            session,
+            keys,
+            iter(pets_frames[:20]),
+            10.0,
+            wait_for_subscriber=10,
+            **camera_options,
+        )
+        wait_for(lambda: status(client, camera)["state"] == "idle", 30, "the stream to go idle")
+        ended = wait_for(
+            lambda: (s := status(client, camera))["counters"]["restarts"] == 1 and s,
+            30,
+            "the tracks to end",
+        )
+        assert ended["tracks"] is None
+        before = follower.received()
+        assert before and any(m.tracks for m in before)
+        # The camera comes back, counting from 0 again.
+        publish_frames(session, keys, iter(pets_frames[20:40]), 10.0, **camera_options)
+        wait_for(
+            lambda: status(client, camera)["counters"]["frames_in"] == 40,
+            30,
+            "the frames of the second run",
+        )
+        resumed = wait_for(
+            lambda: (s := status(client, camera))["state"] == "running" and s["tracks"] and s,
+            30,
+            "tracking to resume",
+        )
+        wait_for(lambda: len(follower.received()) > len(before), 10, "new tracks messages")
+        follower.close()
+        after = follower.received()[len(before) :]
+        assert resumed["counters"]["restarts"] == 1
+        old_ids = {t.track_id for m in before for t in m.tracks}
+        new_ids = {t.track_id for m in after for t in m.tracks}
+        assert not old_ids & new_ids, "a track of the second run reused an id of the first"
+
+
+def test_upstream_detections_are_used_when_present(server, session, pets_frames, public_detections):
+    camera = "upstream"
+    keys = StreamKeys("vtrack", camera)
+    public = public_detections
+    with server.client() as client:
+        start_stream(client, session, camera, detections_wait=1.0)
+        follower = Follower(session, keys)
+        publish_frames(
+            session,
+            keys,
+            iter(pets_frames[:20]),
+            10.0,
+            detections=public.for_frame,
+            detections_scale=0.625,
+            wait_for_subscriber=10,
+        )
+
+        def settled():
+            c = status(client, camera)["counters"]
+            return c if c["frames_processed"] + c["frames_skipped"] == 20 else None
+
+        counters = wait_for(settled, 60, "the frames to be tracked")
+        wait_for(
+            lambda: len(follower.received()) == counters["frames_processed"],
+            10,
+            "the last tracks messages",
+        )
+        follower.close()
+    assert counters["detections_in"] == 20
+    sources = [m.detections for m in follower.received()]
+    # The first frame comes before any detections message (the camera is not known to have an
+    # upstream detector yet); after it, every frame waits for its own detections.
+    assert sources[1:] and set(sources[1:]) == {"upstream"}
+    assert counters["detections_used"] == sources.count("upstream")
+    assert any(m.tracks for m in follower.received())
+
+
+def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
+    camera = "rec"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        assert client.post("/v1/streams", json={"camera": "a/b"}).status_code == 422
+        bad = client.post("/v1/streams", json={"camera": "x", "speed": 2})
+        assert bad.status_code == 422 and "speed" in bad.json()["detail"]
+        dpm = client.post("/v1/streams", json={"camera": "x", "detector": {"name": "dpm"}})
+        assert dpm.status_code == 422 and "VTRACK_DPM_MODEL" in dpm.json()["detail"]
+        assert client.get("/v1/streams/nobody").status_code == 404
+
+        start_stream(client, session, camera, record=True)
+        again = client.post("/v1/streams", json={"camera": camera})
+        assert again.status_code == 409 and "tracked already" in again.json()["detail"]
+        publish_frames(session, keys, iter(pets_frames[:10]), 20.0)
+        wait_for(
+            lambda: status(client, camera)["counters"]["frames_processed"] >= 5,
+            60,
+            "frames to be tracked",
+        )
+        stopped = client.delete(f"/v1/streams/{camera}")
+        assert stopped.status_code == 200, stopped.text
+        final = stopped.json()
+        assert final["state"] == "stopped" and final["stopped_at"] is not None
+        assert trackers_of(session, keys, timeout=0.5) == [], "the liveliness token is gone"
+        assert len(final["recordings"]) == 1
+        recording = client.get(final["recordings"][0])
+        assert recording.status_code == 200
+        topics = read_mcap_topics(recording.content)
+        assert topics["/tracks"] == final["counters"]["frames_processed"]
+        assert topics["/camera/image"] == topics["/tracks"]
+
+        # A stopped stream stays listed until deleted a second time, then it is gone.
+        assert status(client, camera)["state"] == "stopped"
+        assert client.delete(f"/v1/streams/{camera}").status_code == 204
+        assert client.get(f"/v1/streams/{camera}").status_code == 404
+        assert client.get(final["recordings"][0]).status_code == 404
+
+
+def read_mcap_topics(data: bytes) -> dict[str, int]:
+    import io
+
+    counts: dict[str, int] = {}
+    for _, channel, _ in make_reader(io.BytesIO(data)).iter_messages():
+        counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    return counts
+
+
+def test_streams_from_settings_start_with_the_service_and_survive_a_restart(tmp_path, shared_data):
+    configured = json.dumps([{"camera": "gate", "idle_after": 1.0}])
+    server = Server(tmp_path / "data", workers=1, streams=configured).start()
+    try:
+        with server.client() as client:
+            wait_for(lambda: status(client, "gate")["state"] == "waiting", 60, "gate to start")
+            created = client.post("/v1/streams", json={"camera": "hall"})
+            assert created.status_code == 201
+        server.stop()
+        server.start()
+        with server.client() as client:
+            states = wait_for(
+                lambda: (
+                    {s["id"]: s["state"] for s in client.get("/v1/streams").json()["streams"]}
+                    if all(
+                        s["state"] == "waiting" for s in client.get("/v1/streams").json()["streams"]
+                    )
+                    else None
+                ),
+                60,
+                "both streams to start again",
+            )
+            assert states == {"gate": "waiting", "hall": "waiting"}
+            # A second instance on its own Zenoh port, connected to this one, sees that the
+            # camera is taken (liveliness) and refuses it.
+            other = Server(
+                tmp_path / "other",
+                workers=1,
+                zenoh_connect=json.dumps(list(server.zenoh_listen)),
+            ).start()
+            try:
+                with other.client() as other_client:
+
+                    def refused():
+                        response = other_client.post("/v1/streams", json={"camera": "gate"})
+                        return response if response.status_code == 409 else None
+
+                    response = wait_for(refused, 30, "the other instance to see the token")
+                    assert "another instance" in response.json()["detail"]
+            finally:
+                other.stop()
+    finally:
+        server.stop()
+
+
+def test_zenoh_port_taken_streams_unavailable_jobs_go_on(tmp_path, server):
+    # The same Zenoh listen endpoint as the module's running server: taken.
+    clash = Server(
+        tmp_path / "data", workers=1, zenoh_listen=json.dumps(list(server.zenoh_listen))
+    ).start()
+    try:
+        with clash.client() as client:
+            response = client.post("/v1/streams", json={"camera": "gate"})
+            assert response.status_code == 503
+            assert "Zenoh is unavailable" in response.json()["detail"]
+            assert client.get("/readyz").status_code == 200
+            assert client.get("/v1/streams").json() == {"streams": []}
+    finally:
+        clash.stop()
+
+
+def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
+    camera = "tools"
+    keys = StreamKeys("vtrack", camera)
+    connect = ["--connect", server.zenoh_listen[0]]
+    with server.client() as client:
+        start_stream(client, session, camera)
+        out = tmp_path / "tracks.jsonl"
+        subscriber = subprocess.Popen(
+            [
+                *VTRACK,
+                "subscribe",
+                "--camera",
+                camera,
+                "--count",
+                "5",
+                "--output",
+                str(out),
+                *connect,
+            ],
+            cwd=REPO_ROOT,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            wait_for(
+                lambda: len(trackers_of(session, keys)) and follow_ready(subscriber),
+                30,
+                "the subscriber",
+            )
+            publisher = subprocess.run(
+                [
+                    *VTRACK,
+                    "publish",
+                    str(shared_data / PETS_VIDEO),
+                    "--camera",
+                    camera,
+                    "--limit",
+                    "12",
+                    "--fps",
+                    "20",
+                    *connect,
+                ],
+                cwd=REPO_ROOT,
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
+            assert publisher.returncode == 0, publisher.stderr
+            assert "12 frames sent" in publisher.stderr
+            subscriber.wait(timeout=60)
+        finally:
+            subscriber.kill()
+        lines = out.read_text().splitlines()
+        assert len(lines) == 5
+        messages = [StreamTracksMessage.model_validate_json(line) for line in lines]
+        assert all(m.camera == camera for m in messages)
+        current = subprocess.run(
+            [*VTRACK, "subscribe", "--camera", camera, "--current", "--json", *connect],
+            cwd=REPO_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert current.returncode == 0, current.stderr
+        latest = StreamTracksMessage.model_validate_json(current.stdout)
+        assert latest.sequence == status(client, camera)["tracks"]["sequence"]
+        missing = subprocess.run(
+            [*VTRACK, "publish", str(tmp_path / "none.avi"), "--camera", camera, *connect],
+            cwd=REPO_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert missing.returncode == 2 and "no such file" in missing.stderr
+
+
+def follow_ready(process: subprocess.Popen) -> bool:
+    """True once ``vtrack subscribe`` says it follows (its first stderr line)."""
+    assert process.poll() is None, process.stderr.read() if process.stderr else ""
+    line = process.stderr.readline() if process.stderr else ""
+    return "following" in line

@@ -1,0 +1,634 @@
+"""Unit tests of the live-stream building blocks: payloads, the worker's slots, keys, Zenoh
+configuration, the stream schemas, and one real Zenoh round trip through the publish tool."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import zenoh
+from pydantic import ValidationError
+
+from api_schemas.streams import (
+    FrameAttachment,
+    PixelFormat,
+    StreamSpec,
+    StreamTracksMessage,
+    UpstreamDetection,
+    UpstreamDetections,
+)
+from api_schemas.tracks import FrameTracksMessage
+from service.streams import tools
+from service.streams.keys import StreamKeys
+from service.streams.payloads import (
+    JPEG,
+    RAW,
+    PayloadError,
+    decode_frame,
+    encode_jpeg,
+    frame_attachment,
+    parse_attachment,
+    parse_detections,
+    to_detections,
+)
+from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from service.streams.worker import Incoming, LatestFrame, UpstreamBuffer
+from tracking.detection.base import Detections
+from tracking.detection.external import detections_from_arrays
+
+VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def first_frame(shared_data: Path) -> np.ndarray:
+    """The first frame of the PETS09-S2L1 video, RGB."""
+    capture = cv2.VideoCapture(str(shared_data / VIDEO))
+    try:
+        ok, bgr = capture.read()
+    finally:
+        capture.release()
+    assert ok, f"cannot read {shared_data / VIDEO}"
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def raw_attachment(width: int, height: int, fmt: str, sequence: int = 0) -> FrameAttachment:
+    data = frame_attachment(sequence, 1.5, width=width, height=height, format=fmt)
+    return parse_attachment(data)
+
+
+# -- payloads: attachments ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("attachment", [None, b""])
+def test_parse_attachment_missing(attachment):
+    with pytest.raises(PayloadError, match="attachment"):
+        parse_attachment(attachment)
+
+
+def test_parse_attachment_invalid_json():
+    with pytest.raises(PayloadError, match="bad frame attachment"):
+        parse_attachment(b"{not json")
+
+
+def test_parse_attachment_missing_timestamp():
+    with pytest.raises(PayloadError, match="timestamp"):
+        parse_attachment(b'{"sequence": 3}')
+
+
+def test_parse_attachment_negative_sequence():
+    with pytest.raises(PayloadError, match="sequence"):
+        parse_attachment(b'{"sequence": -1, "timestamp": 1.0}')
+
+
+def test_parse_attachment_valid():
+    got = parse_attachment(b'{"sequence": 7, "timestamp": 12.25, "extra": "ignored"}')
+    assert got == FrameAttachment(sequence=7, timestamp=12.25)
+    assert got.width is None and got.height is None and got.format is None
+
+
+def test_frame_attachment_round_trip():
+    data = frame_attachment(42, 1700000000.125, width=4, height=2, format="bgr8")
+    assert isinstance(data, bytes)
+    got = parse_attachment(data)
+    assert (got.sequence, got.timestamp) == (42, 1700000000.125)
+    assert (got.width, got.height, got.format) == (4, 2, PixelFormat.bgr8)
+    assert parse_attachment(frame_attachment(0, 0.0)) == FrameAttachment(sequence=0, timestamp=0)
+
+
+# -- payloads: frames --------------------------------------------------------------------------
+
+
+def test_decode_jpeg_of_a_real_frame(first_frame):
+    payload = encode_jpeg(first_frame)
+    assert payload[:2] == b"\xff\xd8"  # JPEG SOI marker
+    decoded = decode_frame(payload, JPEG, parse_attachment(frame_attachment(0, 0.0)))
+    assert decoded.shape == first_frame.shape == (360, 480, 3)
+    assert decoded.dtype == np.uint8
+    diff = np.abs(decoded.astype(np.int16) - first_frame.astype(np.int16))
+    assert diff.mean() < 3.0
+    # Channel order survives: swapping R and B would be far off on a real scene.
+    swapped = np.abs(decoded[..., ::-1].astype(np.int16) - first_frame.astype(np.int16))
+    assert swapped.mean() > diff.mean() + 1.0
+
+
+def test_decode_raw_rgb8():
+    rgb = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)
+    decoded = decode_frame(rgb.tobytes(), RAW, raw_attachment(3, 2, "rgb8"))
+    np.testing.assert_array_equal(decoded, rgb)
+    assert decoded.flags.writeable
+
+
+def test_decode_raw_bgr8_swaps_channels():
+    bgr = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3) * 7
+    decoded = decode_frame(bgr.tobytes(), RAW, raw_attachment(3, 2, "bgr8"))
+    np.testing.assert_array_equal(decoded, bgr[..., ::-1])
+
+
+def test_decode_raw_mono8_replicates():
+    mono = np.array([[0, 10, 20], [30, 40, 255]], dtype=np.uint8)
+    decoded = decode_frame(mono.tobytes(), RAW, raw_attachment(3, 2, "mono8"))
+    assert decoded.shape == (2, 3, 3)
+    for channel in range(3):
+        np.testing.assert_array_equal(decoded[..., channel], mono)
+
+
+def test_decode_raw_wrong_size():
+    with pytest.raises(PayloadError) as error:
+        decode_frame(bytes(17), RAW, raw_attachment(3, 2, "rgb8"))
+    message = str(error.value)
+    assert "18" in message and "17" in message
+    assert "needs 18 bytes, got 17" in message
+
+
+@pytest.mark.parametrize(
+    "raw",
+    [
+        {},
+        {"width": 3, "height": 2},
+        {"width": 3, "format": "rgb8"},
+        {"height": 2, "format": "rgb8"},
+    ],
+)
+def test_decode_raw_without_layout(raw):
+    attachment = parse_attachment(frame_attachment(0, 0.0, **raw))
+    with pytest.raises(PayloadError, match="width, height and format"):
+        decode_frame(bytes(18), RAW, attachment)
+
+
+@pytest.mark.parametrize("payload", [b"", b"not a jpeg at all", b"\xff\xd8\xff" + bytes(50)])
+def test_decode_jpeg_garbage(payload):
+    with pytest.raises(PayloadError, match="does not decode"):
+        decode_frame(payload, JPEG, parse_attachment(frame_attachment(0, 0.0)))
+
+
+# -- payloads: detections ----------------------------------------------------------------------
+
+
+def test_parse_detections_valid():
+    body = json.dumps(
+        {
+            "sequence": 5,
+            "detections": [
+                {"x": 1, "y": 2, "w": 30, "h": 60, "score": 0.8},
+                {"x": -4.5, "y": 0, "w": 10, "h": 20, "score": 2.5},
+            ],
+        }
+    ).encode()
+    message = parse_detections(body)
+    assert message.sequence == 5
+    assert [d.score for d in message.detections] == [0.8, 2.5]
+    assert parse_detections(b'{"sequence": 0, "detections": []}').detections == []
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        b"",
+        b"[]",
+        b"{oops",
+        b'{"detections": []}',
+        b'{"sequence": -1, "detections": []}',
+        b'{"sequence": 1, "detections": [{"x": 0, "y": 0, "w": 0, "h": 5, "score": 1}]}',
+        b'{"sequence": 1, "detections": [{"x": 0, "y": 0, "w": 5, "h": 5}]}',
+        b'{"sequence": 1, "detections": [], "extra": 1}',
+    ],
+)
+def test_parse_detections_invalid(body):
+    with pytest.raises(PayloadError, match="bad detections message"):
+        parse_detections(body)
+
+
+def test_to_detections():
+    message = UpstreamDetections(
+        sequence=3,
+        detections=[
+            UpstreamDetection(x=1, y=2, w=30, h=60, score=0.8),
+            UpstreamDetection(x=-4.5, y=0, w=10, h=20, score=2.5),
+            UpstreamDetection(x=100, y=50, w=5, h=9, score=-1.0),
+        ],
+    )
+    detections = to_detections(message)
+    assert isinstance(detections, Detections)
+    np.testing.assert_array_equal(
+        detections.boxes, [[1, 2, 30, 60], [-4.5, 0, 10, 20], [100, 50, 5, 9]]
+    )
+    np.testing.assert_allclose(detections.probabilities, [0.8, 1.0, 0.0])
+    assert np.all((detections.probabilities >= 0) & (detections.probabilities <= 1))
+    empty = to_detections(UpstreamDetections(sequence=0, detections=[]))
+    assert len(empty) == 0 and empty.boxes.shape == (0, 4)
+
+
+# -- worker: LatestFrame -----------------------------------------------------------------------
+
+
+def incoming(sequence: int) -> Incoming:
+    attachment = FrameAttachment(sequence=sequence, timestamp=float(sequence))
+    return Incoming(b"x", JPEG, attachment, time.perf_counter())
+
+
+def test_latest_frame_keeps_the_newest():
+    slot = LatestFrame()
+    for sequence in range(3):
+        slot.offer(incoming(sequence))
+    taken = slot.take(timeout=0.1)
+    assert taken is not None and taken.attachment.sequence == 2
+    assert slot.skipped == 2
+    assert slot.take(timeout=0.01) is None
+    slot.offer(incoming(3))  # the slot is empty again: nothing more is skipped
+    assert slot.take(timeout=0.1).attachment.sequence == 3
+    assert slot.skipped == 2
+
+
+def test_latest_frame_take_times_out():
+    slot = LatestFrame()
+    started = time.perf_counter()
+    assert slot.take(timeout=0.2) is None
+    elapsed = time.perf_counter() - started
+    assert 0.18 <= elapsed < 1.0
+
+
+def test_latest_frame_offer_wakes_a_waiting_take():
+    slot = LatestFrame()
+    taken: list[tuple[Incoming | None, float]] = []
+
+    def consumer() -> None:
+        frame = slot.take(timeout=5.0)
+        taken.append((frame, time.perf_counter()))
+
+    thread = threading.Thread(target=consumer)
+    thread.start()
+    time.sleep(0.05)  # let the consumer block
+    offered = time.perf_counter()
+    slot.offer(incoming(9))
+    thread.join(timeout=5.0)
+    assert not thread.is_alive()
+    frame, woke = taken[0]
+    assert frame is not None and frame.attachment.sequence == 9
+    assert woke - offered < 0.5
+    assert slot.skipped == 0
+
+
+# -- worker: UpstreamBuffer --------------------------------------------------------------------
+
+
+def some_detections(x: float = 0.0) -> Detections:
+    return detections_from_arrays([[x, 0.0, 10.0, 20.0]], [0.9])
+
+
+def test_upstream_take_returns_and_removes():
+    buffer = UpstreamBuffer()
+    assert not buffer.active()
+    first, second = some_detections(1.0), some_detections(2.0)
+    buffer.offer(4, first)
+    buffer.offer(5, second)
+    assert buffer.active()
+    assert buffer.received == 2
+    assert buffer.take(5, wait=0.0) is second
+    assert buffer.take(4, wait=0.0) is first
+    assert buffer.take(4, wait=0.0) is None
+
+
+def test_upstream_take_waits_then_gives_up():
+    buffer = UpstreamBuffer()
+    buffer.offer(1, some_detections())
+    started = time.perf_counter()
+    assert buffer.take(2, wait=0.2) is None
+    elapsed = time.perf_counter() - started
+    assert 0.18 <= elapsed < 1.0
+    assert buffer.take(1, wait=0.0) is not None  # the other sequence is still there
+
+
+def test_upstream_take_gets_detections_that_arrive_while_waiting():
+    buffer = UpstreamBuffer()
+    expected = some_detections(7.0)
+
+    def late_detector() -> None:
+        time.sleep(0.05)
+        buffer.offer(3, some_detections(6.0))  # another frame's: take keeps waiting
+        time.sleep(0.05)
+        buffer.offer(4, expected)
+
+    thread = threading.Thread(target=late_detector)
+    started = time.perf_counter()
+    thread.start()
+    try:
+        got = buffer.take(4, wait=5.0)
+    finally:
+        thread.join(timeout=5.0)
+    assert got is expected
+    assert time.perf_counter() - started < 1.0
+    assert buffer.take(3, wait=0.0) is not None
+
+
+def test_upstream_capacity_drops_the_oldest():
+    buffer = UpstreamBuffer(capacity=3)
+    for sequence in range(5):
+        buffer.offer(sequence, some_detections(float(sequence)))
+    assert buffer.received == 5
+    assert buffer.take(0, wait=0.0) is None
+    assert buffer.take(1, wait=0.0) is None
+    for sequence in (2, 3, 4):
+        got = buffer.take(sequence, wait=0.0)
+        assert got is not None and got.boxes[0, 0] == sequence
+
+
+def test_upstream_capacity_counts_a_reoffered_sequence_as_newest():
+    buffer = UpstreamBuffer(capacity=2)
+    buffer.offer(1, some_detections(1.0))
+    buffer.offer(2, some_detections(2.0))
+    buffer.offer(1, some_detections(10.0))  # replaces and becomes the newest
+    buffer.offer(3, some_detections(3.0))  # drops 2, the oldest now
+    assert buffer.take(2, wait=0.0) is None
+    assert buffer.take(1, wait=0.0).boxes[0, 0] == 10.0
+    assert buffer.take(3, wait=0.0) is not None
+
+
+# -- keys --------------------------------------------------------------------------------------
+
+
+def test_stream_keys():
+    keys = StreamKeys("vtrack", "gate")
+    assert keys.frames == "vtrack/cameras/gate/frames"
+    assert keys.detections == "vtrack/cameras/gate/detections"
+    assert keys.tracks == "vtrack/cameras/gate/tracks"
+    assert keys.current == "vtrack/cameras/gate/tracks/current"
+    assert keys.trackers == "vtrack/trackers/gate/*"
+    assert keys.tracker_token("host-1") == "vtrack/trackers/gate/host-1"
+    assert keys.as_dict() == {
+        "frames": keys.frames,
+        "detections": keys.detections,
+        "tracks": keys.tracks,
+        "current": keys.current,
+        "trackers": keys.trackers,
+    }
+    # Every key is a valid Zenoh key expression, and the token matches the trackers wildcard.
+    for key in [*keys.as_dict().values(), keys.tracker_token("host-1")]:
+        zenoh.KeyExpr(key)
+    assert zenoh.KeyExpr(keys.trackers).intersects(zenoh.KeyExpr(keys.tracker_token("x")))
+    assert not zenoh.KeyExpr(keys.tracks).intersects(zenoh.KeyExpr(keys.current))
+
+
+# -- session configuration ---------------------------------------------------------------------
+
+
+def config_value(config: zenoh.Config, key: str):
+    """``get_json`` answers with a JSON string (checked here once, so a change shows)."""
+    text = config.get_json(key)
+    assert isinstance(text, str)
+    return json.loads(text)
+
+
+def client_listens(config: zenoh.Config) -> list[str]:
+    """What a client-mode session listens on: the default is per mode and has no client entry."""
+    listen = config_value(config, "listen/endpoints")
+    if isinstance(listen, dict):
+        return listen.get("client") or []
+    return listen
+
+
+def test_hub_config_peer():
+    options = ZenohOptions(listen=("tcp/0.0.0.0:7500",), connect=("tcp/10.0.0.1:7447",))
+    config = options.hub_config()
+    assert config_value(config, "mode") == "peer"
+    assert config_value(config, "listen/endpoints") == ["tcp/0.0.0.0:7500"]
+    assert config_value(config, "connect/endpoints") == ["tcp/10.0.0.1:7447"]
+    assert config_value(config, "scouting/multicast/enabled") is False
+
+
+def test_hub_config_defaults():
+    config = ZenohOptions().hub_config()
+    assert config_value(config, "mode") == "peer"
+    assert config_value(config, "listen/endpoints") == ["tcp/127.0.0.1:7447"]
+    assert config_value(config, "connect/endpoints") == []
+    assert config_value(config, "scouting/multicast/enabled") is False
+
+
+def test_member_config_peer():
+    options = ZenohOptions(
+        listen=("tcp/0.0.0.0:7500", "tcp/[::]:7501", "tcp/192.168.1.2:7502"),
+        connect=("tcp/10.0.0.1:7447",),
+    )
+    config = options.member_config()
+    assert config_value(config, "mode") == "peer"
+    assert config_value(config, "listen/endpoints") == ["tcp/127.0.0.1:0"]
+    assert config_value(config, "connect/endpoints") == [
+        "tcp/127.0.0.1:7500",
+        "tcp/127.0.0.1:7501",
+        "tcp/192.168.1.2:7502",
+        "tcp/10.0.0.1:7447",
+    ]
+    assert config_value(config, "scouting/multicast/enabled") is False
+
+
+def test_member_config_defaults_connect_to_the_default_hub():
+    config = ZenohOptions().member_config()
+    assert config_value(config, "connect/endpoints") == ["tcp/127.0.0.1:7447"]
+    assert config_value(config, "listen/endpoints") == ["tcp/127.0.0.1:0"]
+
+
+def test_client_mode_configs():
+    options = ZenohOptions(
+        mode="client", listen=("tcp/127.0.0.1:7500",), connect=("tcp/10.0.0.1:7447",)
+    )
+    for config in (options.hub_config(), options.member_config()):
+        assert config_value(config, "mode") == "client"
+        assert client_listens(config) == []
+        assert config_value(config, "connect/endpoints") == ["tcp/10.0.0.1:7447"]
+        assert config_value(config, "scouting/multicast/enabled") is False
+
+
+def test_open_session_on_a_busy_port():
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        config = ZenohOptions(listen=(f"tcp/127.0.0.1:{port}",)).hub_config()
+        with pytest.raises(ZenohUnavailable) as error:
+            open_session(config)
+    message = str(error.value)
+    assert "address already in use" in message.lower() or "address in use" in message.lower()
+    assert str(port) in message
+    assert " at /" not in message  # Zenoh's source locations are cut off
+
+
+# -- stream schemas ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "camera", ["", "a/b", "cam*", "cam#1", "$cam", "cam?", "gate 1", " gate", "-gate", "x" * 65]
+)
+def test_stream_spec_rejects_bad_camera_names(camera):
+    with pytest.raises(ValidationError):
+        StreamSpec(camera=camera)
+
+
+@pytest.mark.parametrize("camera", ["gate-1", "cam_2.north", "g", "A9", "x" * 64])
+def test_stream_spec_accepts_camera_names(camera):
+    spec = StreamSpec(camera=camera)
+    assert spec.camera == camera
+    zenoh.KeyExpr(StreamKeys("vtrack", camera).frames)
+
+
+def test_stream_spec_rejects_unknown_fields():
+    with pytest.raises(ValidationError, match="extra"):
+        StreamSpec.model_validate({"camera": "gate", "fps": 10})
+
+
+def test_stream_tracks_message_round_trip():
+    assert issubclass(StreamTracksMessage, FrameTracksMessage)
+    message = StreamTracksMessage.model_validate(
+        {
+            "frame_index": 3,
+            "timestamp": 1700000000.5,
+            "tracks": [
+                {
+                    "track_id": 2,
+                    "box": {"x": 1.5, "y": 2.0, "w": 30.0, "h": 60.0},
+                    "score": 0.75,
+                    "occluded": False,
+                }
+            ],
+            "camera": "gate",
+            "sequence": 17,
+            "latency": 0.012,
+            "frames_skipped": 1,
+            "detections": "upstream",
+        }
+    )
+    again = StreamTracksMessage.model_validate_json(message.model_dump_json())
+    assert again == message
+    assert again.tracks[0].box.w == 30.0
+    with pytest.raises(ValidationError):
+        StreamTracksMessage.model_validate({**message.model_dump(), "unknown": 1})
+
+
+# -- a real Zenoh round trip -------------------------------------------------------------------
+
+
+def wait_until(condition, timeout: float, what: str, state=lambda: "") -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out after {timeout} s waiting for {what} {state()}")
+        time.sleep(0.02)
+
+
+PROBE = b"probe"
+
+
+def test_publish_frames_round_trip():
+    options = ZenohOptions(listen=(f"tcp/127.0.0.1:{free_port()}",))
+    keys = StreamKeys("vtrack-test", "gate")
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 256, size=(24, 32, 3), dtype=np.uint8) for _ in range(3)]
+    boxes = [[10.0 * (i + 1), 4.0, 8.0, 16.0] for i in range(3)]
+
+    def detections(index: int) -> Detections:
+        return detections_from_arrays([boxes[index]], [0.5 + 0.1 * index])
+
+    lock = threading.Lock()
+    got_frames: list[tuple[bytes, str, bytes | None]] = []
+    got_detections: list[bytes] = []
+    probed: set[str] = set()
+
+    def on_frame(sample: zenoh.Sample) -> None:
+        payload = sample.payload.to_bytes()
+        attachment = sample.attachment.to_bytes() if sample.attachment is not None else None
+        with lock:
+            if payload == PROBE:
+                probed.add("frames")
+            else:
+                got_frames.append((payload, str(sample.encoding), attachment))
+
+    def on_detections(sample: zenoh.Sample) -> None:
+        payload = sample.payload.to_bytes()
+        with lock:
+            if payload == PROBE:
+                probed.add("detections")
+            else:
+                got_detections.append(payload)
+
+    hub = open_session(options.hub_config())
+    receiver = sender = None
+    try:
+        receiver = tools.member_session(options)
+        sender = tools.member_session(options)
+        subscribers = (
+            receiver.declare_subscriber(keys.frames, on_frame),
+            receiver.declare_subscriber(keys.detections, on_detections),
+        )
+        # Gossip connects the two members (each connects only to the hub) in a fraction of a
+        # second, and for a few more milliseconds samples can still be lost even though the
+        # sender's publishers already match the receiver's subscribers. So: probe both keys
+        # until the receiver has heard on each, then publish.
+        deadline = time.monotonic() + 5.0
+        while True:
+            with lock:
+                if probed == {"frames", "detections"}:
+                    break
+            if time.monotonic() > deadline:
+                pytest.fail(f"the members did not connect in 5 s (heard on {sorted(probed)})")
+            sender.put(keys.frames, PROBE)
+            sender.put(keys.detections, PROBE)
+            time.sleep(0.02)
+
+        report = tools.publish_frames(
+            sender,
+            keys,
+            iter(frames),
+            None,
+            detections=detections,
+            detections_scale=0.5,
+            first_sequence=10,
+        )
+        assert report.frames == 3 and report.late == 0
+
+        def all_arrived() -> bool:
+            with lock:
+                return len(got_frames) >= 3 and len(got_detections) >= 3
+
+        wait_until(
+            all_arrived,
+            5.0,
+            "3 frames and 3 detections messages",
+            lambda: f"got {len(got_frames)} frames and {len(got_detections)} detections",
+        )
+        time.sleep(0.05)  # nothing more comes
+        for subscriber in subscribers:
+            subscriber.undeclare()
+    finally:
+        for session in (sender, receiver, hub):
+            if session is not None:
+                session.close()
+
+    assert len(got_frames) == 3 and len(got_detections) == 3
+    for index, (payload, encoding, attachment_bytes) in enumerate(got_frames):
+        attachment = parse_attachment(attachment_bytes)
+        assert attachment.sequence == 10 + index
+        assert attachment.timestamp > 1e9  # Unix time
+        assert encoding == "image/jpeg"
+        assert encoding == str(zenoh.Encoding.IMAGE_JPEG)
+        image = decode_frame(payload, encoding, attachment)
+        assert image.shape == frames[index].shape
+    stamps = [parse_attachment(a).timestamp for _, _, a in got_frames]
+    assert stamps == sorted(stamps)
+
+    messages = [parse_detections(body) for body in got_detections]
+    assert [m.sequence for m in messages] == [10, 11, 12]
+    for index, message in enumerate(messages):
+        (item,) = message.detections
+        assert [item.x, item.y, item.w, item.h] == pytest.approx([b * 0.5 for b in boxes[index]])
+        assert item.score == pytest.approx(0.5 + 0.1 * index)
+        np.testing.assert_allclose(to_detections(message).boxes, [[b * 0.5 for b in boxes[index]]])
