@@ -67,6 +67,7 @@ class _Stream:
     quick_deaths: int = 0
     restart_at: float | None = None
     state: StreamState = StreamState.starting
+    stopping: bool = False
     error: str | None = None
     report: dict[str, Any] = field(default_factory=dict)
 
@@ -174,9 +175,13 @@ class StreamManager:
 
     def stop(self, stream_id: str) -> StreamStatus:
         """Stop a stream; its record and recordings stay until :meth:`remove`."""
-        stream = self._get(stream_id)
+        with self._lock:
+            stream = self._get(stream_id)
+            # The supervisor leaves a stopping stream alone: its worker's exit is no death.
+            stream.stopping = True
         self._halt(stream)
         with self._lock:
+            stream.stopping = False
             stopped = self._store.mark_stopped(stream_id)
             stream.record = StreamRecord(
                 stream.record.id, stream.record.spec, stream.record.created_at, stopped
@@ -310,7 +315,7 @@ class StreamManager:
                 log.exception("stream supervision failed; trying again")
 
     def _check(self, stream: _Stream) -> None:
-        if stream.state is StreamState.stopped:
+        if stream.state is StreamState.stopped or stream.stopping:
             return
         if stream.process is None:
             if stream.restart_at is not None and time.monotonic() >= stream.restart_at:

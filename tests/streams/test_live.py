@@ -540,3 +540,33 @@ def follow_ready(process: subprocess.Popen) -> bool:
     assert process.poll() is None, process.stderr.read() if process.stderr else ""
     line = process.stderr.readline() if process.stderr else ""
     return "following" in line
+
+
+def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames):
+    import os
+    import signal
+
+    camera = "phoenix"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera)
+        first = status(client, camera)
+        os.kill(first["worker_pid"], signal.SIGKILL)
+        restarted = wait_for(
+            lambda: (
+                (s := status(client, camera))["worker_starts"] == 2
+                and s["state"] == "waiting"
+                and s
+            ),
+            60,
+            "a new worker",
+        )
+        assert restarted["worker_pid"] != first["worker_pid"]
+        assert "SIGKILL" in restarted["error"]
+        assert reach_tracker(session, keys, timeout=30)
+        publish_frames(session, keys, iter(pets_frames[:5]), 10.0, wait_for_subscriber=10)
+        wait_for(
+            lambda: status(client, camera)["counters"]["frames_processed"] >= 1,
+            60,
+            "the new worker to track",
+        )
