@@ -63,7 +63,8 @@ class DetectorOptions(BaseModel):
         le=4,
         description="Embedded detector only: enlarge frames by this factor before detecting. "
         "People smaller than about 80 px need more than 1.5 (people 40-55 px tall need 2.0), "
-        "at about 2.5 times the cost. None: the detector's default (1.5).",
+        "at about twice the cost. None: by the frame's height, to about 720 px within "
+        "1.5-2.0 (360 px high: 2.0; 480 px and more: 1.5).",
     )
 
 

@@ -220,19 +220,3 @@ class StreamDetail(StreamStatus):
 
 class StreamList(BaseModel):
     streams: list[StreamStatus]
-
-
-__all__ = [
-    "CAMERA_PATTERN",
-    "FrameAttachment",
-    "PixelFormat",
-    "StreamCounters",
-    "StreamDetail",
-    "StreamList",
-    "StreamSpec",
-    "StreamState",
-    "StreamStatus",
-    "StreamTracksMessage",
-    "UpstreamDetection",
-    "UpstreamDetections",
-]

@@ -1,4 +1,5 @@
-"""The ``vtrack`` command line: ``track`` one target, ``analyze`` a video, ``serve`` the API."""
+"""The ``vtrack`` command line: ``track`` one target, ``analyze`` a video, ``serve`` the API,
+``publish`` a video as a Zenoh camera and ``subscribe`` to its tracks."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from service.frames import FrameSourceError, open_frames
+from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.types import Box, TrackerOutput
 
@@ -207,12 +209,6 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_stream_commands(commands: argparse._SubParsersAction) -> None:
-    from service.streams.cli import add_commands
-
-    add_commands(commands)
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -289,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--data-dir", type=Path, help="job store and files (VTRACK_DATA_DIR)")
     serve.add_argument("--log-level", help="debug, info, warning... (VTRACK_LOG_LEVEL)")
     serve.set_defaults(handler=_serve)
-    add_stream_commands(commands)
+    add_stream_commands(commands)  # publish, subscribe
     return parser
 
 

@@ -32,8 +32,19 @@ def _keys(args: argparse.Namespace) -> StreamKeys:
     return StreamKeys(args.prefix or Settings().zenoh_prefix, args.camera)
 
 
+def _session(args: argparse.Namespace, command: str):
+    """The command's Zenoh session, or None after saying why there is none."""
+    from service.streams.tools import member_session
+
+    try:
+        return member_session(_zenoh_options(args))
+    except ZenohUnavailable as error:
+        print(f"vtrack {command}: {error}", file=sys.stderr)
+        return None
+
+
 def _publish(args: argparse.Namespace) -> int:
-    from service.streams.tools import member_session, publish_frames, video_frames
+    from service.streams.tools import publish_frames, video_frames
     from tracking.detection import MotDetections
 
     try:
@@ -47,10 +58,8 @@ def _publish(args: argparse.Namespace) -> int:
         return 2
     rate = args.fps or fps or 25.0
     keys = _keys(args)
-    try:
-        session = member_session(_zenoh_options(args))
-    except ZenohUnavailable as error:
-        print(f"vtrack publish: {error}", file=sys.stderr)
+    session = _session(args, "publish")
+    if session is None:
         return 1
     print(
         f"vtrack publish: {args.source} on {keys.frames} at {rate:g} fps (Ctrl-C stops)",
@@ -86,18 +95,11 @@ def _publish(args: argparse.Namespace) -> int:
 
 
 def _subscribe(args: argparse.Namespace) -> int:
-    from service.streams.tools import (
-        current_tracks,
-        follow_tracks,
-        member_session,
-        reach_tracker,
-    )
+    from service.streams.tools import current_tracks, follow_tracks, reach_tracker
 
     keys = _keys(args)
-    try:
-        session = member_session(_zenoh_options(args))
-    except ZenohUnavailable as error:
-        print(f"vtrack subscribe: {error}", file=sys.stderr)
+    session = _session(args, "subscribe")
+    if session is None:
         return 1
     out = args.output.open("a") if args.output else sys.stdout
     done = threading.Event()

@@ -64,3 +64,16 @@ def test_outside_regions_and_small_frames(detector, pets_frame):
 def test_bad_config(options):
     with pytest.raises(ValueError):
         HogPeopleConfig(**options)
+
+
+def test_default_upscale_follows_the_frame_height():
+    config = HogPeopleConfig()
+    # 480x360 video: people 40-60 px tall need 2.0; 640x480 and 768x576 keep the fitted 1.5.
+    assert config.upscale_for(360) == 2.0
+    assert config.upscale_for(480) == 1.5
+    assert config.upscale_for(576) == 1.5
+    assert config.upscale_for(1080) == 1.5
+    assert config.upscale_for(400) == pytest.approx(1.8)
+    assert HogPeopleConfig(upscale=1.0).upscale_for(360) == 1.0
+    with pytest.raises(ValueError, match="auto_range"):
+        HogPeopleConfig(auto_range=(2.0, 1.5))
