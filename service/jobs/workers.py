@@ -39,6 +39,17 @@ def describe_exit(exitcode: int | None) -> str:
     return f"exit code {exitcode}"
 
 
+def single_threaded_blas() -> None:
+    """Make processes spawned from now on start with one BLAS thread (unless the user set it).
+
+    A spawned worker imports numpy afresh and reads these variables then. Workers already run
+    side by side on the cores, and the DPM engine scores pyramid levels on threads of its own:
+    BLAS threads on top oversubscribe the cores and made the DPM several times slower.
+    """
+    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
+
+
 @dataclass(slots=True)
 class _Slot:
     process: Any
@@ -131,6 +142,7 @@ class WorkerPool:
     # -- supervision -----------------------------------------------------------------------
 
     def _spawn(self, index: int) -> _Slot:
+        single_threaded_blas()
         ready = self._ctx.Event()
         process = self._ctx.Process(
             target=worker_main,

@@ -32,7 +32,7 @@ from api_schemas.streams import (
     StreamTracksMessage,
 )
 from service.analysis import PipelineResources, check_options
-from service.jobs.workers import describe_exit
+from service.jobs.workers import describe_exit, single_threaded_blas
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
@@ -262,6 +262,7 @@ class StreamManager:
             frame_limit=self._frame_limit,
             log_level=self._log_level,
         )
+        single_threaded_blas()
         stream.stop = self._ctx.Event()
         stream.updates = self._ctx.Queue()
         stream.process = self._ctx.Process(

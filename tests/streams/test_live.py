@@ -551,6 +551,8 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
     with server.client() as client:
         start_stream(client, session, camera)
         first = status(client, camera)
+        environment = Path(f"/proc/{first['worker_pid']}/environ").read_bytes().split(b"\0")
+        assert b"OPENBLAS_NUM_THREADS=1" in environment, "workers run single-threaded BLAS"
         os.kill(first["worker_pid"], signal.SIGKILL)
         restarted = wait_for(
             lambda: (
