@@ -15,6 +15,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
+from service.deps import TOKEN_MISSING, token_accepted
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
 from service.jobs.submit import resources
@@ -115,6 +116,23 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     )
 
 
+DOCUMENTATION_PATHS = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json"})
+
+
+async def _documentation_needs_the_token(request: Request, call_next):
+    """With ``VTRACK_API_TOKEN`` set, the API documentation is behind the token too (FastAPI
+    serves it outside the routers, so a dependency cannot guard it)."""
+    settings: Settings | None = request.app.state.settings
+    if request.url.path in DOCUMENTATION_PATHS and settings is not None:
+        header = request.headers.get("authorization", "")
+        scheme, _, presented = header.partition(" ")
+        if not token_accepted(settings, presented if scheme.lower() == "bearer" else None):
+            return JSONResponse(
+                {"detail": TOKEN_MISSING}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
+            )
+    return await call_next(request)
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The application; ``settings`` default to the environment, read when it starts."""
     app = FastAPI(
@@ -126,6 +144,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.add_exception_handler(RequestValidationError, _validation_error)
+    app.middleware("http")(_documentation_needs_the_token)
     app.include_router(health.router)
     app.include_router(jobs.router)
     app.include_router(streams.router)

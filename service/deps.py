@@ -38,22 +38,28 @@ PoolDep = Annotated[WorkerPool, Depends(get_pool)]
 StreamsDep = Annotated[StreamManager, Depends(get_streams)]
 
 
+TOKEN_MISSING = (
+    "this service needs a token: send the header 'Authorization: Bearer <token>' with the "
+    "token it was configured with (VTRACK_API_TOKEN)"
+)
+
+
+def token_accepted(settings: Settings, presented: str | None) -> bool:
+    """True without a configured token, or when ``presented`` is that token."""
+    if settings.api_token is None:
+        return True
+    expected = settings.api_token.get_secret_value()
+    return presented is not None and secrets.compare_digest(presented.encode(), expected.encode())
+
+
 def require_token(
     settings: SettingsDep,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
 ) -> None:
     """When ``VTRACK_API_TOKEN`` is set, the request must carry it as a bearer token."""
-    if settings.api_token is None:
-        return
-    expected = settings.api_token.get_secret_value()
-    if credentials is None or not secrets.compare_digest(
-        credentials.credentials.encode(), expected.encode()
-    ):
+    if not token_accepted(settings, credentials.credentials if credentials else None):
         raise HTTPException(
-            status.HTTP_401_UNAUTHORIZED,
-            "this service needs a token: send the header 'Authorization: Bearer <token>' with "
-            "the token it was configured with (VTRACK_API_TOKEN)",
-            headers={"WWW-Authenticate": "Bearer"},
+            status.HTTP_401_UNAUTHORIZED, TOKEN_MISSING, headers={"WWW-Authenticate": "Bearer"}
         )
 
 

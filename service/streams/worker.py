@@ -158,8 +158,7 @@ class StreamWorker:
         self._last_timestamp: float | None = None
         self._id_offset = 0
         self._max_id = 0
-        self._current: StreamTracksMessage | None = None
-        self._current_json: bytes | None = None
+        self._current_json: bytes | None = None  # the latest tracks message
         self._state = StreamState.waiting
         self._pipeline: FramePipeline | None = None
         self._recorder: McapWriter | None = None
@@ -253,7 +252,6 @@ class StreamWorker:
         self._pipeline = self._new_pipeline()
         self._id_offset = self._max_id
         self._last_timestamp = None
-        self._current = None
         self._current_json = None
         self._restarts += 1
 
@@ -315,7 +313,7 @@ class StreamWorker:
         # can pair tracks with frames without parsing the JSON.
         publisher.put(body, attachment=frame_attachment(attachment.sequence, attachment.timestamp))
         done = time.perf_counter()
-        self._current, self._current_json = message, body
+        self._current_json = body
         self._processed += 1
         self._used_upstream += source == "upstream"
         self._latencies.append(done - frame.arrived)

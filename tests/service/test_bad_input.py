@@ -170,6 +170,11 @@ def test_unknown_result_format(client):
         ("GET", "/v1/jobs/some-id/events"),
         ("DELETE", "/v1/jobs/some-id"),
         ("GET", "/metrics"),
+        ("GET", "/docs"),
+        ("GET", "/openapi.json"),
+        ("GET", "/v1/streams"),
+        ("POST", "/v1/streams"),
+        ("DELETE", "/v1/streams/gate"),
     ],
 )
 @pytest.mark.parametrize("token", ["", "wrong-token"])
@@ -179,6 +184,11 @@ def test_endpoints_need_the_token(server, method, path, token):
     assert response.status_code == 401
     assert response.headers["www-authenticate"] == "Bearer"
     assert "Authorization: Bearer" in response.json()["detail"]
+
+
+def test_documentation_opens_with_the_token(client):
+    assert client.get("/docs").status_code == 200
+    assert client.get("/openapi.json").json()["info"]["title"] == "visual-tracking"
 
 
 def test_health_needs_no_token(server):
