@@ -19,9 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -29,16 +26,11 @@ from pathlib import Path
 
 import cv2
 import httpx
+from _server import Server, wait_for
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def _video_seconds(path: Path) -> tuple[int, float, float]:
@@ -49,38 +41,12 @@ def _video_seconds(path: Path) -> tuple[int, float, float]:
     return frames, fps, frames / fps
 
 
-def _wait(condition, timeout: float, what: str):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.2)
-    raise TimeoutError(f"timed out waiting for {what}")
-
-
 def run(video: Path, options: dict | None, workers: int | None) -> dict:
     frames, fps, duration = _video_seconds(video)
-    port = _free_port()
-    url = f"http://127.0.0.1:{port}"
     with tempfile.TemporaryDirectory(prefix="vtrack-bench-") as scratch:
-        env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
-        command = [sys.executable, "-m", "service.cli", "serve", "--port", str(port)]
-        command += ["--data-dir", str(Path(scratch) / "data"), "--log-level", "warning"]
-        if workers:
-            command += ["--workers", str(workers)]
-        log = open(Path(scratch) / "server.log", "w")  # noqa: SIM115 - closed below
-        server = subprocess.Popen(command, cwd=REPO_ROOT, env=env, stdout=log, stderr=log)
+        server = Server(Path(scratch), workers=workers, log_level="warning").start()
         try:
-
-            def ready():
-                try:
-                    return httpx.get(f"{url}/readyz", timeout=2).status_code == 200
-                except httpx.TransportError:
-                    return False
-
-            _wait(ready, 120, "the server")
-            with httpx.Client(base_url=url, timeout=600) as client:
+            with httpx.Client(base_url=server.url, timeout=600) as client:
                 start = time.perf_counter()
                 with video.open("rb") as handle:
                     files = {"video": (video.name, handle, "video/x-msvideo")}
@@ -94,7 +60,7 @@ def run(video: Path, options: dict | None, workers: int | None) -> dict:
                     status = client.get(f"/v1/jobs/{job_id}").json()
                     return status if status["state"] not in ("queued", "running") else None
 
-                status = _wait(finished, 3 * 3600, "the job")
+                status = wait_for(finished, 3 * 3600, "the job", interval=0.2)
                 done = time.perf_counter()
                 if status["state"] != "succeeded":
                     raise RuntimeError(f"the job {status['state']}: {status['error']}")
@@ -103,9 +69,7 @@ def run(video: Path, options: dict | None, workers: int | None) -> dict:
                     sizes[fmt] = len(client.get(link).content)
                 end = time.perf_counter()
         finally:
-            server.send_signal(signal.SIGTERM)
-            server.wait(timeout=60)
-            log.close()
+            server.stop()
     started = status["started_at"]
     created = status["created_at"]
     from datetime import datetime

@@ -34,14 +34,10 @@ import argparse
 import json
 import os
 import shutil
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,6 +49,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from api_schemas.streams import StreamTracksMessage
+from benchmarks._server import Server, wait_for
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions
 from service.streams.tools import (
@@ -90,23 +87,6 @@ def _log(*parts: object) -> None:
     print(*parts, file=sys.stderr, flush=True)
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
-def _wait(condition: Callable[[], object], timeout: float, what: str, interval: float = 0.1):
-    deadline = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"timed out after {timeout:g} s waiting for {what}")
-        time.sleep(interval)
-
-
 def _percentile(values: list[float], q: float) -> float | None:
     return float(np.percentile(values, q)) if values else None
 
@@ -129,57 +109,6 @@ def _rss_kib(pid: int | None) -> int | None:
     except (OSError, ValueError):
         pass
     return None
-
-
-class Server:
-    """``vtrack serve`` on loopback ports (HTTP and Zenoh), stopped with SIGTERM."""
-
-    def __init__(self, scratch: Path) -> None:
-        self.scratch = scratch
-        self.port = _free_port()
-        self.zenoh_endpoint = f"tcp/127.0.0.1:{_free_port()}"
-        self.log_path = scratch / "server.log"
-        self.process: subprocess.Popen | None = None
-
-    @property
-    def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}"
-
-    def start(self, timeout: float = 120.0) -> None:
-        env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
-        env["VTRACK_ZENOH_LISTEN"] = json.dumps([self.zenoh_endpoint])
-        env["VTRACK_ZENOH_PREFIX"] = PREFIX
-        command = [sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1"]
-        command += ["--port", str(self.port), "--workers", "1"]
-        command += ["--data-dir", str(self.scratch / "data"), "--log-level", "info"]
-        with self.log_path.open("w") as log:
-            self.process = subprocess.Popen(
-                command, cwd=REPO_ROOT, env=env, stdout=log, stderr=subprocess.STDOUT
-            )
-        _wait(self._ready, timeout, f"the server on port {self.port}", interval=0.2)
-
-    def _ready(self) -> bool:
-        if self.process is not None and self.process.poll() is not None:
-            raise RuntimeError(f"the server exited early:\n{self.log_tail()}")
-        try:
-            return httpx.get(f"{self.url}/readyz", timeout=2.0).status_code == 200
-        except httpx.TransportError:
-            return False
-
-    def log_tail(self, lines: int = 40) -> str:
-        if not self.log_path.is_file():
-            return ""
-        return "\n".join(self.log_path.read_text(errors="replace").splitlines()[-lines:])
-
-    def stop(self) -> None:
-        if self.process is None or self.process.poll() is not None:
-            return
-        self.process.send_signal(signal.SIGTERM)
-        try:
-            self.process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(timeout=10)
 
 
 @dataclass
@@ -253,7 +182,7 @@ def run_config(
             raise RuntimeError(f"stream {camera} failed: {status['error']}")
         return status if status["state"] == "waiting" else None
 
-    status = _wait(subscribed, 120, f"stream {camera} to subscribe", interval=0.2)
+    status = wait_for(subscribed, 120, f"stream {camera} to subscribe", interval=0.2)
     pid = status["worker_pid"]
     detections = None
     if name == UPSTREAM:
@@ -264,7 +193,7 @@ def run_config(
     sampler = MemorySampler(pid)
     try:
         subscriber = follow_tracks(session, keys, received.on_message)
-        _wait(lambda: trackers_of(session, keys), 20, f"the tracker of {camera} on Zenoh")
+        wait_for(lambda: trackers_of(session, keys), 20, f"the tracker of {camera} on Zenoh")
         time.sleep(1.0)  # gossip: let this session and the worker connect directly
         source, _ = video_frames(str(data / VIDEO))
         load_before = os.getloadavg()[0]
@@ -291,7 +220,7 @@ def run_config(
             return counters["frames_in"] >= report.frames and handled >= counters["frames_in"]
 
         try:
-            _wait(drained, 30, f"stream {camera} to handle every frame", interval=0.2)
+            wait_for(drained, 30, f"stream {camera} to handle every frame", interval=0.2)
         except TimeoutError as error:
             _log(f"{name}: {error}")
         time.sleep(1.0)  # the last tracks message on its way
@@ -475,7 +404,7 @@ def run(
         "configs": {},
     }
     with tempfile.TemporaryDirectory(prefix="vtrack-stream-bench-") as scratch:
-        server = Server(Path(scratch))
+        server = Server(Path(scratch), zenoh_prefix=PREFIX)
         try:
             _log(f"starting the server (HTTP {server.url}, Zenoh {server.zenoh_endpoint})")
             server.start()
