@@ -82,6 +82,13 @@ def _publish(args: argparse.Namespace) -> int:
                 wait_for_subscriber=args.wait if sent == 0 else 0.0,
                 limit=None if args.limit is None else args.limit - sent,
             )
+            if report.subscribed is False:
+                print(
+                    f"vtrack publish: nobody subscribed to {keys.frames} within {args.wait:g} s "
+                    "(is a stream started for this camera? POST /v1/streams); frames were sent "
+                    "anyway",
+                    file=sys.stderr,
+                )
             sent += report.frames
             if not args.loop or (args.limit is not None and sent >= args.limit):
                 break

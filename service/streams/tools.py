@@ -33,6 +33,8 @@ class PublishReport:
     seconds: float
     late: int
     """Frames sent more than one frame period after their schedule (the source was slow)."""
+    subscribed: bool | None = None
+    """Whether a subscriber was known before the first frame (None: not waited for)."""
 
 
 def video_frames(source: str) -> tuple[Iterator[np.ndarray], float | None]:
@@ -95,9 +97,10 @@ def publish_frames(
     detection_publisher = session.declare_publisher(
         keys.detections, encoding=zenoh.Encoding.APPLICATION_JSON
     )
+    subscribed = None
     if wait_for_subscriber > 0:
         waiting = [frame_publisher] + ([detection_publisher] if detections else [])
-        _wait_for_subscribers(waiting, wait_for_subscriber)
+        subscribed = _wait_for_subscribers(waiting, wait_for_subscriber)
     period = 1.0 / fps if fps else 0.0
     started = time.perf_counter()
     sent = late = 0
@@ -133,7 +136,7 @@ def publish_frames(
     finally:
         frame_publisher.undeclare()
         detection_publisher.undeclare()
-    return PublishReport(frames=sent, seconds=time.perf_counter() - started, late=late)
+    return PublishReport(sent, time.perf_counter() - started, late, subscribed)
 
 
 SETTLE = 0.3
@@ -142,13 +145,14 @@ is announced through the hub before gossip has connected the two sessions direct
 published in between is lost."""
 
 
-def _wait_for_subscribers(publishers: list[zenoh.Publisher], timeout: float) -> None:
+def _wait_for_subscribers(publishers: list[zenoh.Publisher], timeout: float) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if all(p.matching_status.matching for p in publishers):
             time.sleep(min(SETTLE, max(deadline - time.monotonic(), 0.0)))
-            return
+            return True
         time.sleep(0.02)
+    return False
 
 
 def detections_message(

@@ -499,6 +499,12 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
                     "12",
                     "--fps",
                     "20",
+                    # Raw pixels, and the public detections as an upstream detector's.
+                    "--raw",
+                    "--detections",
+                    str(shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt"),
+                    "--detections-scale",
+                    "0.625",
                     *connect,
                 ],
                 cwd=REPO_ROOT,
@@ -515,6 +521,9 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
         assert len(lines) == 5
         messages = [StreamTracksMessage.model_validate_json(line) for line in lines]
         assert all(m.camera == camera for m in messages)
+        assert "upstream" in {m.detections for m in messages}
+        counters = status(client, camera)["counters"]
+        assert counters["malformed"] == 0 and counters["detections_in"] == 12
         current = subprocess.run(
             [*VTRACK, "subscribe", "--camera", camera, "--current", "--json", *connect],
             cwd=REPO_ROOT,
@@ -533,6 +542,25 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
             timeout=60,
         )
         assert missing.returncode == 2 and "no such file" in missing.stderr
+        untracked = subprocess.run(
+            [
+                *VTRACK,
+                "publish",
+                str(shared_data / PETS_VIDEO),
+                "--camera",
+                "nobody",
+                "--limit",
+                "2",
+                "--wait",
+                "0.5",
+                *connect,
+            ],
+            cwd=REPO_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert untracked.returncode == 0 and "nobody subscribed" in untracked.stderr
 
 
 def follow_ready(process: subprocess.Popen) -> bool:
