@@ -67,15 +67,7 @@ class FrameSource:
             for image_path in self._images:
                 yield read_image(image_path)
             return
-        capture = cv2.VideoCapture(str(self.path))
-        try:
-            while True:
-                ok, bgr = capture.read()
-                if not ok:
-                    break
-                yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-        finally:
-            capture.release()
+        yield from capture_frames(cv2.VideoCapture(str(self.path)))
 
     @property
     def timing_fps(self) -> float:
@@ -110,6 +102,18 @@ class FrameSource:
                 index += 1
         finally:
             capture.release()
+
+
+def capture_frames(capture: cv2.VideoCapture) -> Iterator[np.ndarray]:
+    """Every frame an OpenCV capture (a file, a camera) gives, as RGB; releases it at the end."""
+    try:
+        while True:
+            ok, bgr = capture.read()
+            if not ok:
+                return
+            yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    finally:
+        capture.release()
 
 
 def read_image(path: Path) -> np.ndarray:

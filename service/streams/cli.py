@@ -3,41 +3,51 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import threading
 import time
 from pathlib import Path
 
+import zenoh
+
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable
 
 
-def _zenoh_options(args: argparse.Namespace) -> ZenohOptions:
-    """The service's Zenoh settings (VTRACK_ZENOH_*), with ``--connect``/``--mode`` over them."""
+def _settings(command: str):
+    """The service's settings (VTRACK_*), as the tools share them; exits 2 when invalid."""
+    from pydantic import ValidationError
+
     from service.settings import Settings
 
-    settings = Settings()
+    try:
+        return Settings()
+    except ValidationError as error:
+        for item in error.errors():
+            print(f"vtrack {command}: {item['msg'].removeprefix('Value error, ')}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+def _zenoh_options(args: argparse.Namespace, settings) -> ZenohOptions:
+    """The service's Zenoh settings (VTRACK_ZENOH_*), with ``--connect``/``--mode`` over them."""
     options = settings.zenoh
     if args.connect:
-        options = ZenohOptions(mode=options.mode, listen=(), connect=tuple(args.connect))
+        options = dataclasses.replace(options, listen=(), connect=tuple(args.connect))
     if args.mode:
-        options = ZenohOptions(args.mode, options.listen, options.connect, options.config_file)
+        options = dataclasses.replace(options, mode=args.mode)
     return options
 
 
-def _keys(args: argparse.Namespace) -> StreamKeys:
-    from service.settings import Settings
-
-    return StreamKeys(args.prefix or Settings().zenoh_prefix, args.camera)
-
-
-def _session(args: argparse.Namespace, command: str):
-    """The command's Zenoh session, or None after saying why there is none."""
+def _session(args: argparse.Namespace, command: str) -> tuple[zenoh.Session, StreamKeys] | None:
+    """The command's Zenoh session and the camera's keys, or None after saying why not."""
     from service.streams.tools import member_session
 
+    settings = _settings(command)
+    keys = StreamKeys(args.prefix or settings.zenoh_prefix, args.camera)
     try:
-        return member_session(_zenoh_options(args))
+        return member_session(_zenoh_options(args, settings)), keys
     except ZenohUnavailable as error:
         print(f"vtrack {command}: {error}", file=sys.stderr)
         return None
@@ -57,10 +67,10 @@ def _publish(args: argparse.Namespace) -> int:
         print(f"vtrack publish: {error}", file=sys.stderr)
         return 2
     rate = args.fps or fps or 25.0
-    keys = _keys(args)
-    session = _session(args, "publish")
-    if session is None:
+    opened = _session(args, "publish")
+    if opened is None:
         return 1
+    session, keys = opened
     print(
         f"vtrack publish: {args.source} on {keys.frames} at {rate:g} fps (Ctrl-C stops)",
         file=sys.stderr,
@@ -104,10 +114,10 @@ def _publish(args: argparse.Namespace) -> int:
 def _subscribe(args: argparse.Namespace) -> int:
     from service.streams.tools import current_tracks, follow_tracks, reach_tracker
 
-    keys = _keys(args)
-    session = _session(args, "subscribe")
-    if session is None:
+    opened = _session(args, "subscribe")
+    if opened is None:
         return 1
+    session, keys = opened
     out = args.output.open("a") if args.output else sys.stdout
     done = threading.Event()
     received = 0

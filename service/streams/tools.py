@@ -18,7 +18,7 @@ import numpy as np
 import zenoh
 
 from api_schemas.streams import StreamTracksMessage, UpstreamDetection, UpstreamDetections
-from service.frames import open_frames
+from service.frames import capture_frames, open_frames
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions, open_session
@@ -44,19 +44,7 @@ def video_frames(source: str) -> tuple[Iterator[np.ndarray], float | None]:
         capture = cv2.VideoCapture(int(device))
         if not capture.isOpened():
             raise ValueError(f"cannot open webcam {device}")
-        fps = capture.get(cv2.CAP_PROP_FPS) or None
-
-        def read() -> Iterator[np.ndarray]:
-            try:
-                while True:
-                    ok, bgr = capture.read()
-                    if not ok:
-                        return
-                    yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-            finally:
-                capture.release()
-
-        return read(), fps
+        return capture_frames(capture), capture.get(cv2.CAP_PROP_FPS) or None
     frames = open_frames(Path(source))
     return iter(frames), frames.fps
 
