@@ -69,6 +69,7 @@ class _Stream:
     state: StreamState = StreamState.starting
     stopping: bool = False
     error: str | None = None
+    worker_error: str | None = None  # what the current worker said before it ended
     report: dict[str, Any] = field(default_factory=dict)
 
 
@@ -273,6 +274,7 @@ class StreamManager:
         )
         stream.process.start()
         stream.started_at = time.monotonic()
+        stream.worker_error = None
         stream.starts += 1
         stream.state = StreamState.starting
         stream.restart_at = None
@@ -300,7 +302,7 @@ class StreamManager:
             except (queue.Empty, OSError, ValueError):
                 return
             if update.get("state") == StreamState.failed.value:
-                stream.error = update.get("error")
+                stream.worker_error = update.get("error")
                 continue
             stream.report = update
             if stream.state is StreamState.starting:
@@ -333,7 +335,7 @@ class StreamManager:
         stream.process.close()
         stream.process = None
         stream.quick_deaths = stream.quick_deaths + 1 if lived < QUICK else 1
-        reason = stream.error or f"the worker process died ({how})"
+        reason = stream.worker_error or f"the worker process died ({how})"
         if stream.quick_deaths >= MAX_QUICK_DEATHS:
             stream.state = StreamState.failed
             stream.error = f"{reason}; gave up after {stream.quick_deaths} quick restarts"
