@@ -88,7 +88,7 @@ def publish_frames(
     subscribed = None
     if wait_for_subscriber > 0:
         waiting = [frame_publisher] + ([detection_publisher] if detections else [])
-        subscribed = _wait_for_subscribers(waiting, wait_for_subscriber)
+        subscribed = _wait_for_subscribers(session, keys, waiting, wait_for_subscriber)
     period = 1.0 / fps if fps else 0.0
     started = time.perf_counter()
     sent = late = 0
@@ -127,20 +127,22 @@ def publish_frames(
     return PublishReport(sent, time.perf_counter() - started, late, subscribed)
 
 
-SETTLE = 0.3
-"""Seconds between learning of a subscriber and reaching it: in peer mode the subscription
-is announced through the hub before gossip has connected the two sessions directly, and what is
-published in between is lost."""
+def _wait_for_subscribers(
+    session: zenoh.Session, keys: StreamKeys, publishers: list[zenoh.Publisher], timeout: float
+) -> bool:
+    """Wait until every publisher has a subscriber, then until the tracker answers a query.
 
-
-def _wait_for_subscribers(publishers: list[zenoh.Publisher], timeout: float) -> bool:
+    In peer mode a subscription is announced through the hub before gossip has connected the
+    two sessions directly, and what is published in between is lost; an answer from the
+    tracker's queryable proves the direct connection.
+    """
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if all(p.matching_status.matching for p in publishers):
-            time.sleep(min(SETTLE, max(deadline - time.monotonic(), 0.0)))
-            return True
+    while not all(p.matching_status.matching for p in publishers):
+        if time.monotonic() >= deadline:
+            return False
         time.sleep(0.02)
-    return False
+    reach_tracker(session, keys, timeout=max(deadline - time.monotonic(), 0.5))
+    return True
 
 
 def detections_message(
