@@ -1,5 +1,4 @@
-"""Associating detections with tracks: optimal assignment on box overlap (the overlap itself is
-:func:`tracking.detection.nms.box_iou`)."""
+"""Associating detections with tracks: optimal assignment on a similarity matrix."""
 
 from __future__ import annotations
 
@@ -7,12 +6,16 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 
-def assign(similarity: np.ndarray, threshold: float) -> list[tuple[int, int]]:
-    """Pairs ``(row, column)`` of the assignment maximising total similarity, keeping only
-    pairs at or above ``threshold`` (Hungarian algorithm, ``scipy.optimize``)."""
-    if similarity.size == 0:
+def assign(similarity: np.ndarray, threshold: float = -np.inf) -> list[tuple[int, int]]:
+    """Pairs ``(row, column)`` of the assignment maximising total similarity among the pairs
+    whose similarity is finite and at or above ``threshold`` (Hungarian algorithm,
+    ``scipy.optimize``); ``-inf`` marks a pair that may not match."""
+    allowed = np.isfinite(similarity) & (similarity >= threshold)
+    if not allowed.any():
         return []
-    rows, cols = linear_sum_assignment(-similarity)
-    return [
-        (int(r), int(c)) for r, c in zip(rows, cols, strict=True) if similarity[r, c] >= threshold
-    ]
+    # A forbidden pair costs more than any allowed assignment gains, so it is chosen only
+    # where nothing else is left, and then dropped below.
+    finite = similarity[allowed]
+    forbidden = finite.min() - 1.0 - (finite.max() - finite.min()) * min(similarity.shape)
+    rows, cols = linear_sum_assignment(-np.where(allowed, similarity, forbidden))
+    return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if allowed[r, c]]

@@ -59,7 +59,9 @@ class PeopleTrackerConfig:
         way: 0.17-0.23).
     clutter:
         Likelihood floor against a wrong detection (relative to the peak of a matching one):
-        keeps a bad association from collapsing the particles.
+        keeps a bad association from collapsing the particles. Small, because association
+        already gates detections: a larger floor (0.05 puts it 2.4 standard deviations out)
+        lets particles that strayed from an associated detection ignore it and drift on.
     appearance_weight:
         Exponent on the appearance likelihood: ``exp(appearance_weight * response)`` at each
         particle, the response of the person's RCSK tracker (Part I).
@@ -74,6 +76,19 @@ class PeopleTrackerConfig:
     match_iou:
         Least overlap between a person's predicted box and a detection to associate them (both
         brought to the aspect 0.41 first).
+    identity_weight:
+        Weight of the clothing-colour similarity (:mod:`tracking.people.identity`, 0 to 1) in
+        the association score, beside the predictive and appearance log likelihoods: colours
+        keep two people apart where their paths cross.
+    identity_gate:
+        Least colour similarity between a person and a detection for them to be associated
+        (the same person scores a median 0.8, two people 0.4-0.5): a detection that merges two
+        people or belongs to someone else does not drag the track away.
+    association_gate:
+        Largest squared Mahalanobis distance (centre across and along, log height; in the
+        detection's standard deviations, averaged over the person's particles) at which a
+        detection may be associated with a person: 11.3 is the 99% point of a chi-square with
+        three degrees of freedom.
     low_confidence:
         Detections below this calibrated probability are only used to continue existing tracks
         (second association round), never to start one.
@@ -99,10 +114,12 @@ class PeopleTrackerConfig:
         Seconds a lost person (a confirmed track that ended for lack of detections) is
         remembered: a new person who appears within that time where the lost one could have
         walked, and whom the lost one's appearance model recognises, takes the lost one's id.
-    reid_min_response:
-        Least recognition score for a new person to be a lost one: the lost person's RCSK
-        response at the new person (a perfect match responds about 1) minus the distance between
-        them in heights.
+    reid_min_score:
+        Least recognition score for a new person to be a lost one: the similarity of their
+        clothing colours (Bhattacharyya coefficient, 1 for the same colours; the same person
+        scores a median 0.8, two people 0.4-0.5) minus the distance between them in heights.
+    signature_learning_rate:
+        Share of a new unoccluded detection's colours in a person's colour signature.
     reid_max_speed:
         Fastest plausible walking speed, in heights per second, bounding where a lost person
         can have gone.
@@ -144,18 +161,19 @@ class PeopleTrackerConfig:
         Seed of the particle filter's random generator (runs are reproducible).
     """
 
-    particles: int = 64
+    particles: int = 128
     position_noise: float = 1.0
     velocity_damping: float = 0.5
     log_height_noise: float = 0.05
     occluded_noise_gain: float = 2.0
     detection_sigma: tuple[float, float] = (0.05, 0.1)
     detection_log_height_sigma: float = 0.2
-    clutter: float = 0.05
+    clutter: float = 0.001
     appearance_weight: float = 3.0
     appearance: CorrelationConfig = field(default_factory=_appearance_default)
     box_aspect: float | None = 0.41
     match_iou: float = 0.3
+    association_gate: float = 11.3
     low_confidence: float = 0.6
     birth_confidence: float = 0.6
     confirm_hits: int = 3
@@ -165,7 +183,10 @@ class PeopleTrackerConfig:
     report_missing: float = 0.0
     report_occluded: bool = False
     reid_memory: float = 6.0
-    reid_min_response: float = -0.3
+    identity_weight: float = 30.0
+    identity_gate: float = 0.55
+    reid_min_score: float = 0.1
+    signature_learning_rate: float = 0.1
     reid_max_speed: float = 1.5
     duplicate_iou: float = 0.7
     occlusion_overlap: float = 0.3
@@ -197,6 +218,14 @@ class PeopleTrackerConfig:
         for name in ("match_iou", "duplicate_iou", "occlusion_overlap"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in (0, 1], got {getattr(self, name)}")
+        if not 0.0 <= self.identity_gate <= 1.0:
+            raise ValueError(f"identity_gate must be in [0, 1], got {self.identity_gate}")
+        if not 0.0 < self.signature_learning_rate <= 1.0:
+            raise ValueError(
+                f"signature_learning_rate must be in (0, 1], got {self.signature_learning_rate}"
+            )
+        if self.identity_weight < 0 or self.association_gate <= 0:
+            raise ValueError("need identity_weight >= 0 and association_gate > 0")
         if not 0.0 <= self.velocity_damping <= 1.0:
             raise ValueError(f"velocity_damping must be in [0, 1], got {self.velocity_damping}")
         if self.confirm_hits < 1:

@@ -41,6 +41,40 @@ def detection_log_likelihood(
     return np.log(probability * density + clutter)
 
 
+def predictive_log_likelihood(
+    particles: np.ndarray,
+    boxes: np.ndarray,
+    *,
+    sigma: tuple[float, float],
+    log_height_sigma: float,
+) -> np.ndarray:
+    """``log p(detection j | person i's predicted particles)`` for every pair: the Gaussian
+    density of :func:`detection_log_likelihood` (without its clutter term) averaged over the
+    person's particles, i.e. the Monte-Carlo predictive likelihood that associating detection
+    ``j`` with person ``i`` should be judged by.
+
+    Parameters
+    ----------
+    particles:
+        ``(T, N, 5)`` predicted root states of ``T`` people.
+    boxes:
+        ``(D, 4)`` detections ``x, y, w, h``.
+
+    Returns
+    -------
+    ``(T, D)`` log likelihoods.
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    p = particles[:, :, None, :]  # (T, N, 1, 5)
+    height = np.exp(p[..., LOG_H])
+    d2 = ((p[..., CX] - (boxes[:, 0] + boxes[:, 2] / 2)) / (sigma[0] * height)) ** 2
+    d2 += ((p[..., CY] - (boxes[:, 1] + boxes[:, 3] / 2)) / (sigma[1] * height)) ** 2
+    d2 += ((p[..., LOG_H] - np.log(boxes[:, 3])) / log_height_sigma) ** 2
+    log_density = -0.5 * d2 + 2.0 * (np.log(boxes[:, 3]) - p[..., LOG_H])
+    n = particles.shape[1]
+    return np.logaddexp.reduce(log_density, axis=1) - np.log(n)
+
+
 def dense_score_log_likelihood(
     scores: np.ndarray, calibration_slope: float, calibration_offset: float
 ) -> np.ndarray:
