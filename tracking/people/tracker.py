@@ -236,9 +236,11 @@ class MultiPersonTracker:
 
         A pair may match when the boxes overlap (brought to one aspect ratio around their
         centres, so a detector's padding does not count against a match) and the detection is
-        plausible under the person's predicted particles (within ``association_gate``); among
-        those, the assignment maximises the predictive log likelihood plus the appearance
-        log likelihood at the detection's centre, the same terms that weigh the particles.
+        plausible under the person's predicted particles (within ``association_gate``) and
+        dressed like the person (colour similarity at least ``identity_gate``); among those,
+        the assignment maximises the predictive log likelihood plus the appearance log
+        likelihood at the detection's centre (the terms that weigh the particles) plus
+        ``identity_weight`` times the colour similarity.
         """
         c = self.config
         dets = current.detections
@@ -377,8 +379,8 @@ class MultiPersonTracker:
 
     def _learn(self, current: _Frame) -> None:
         """Appearance learning at the estimate, only where a detection confirms the person and
-        nobody covers it (an occluded person stops learning, DESIGN.md §5); part trackers learn
-        their visible parts."""
+        nobody covers it (an occluded person stops learning, DESIGN.md §5): the RCSK model, the
+        colour signature (from the associated detection's box) and the visible parts' trackers."""
         roots, _ = estimate(self._state)
         boxes = boxes_from_roots(roots, np.array([t.aspect for t in self._tracks]))
         positions = part_model.positions(self._body, self._state)
@@ -387,9 +389,8 @@ class MultiPersonTracker:
             if not track.measured or track.occluded:
                 continue
             rate = self.config.signature_learning_rate
-            track.signature = (1 - rate) * track.signature + rate * current.signatures[
-                track.detection
-            ]
+            seen = current.signatures[track.detection]
+            track.signature = (1 - rate) * track.signature + rate * seen
             track.appearance.learn(
                 current.image,
                 (float(root[CX]), float(root[CY])),
