@@ -26,9 +26,14 @@ from pathlib import Path
 
 import cv2
 import httpx
-from _server import Server, wait_for
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+# Run as a script, benchmarks/ comes first on sys.path and this file would shadow the service
+# package.
+sys.path.insert(0, str(REPO_ROOT))
+
+from service.testing import Server, wait_for  # noqa: E402
+
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
 
@@ -44,7 +49,7 @@ def _video_seconds(path: Path) -> tuple[int, float, float]:
 def run(video: Path, options: dict | None, workers: int | None) -> dict:
     frames, fps, duration = _video_seconds(video)
     with tempfile.TemporaryDirectory(prefix="vtrack-bench-") as scratch:
-        server = Server(Path(scratch), workers=workers, log_level="warning").start()
+        server = Server(Path(scratch) / "data", workers=workers, log_level="warning").start()
         try:
             with httpx.Client(base_url=server.url, timeout=600) as client:
                 start = time.perf_counter()

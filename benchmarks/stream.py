@@ -49,7 +49,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from api_schemas.streams import StreamTracksMessage
-from benchmarks._server import Server, wait_for
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions
 from service.streams.tools import (
@@ -59,6 +58,7 @@ from service.streams.tools import (
     trackers_of,
     video_frames,
 )
+from service.testing import Server, wait_for
 from tracking.detection import MotDetections
 from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows
 from tracking.evaluation.hota import hota
@@ -189,7 +189,7 @@ def run_config(
         table = MotDetections.from_file(data / SEQUENCE / "det" / "det.txt")
         detections = table.for_frame
     received = Received()
-    session = member_session(ZenohOptions(listen=(server.zenoh_endpoint,)))
+    session = member_session(ZenohOptions(listen=(server.zenoh_listen[0],)))
     sampler = MemorySampler(pid)
     try:
         subscriber = follow_tracks(session, keys, received.on_message)
@@ -404,9 +404,9 @@ def run(
         "configs": {},
     }
     with tempfile.TemporaryDirectory(prefix="vtrack-stream-bench-") as scratch:
-        server = Server(Path(scratch), zenoh_prefix=PREFIX)
+        server = Server(Path(scratch) / "data", workers=1, zenoh_prefix=PREFIX)
         try:
-            _log(f"starting the server (HTTP {server.url}, Zenoh {server.zenoh_endpoint})")
+            _log(f"starting the server (HTTP {server.url}, Zenoh {server.zenoh_listen[0]})")
             server.start()
             with httpx.Client(base_url=server.url, timeout=60) as client:
                 for name in configs:

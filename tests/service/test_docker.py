@@ -21,8 +21,8 @@ import httpx
 import pytest
 import yaml
 
+from service.testing import free_port, wait_for
 from tests.conftest import REPO_ROOT
-from tests.service.conftest import free_port, wait_for
 
 DOCKER = REPO_ROOT / "docker"
 

@@ -1,0 +1,151 @@
+"""``vtrack serve`` in a subprocess on loopback ports, as the tests and benchmarks run it.
+
+The server is started the way users start it (``python -m service.cli serve``) with settings
+from ``VTRACK_*`` environment variables; the HTTP port and the Zenoh listen port are free ports
+picked here, so two servers of parallel tests or benchmarks never meet. Waits poll a condition
+with a deadline instead of sleeping for a fixed time.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import httpx
+
+__all__ = ["Server", "free_port", "wait_for"]
+
+_REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that is free now."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def wait_for(
+    condition: Callable[[], object], timeout: float, what: str, interval: float = 0.1
+) -> object:
+    """Poll ``condition`` until it returns something truthy and return that.
+
+    Raises
+    ------
+    TimeoutError
+        After ``timeout`` seconds, naming ``what`` was awaited.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        value = condition()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"timed out after {timeout:g} s waiting for {what}")
+        time.sleep(interval)
+
+
+class Server:
+    """``vtrack serve`` with its data in ``data_dir``, on a loopback port.
+
+    Parameters
+    ----------
+    data_dir:
+        The service's data directory (created by the service).
+    workers:
+        Job worker processes (``--workers``); ``None``: the service's default.
+    log_level:
+        ``--log-level``. The log goes to ``<data_dir>-server.log`` beside ``data_dir``.
+    **settings:
+        Service settings by name, passed as ``VTRACK_<NAME>`` (``api_token="..."``,
+        ``zenoh_listen='["tcp/..."]'``...). ``zenoh_listen`` defaults to a free loopback port.
+    """
+
+    def __init__(
+        self,
+        data_dir: Path,
+        workers: int | None = 2,
+        log_level: str = "info",
+        **settings: object,
+    ) -> None:
+        self.data_dir = data_dir
+        self.workers = workers
+        self.log_level = log_level
+        settings.setdefault("zenoh_listen", json.dumps([f"tcp/127.0.0.1:{free_port()}"]))
+        self.settings = settings
+        self.token = settings.get("api_token")
+        self.port = free_port()
+        self.log_path = data_dir.parent / f"{data_dir.name}-server.log"
+        self.process: subprocess.Popen | None = None
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    @property
+    def zenoh_listen(self) -> tuple[str, ...]:
+        """The Zenoh endpoints the service listens on."""
+        return tuple(json.loads(str(self.settings["zenoh_listen"])))
+
+    def client(self, token: str | None = None, **kwargs: object) -> httpx.Client:
+        """An HTTP client for the server, with the API token when one is set."""
+        token = token if token is not None else self.token
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        kwargs.setdefault("timeout", 30.0)
+        return httpx.Client(base_url=self.url, headers=headers, **kwargs)
+
+    def start(self, timeout: float = 60.0) -> Server:
+        """Start the service and wait until ``/readyz`` answers 200."""
+        env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
+        env.update({f"VTRACK_{k.upper()}": str(v) for k, v in self.settings.items()})
+        command = [sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1"]
+        command += ["--port", str(self.port), "--data-dir", str(self.data_dir)]
+        command += ["--log-level", self.log_level]
+        if self.workers is not None:
+            command += ["--workers", str(self.workers)]
+        with self.log_path.open("a") as log:
+            self.process = subprocess.Popen(
+                command, cwd=_REPO_ROOT, env=env, stdout=log, stderr=subprocess.STDOUT
+            )
+        wait_for(self._ready, timeout, f"the server on port {self.port} to be ready", 0.1)
+        return self
+
+    def _ready(self) -> bool:
+        if self.process is not None and self.process.poll() is not None:
+            raise RuntimeError(f"the server exited early:\n{self.log_tail()}")
+        try:
+            return httpx.get(f"{self.url}/readyz", timeout=2.0).status_code == 200
+        except httpx.TransportError:
+            return False
+
+    def log(self) -> str:
+        """Everything the server has logged."""
+        return self.log_path.read_text(errors="replace") if self.log_path.is_file() else ""
+
+    def log_tail(self, lines: int = 40) -> str:
+        """The last ``lines`` lines of the log."""
+        return "\n".join(self.log().splitlines()[-lines:])
+
+    def stop(self) -> None:
+        """A clean stop (SIGTERM), as a service manager does."""
+        if self.process is None or self.process.poll() is not None:
+            return
+        self.process.send_signal(signal.SIGTERM)
+        try:
+            self.process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(timeout=10)
+
+    def kill(self) -> None:
+        """The service dies (SIGKILL): no shutdown code runs."""
+        if self.process is not None and self.process.poll() is None:
+            self.process.kill()
+            self.process.wait(timeout=10)
