@@ -142,7 +142,20 @@ class StreamSpec(BaseModel):
     tracker: PeopleTrackerOptions = Field(default_factory=PeopleTrackerOptions)
     record: bool = Field(
         default=False,
-        description="Record frames and tracks to MCAP; downloadable once the stream stops.",
+        description="Record frames and tracks to MCAP files, one per segment: a segment ends "
+        "after record_segment seconds of stream time, when the tracks end and when the stream "
+        "stops, and is downloadable from then on.",
+    )
+    record_segment: float = Field(
+        default=300.0,
+        ge=1,
+        le=86400,
+        description="Seconds of stream time (frame capture times) per recording file.",
+    )
+    record_keep: int = Field(
+        default=0,
+        ge=0,
+        description="Finished recordings kept per stream, the oldest deleted first; 0 keeps all.",
     )
     idle_after: float = Field(
         default=2.0, gt=0, le=600, description="Seconds without a frame before 'idle'."
@@ -204,8 +217,9 @@ class StreamStatus(BaseModel):
     keys: dict[str, str] = Field(description="Zenoh key expressions of this stream.")
     recordings: list[str] = Field(
         default_factory=list,
-        description="URLs of the finished MCAP recordings (a recording is finished when its "
-        "worker stops: DELETE, a service restart).",
+        description="URLs of the finished MCAP recordings, oldest first (a recording is "
+        "finished at the end of its segment, when the tracks end, and when the worker stops: "
+        "DELETE, a service restart).",
     )
     spec: StreamSpec
 

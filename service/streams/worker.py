@@ -163,6 +163,8 @@ class StreamWorker:
         self._pipeline: FramePipeline | None = None
         self._recorder: McapWriter | None = None
         self._recording_path: Path | None = None
+        self._segment_start = 0.0  # capture time of the recording's first frame
+        self._segment_frames = 0
         self._last_report = 0.0
 
     # -- Zenoh callbacks (Zenoh's threads) ---------------------------------------------------
@@ -249,6 +251,7 @@ class StreamWorker:
     def _restart(self, why: str) -> None:
         """Start the tracker over; ids keep counting up so no id is ever reused."""
         log.info("camera %s: tracks end: %s", self.spec.camera, why)
+        self._close_recording()  # a recording holds one run of tracks
         self._pipeline = self._new_pipeline()
         self._id_offset = self._max_id
         self._last_timestamp = None
@@ -326,10 +329,14 @@ class StreamWorker:
         folder = self.context.recordings_dir
         if not self.spec.record or folder is None:
             return
+        if (
+            self._recorder is not None
+            and message.timestamp - self._segment_start >= self.spec.record_segment
+        ):
+            self._close_recording()
         if self._recorder is None:
             folder.mkdir(parents=True, exist_ok=True)
-            stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-            self._recording_path = folder / f"{self.spec.camera}-{stamp}.mcap"
+            self._recording_path = _recording_name(folder, self.spec.camera)
             info = StreamInfo(
                 width=image.shape[1],
                 height=image.shape[0],
@@ -340,19 +347,33 @@ class StreamWorker:
             )
             partial = self._recording_path.with_suffix(".mcap.partial")
             self._recorder = McapWriter(partial, info, StreamTracksMessage)
+            self._segment_start = message.timestamp
+            self._segment_frames = 0
         frame = TimedFrame(message.frame_index, message.timestamp, image)
         self._recorder.write(frame, message)
+        self._segment_frames += 1
 
     def _close_recording(self) -> None:
+        """Finish the current recording (the ``.mcap.partial`` becomes ``.mcap``), then delete
+        the oldest finished ones beyond ``record_keep``."""
         if self._recorder is None or self._recording_path is None:
             return
         video = VideoInfo(
-            width=1, height=1, frames_announced=0, frames_read=self._frames_in, frame_step=1
+            width=1,
+            height=1,
+            frames_announced=0,
+            frames_read=self._segment_frames,
+            frame_step=1,
         )
-        self._recorder.close(RunSummary(video=video, frames_processed=self._processed))
+        self._recorder.close(RunSummary(video=video, frames_processed=self._segment_frames))
         os.replace(self._recorder.path, self._recording_path)
         log.info("camera %s: recording saved to %s", self.spec.camera, self._recording_path)
         self._recorder = None
+        keep = self.spec.record_keep
+        if keep:
+            for old in sorted(self._recording_path.parent.glob("*.mcap"))[:-keep]:
+                old.unlink(missing_ok=True)
+                log.info("camera %s: recording %s deleted (record_keep)", self.spec.camera, old)
 
     # -- status ------------------------------------------------------------------------------
 
@@ -390,6 +411,18 @@ class StreamWorker:
         if force or now - self._last_report >= self.context.status_interval:
             self._last_report = now
             self._report(self.status())
+
+
+def _recording_name(folder: Path, camera: str) -> Path:
+    """``<camera>-<UTC time to the millisecond>.mcap``, names that sort in time order (a name
+    taken already moves on by a millisecond)."""
+    millis = int(time.time() * 1000)
+    while True:
+        stamp = time.strftime("%Y%m%dT%H%M%S", time.gmtime(millis // 1000))
+        path = folder / f"{camera}-{stamp}{millis % 1000:03d}Z.mcap"
+        if not (path.exists() or path.with_suffix(".mcap.partial").exists()):
+            return path
+        millis += 1
 
 
 def stream_main(context: StreamContext, parent_pid: int, stop, updates) -> None:
