@@ -66,6 +66,8 @@ _BYTE_CODE_SCALE = 2 * _MAX_BYTE_GRADIENT + 1  # (dx, dy) -> 511 dx + dy: distin
 # np.minimum against an array is vectorised, against a scalar it is not (~5x slower).
 _CLIP_BLOCK = np.full(1 << 16, _CLIP, dtype=np.float32)
 _CLIP_BLOCK.flags.writeable = False
+# Cells per band of the block normalisation: its 27 values per cell fit one _CLIP_BLOCK.
+_NORM_BAND_CELLS = _CLIP_BLOCK.size // 27
 
 NUM_FEATURES = 31
 """Features per cell without the truncation channel (18 + 9 + 4)."""
@@ -400,11 +402,8 @@ def _strip_histograms(
 
 
 def _clip(values: np.ndarray) -> None:
-    """``values = min(values, 0.2)`` in place, for a contiguous float32 array."""
-    flat = values.reshape(-1)
-    for start in range(0, flat.size, _CLIP_BLOCK.size):
-        chunk = flat[start : start + _CLIP_BLOCK.size]
-        np.minimum(chunk, _CLIP_BLOCK[: chunk.size], out=chunk)
+    """``values = min(values, 0.2)`` in place, for a float32 array of at most 65536 values."""
+    np.minimum(values, _CLIP_BLOCK[: values.size].reshape(values.shape), out=values)
 
 
 def fhog(image: np.ndarray, cell_size: int = 8, *, truncation_feature: bool = False) -> np.ndarray:
@@ -472,13 +471,25 @@ def _fhog(image: np.ndarray, sbin: int, truncation_feature: bool, pad: int = 0) 
     inv = np.divide(1.0, np.sqrt(inv, out=inv), out=inv).astype(np.float32)
     # The four blocks holding cell (y, x): block index offsets (1,1), (0,1), (1,0), (0,0) are
     # n1..n4 of features.cc (the order of the texture features).
-    norms = np.stack([inv[1:, 1:], inv[:-1, 1:], inv[1:, :-1], inv[:-1, :-1]])[:, np.newaxis]
-    clipped = np.multiply(hist, norms)  # (4, 27, cells_y, cells_x)
-    _clip(clipped)  # h_k = min(h * n_k, 0.2)
+    norms = (inv[1:, 1:], inv[:-1, 1:], inv[1:, :-1], inv[:-1, :-1])
     sums = np.empty((NUM_FEATURES, *cells), dtype=np.float32)
-    np.add.reduce(clipped, axis=0, out=sums[:27])
+    # Bands of cell rows keep the (27, rows, cells_x) temporary in the cache (about 2x faster
+    # than one (4, 27, cells_y, cells_x) product on large maps).
+    band = max(1, _NORM_BAND_CELLS // cells[1])
+    clipped = np.empty((27, min(band, cells[0]), cells[1]), dtype=np.float32)
+    for top in range(0, cells[0], band):
+        rows = slice(top, min(top + band, cells[0]))
+        h_k = clipped[:, : rows.stop - top]
+        total = sums[:27, rows]
+        for k, n_k in enumerate(norms):
+            np.multiply(hist[:, rows], n_k[rows], out=h_k)
+            _clip(h_k)  # h_k = min(h * n_k, 0.2)
+            if k:
+                total += h_k
+            else:
+                np.copyto(total, h_k)
+            np.add.reduce(h_k[:18], axis=0, out=sums[27 + k, rows])  # t_k
     sums[:27] *= np.float32(0.5)  # 0.5 * (h1 + h2 + h3 + h4)
-    np.add.reduce(clipped[:, :18], axis=1, out=sums[27:])
     sums[27:] *= _TEXTURE_WEIGHT  # 0.2357 * t_k
     feat[..., :NUM_FEATURES] = sums[:, 1:-1, 1:-1].transpose(1, 2, 0)
     return feat
