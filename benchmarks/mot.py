@@ -226,12 +226,14 @@ class OurTracker:
     details: dict[str, object]
 
 
-def build_ours(names: Sequence[str], dpm: Path, seeds: int = 1) -> dict[str, OurTracker]:
+def build_ours(
+    names: Sequence[str], dpm: Path, seeds: int = 1, dpm_options: dict | None = None
+) -> dict[str, OurTracker]:
     """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
     detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``). With ``seeds``
     above 1, ``ours`` also runs with the particle filter's seeds 1, 2... (``ours_seed1``...):
     the scores of a particle filter vary with its random draws, and one seed would hide by how
-    much.
+    much. ``dpm_options``: ``DpmConfig`` fields for ``ours_dpm`` (default: its defaults).
 
     ``tracking.people`` and ``tracking.detection`` are imported here, not at module level, so
     the harness also runs with the peers only while they are missing.
@@ -249,11 +251,12 @@ def build_ours(names: Sequence[str], dpm: Path, seeds: int = 1) -> dict[str, Our
     def plain() -> object:
         return MultiPersonTracker(config, detector=None)
 
-    def with_detector(source: str | Path) -> Callable[[], object]:
+    def with_detector(source: str | Path, options: dict | None = None) -> Callable[[], object]:
         def make() -> object:
-            from tracking.detection import make_detector
+            from tracking.detection import DpmConfig, make_detector
 
-            return MultiPersonTracker(config, detector=make_detector(source))
+            detector_config = DpmConfig(**options) if options else None
+            return MultiPersonTracker(config, detector=make_detector(source, detector_config))
 
         return make
 
@@ -274,7 +277,14 @@ def build_ours(names: Sequence[str], dpm: Path, seeds: int = 1) -> dict[str, Our
             {"detections": "embedded HOG", "detector": "default", **recorded},
         ),
         "ours_dpm": OurTracker(
-            with_detector(dpm), False, {"detections": "DPM", "detector": str(dpm), **recorded}
+            with_detector(dpm, dpm_options),
+            False,
+            {
+                "detections": "DPM",
+                "detector": str(dpm),
+                "detector_options": dpm_options or {},
+                **recorded,
+            },
         ),
     }
     if OURS in names:
@@ -756,6 +766,12 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--dpm", type=Path, default=DEFAULT_DPM, help=f"DPM model (default {DEFAULT_DPM})"
     )
+    parser.add_argument(
+        "--dpm-config",
+        type=json.loads,
+        help='DpmConfig fields for ours_dpm as JSON, e.g. \'{"upscale": 1.3, '
+        '"levels_per_octave": 5}\' (default: the DPM defaults)',
+    )
     parser.add_argument("--no-peers", action="store_true", help="skip SORT, ByteTrack...")
     parser.add_argument(
         "--peer-frame-rate",
@@ -853,7 +869,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         outcome.notes.append(f"note: ours_dpm left out: no DPM model at {args.dpm}")
         ours_names.remove("ours_dpm")
     try:
-        ours = build_ours(ours_names, args.dpm, max(args.seeds, 1)) if ours_names else {}
+        ours = (
+            build_ours(ours_names, args.dpm, max(args.seeds, 1), args.dpm_config)
+            if ours_names
+            else {}
+        )
     except ImportError as exc:
         ours = {}
         outcome.notes.append(f"note: our tracker is unavailable (tracking.people: {exc})")
