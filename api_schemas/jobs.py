@@ -61,10 +61,11 @@ class DetectorOptions(BaseModel):
         default=None,
         gt=0,
         le=4,
-        description="Embedded detector only: enlarge frames by this factor before detecting. "
-        "People smaller than about 80 px need more than 1.5 (people 40-55 px tall need 2.0), "
-        "at about twice the cost. None: by the frame's height, to about 720 px within "
-        "1.5-2.0 (360 px high: 2.0; 480 px and more: 1.5).",
+        description="Enlarge frames by this factor before detecting. Embedded detector: "
+        "people smaller than about 80 px need more than 1.5 (people 40-55 px tall need 2.0), "
+        "at about twice the cost; None: by the frame's height, to about 720 px within "
+        "1.5-2.0 (360 px high: 2.0; 480 px and more: 1.5). DPM: it finds people down to "
+        "about 60 px / upscale tall; None: 1.",
     )
 
 

@@ -25,6 +25,7 @@ from service.outputs import RunSummary, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detector
+from tracking.detection.dpm.config import DpmConfig
 from tracking.detection.factory import make_detector
 from tracking.detection.hog_people import HogPeopleConfig
 from tracking.people import PeopleTrackerConfig
@@ -89,9 +90,8 @@ def job_detector(options: DetectorOptions, resources: PipelineResources) -> Dete
                 "detector 'dpm' needs a voc-release5 model, and this service has none: set "
                 "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
             )
-        if options.upscale is not None:
-            raise OptionsError("detector.upscale applies to the 'default' detector only")
-        return make_detector(resources.dpm_model)
+        config = DpmConfig(upscale=options.upscale) if options.upscale else None
+        return make_detector(resources.dpm_model, config)
     config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
     return make_detector("default", config)
 
@@ -116,14 +116,13 @@ def check_options(
                 raise OptionsError(f"first_box: {error}") from None
         return
     people_config(options, resources)
-    if options.detector.name == "dpm":
-        if resources.dpm_model is None or not resources.dpm_model.is_file():
-            raise OptionsError(
-                "detector 'dpm' needs a voc-release5 model, and this service has none: set "
-                "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
-            )
-        if options.detector.upscale is not None:
-            raise OptionsError("detector.upscale applies to the 'default' detector only")
+    if options.detector.name == "dpm" and (
+        resources.dpm_model is None or not resources.dpm_model.is_file()
+    ):
+        raise OptionsError(
+            "detector 'dpm' needs a voc-release5 model, and this service has none: set "
+            "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
+        )
 
 
 def build_pipeline(options: JobOptions, resources: PipelineResources) -> FramePipeline:

@@ -1,0 +1,55 @@
+"""Job detector options reach the detector that runs: the DPM takes ``upscale`` too."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from api_schemas.jobs import JobOptions
+from service.analysis import OptionsError, PipelineResources, check_options, job_detector
+from tests.service.conftest import PETS_VIDEO
+from tracking.detection import box_iou
+
+
+@pytest.fixture(scope="module")
+def resources(shared_data) -> PipelineResources:
+    return PipelineResources(dpm_model=shared_data / "dpm" / "INRIA" / "inriaperson_final.mat")
+
+
+def _confident_people(detections, people: np.ndarray) -> int:
+    """Ground-truth people matched (IoU >= 0.5) by a detection of probability >= 0.9."""
+    confident = detections.boxes[detections.probabilities >= 0.9]
+    if not len(confident):
+        return 0
+    return int((box_iou(people, confident).max(axis=1) >= 0.5).sum())
+
+
+def test_dpm_job_with_upscale_finds_small_people_with_parts(resources, shared_data):
+    capture = cv2.VideoCapture(str(shared_data / PETS_VIDEO))
+    ok, frame = capture.read()
+    capture.release()
+    assert ok
+    frame = cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+    # Ground truth of the first frame, scaled to the 480x360 video: three people 47-55 px tall,
+    # at the bottom of the model's smallest window (60 px at 1x).
+    gt = np.loadtxt(shared_data / "mot" / "PETS09-S2L1" / "gt" / "gt.txt", delimiter=",")
+    people = gt[gt[:, 0] == 1, 2:6] * 0.625
+    people[:, :2] -= 1
+
+    options = JobOptions.model_validate({"detector": {"name": "dpm", "upscale": 1.5}})
+    check_options(options, resources)
+    enlarged = job_detector(options.detector, resources)
+    assert enlarged.config.upscale == 1.5
+    plain = job_detector(
+        JobOptions.model_validate({"detector": {"name": "dpm"}}).detector, resources
+    )
+    found = enlarged.detect(frame)
+    assert _confident_people(found, people) >= 2 > _confident_people(plain.detect(frame), people)
+    assert "head" in found.part_names and np.isfinite(found.parts).any()
+
+
+def test_dpm_job_without_a_model_is_refused():
+    options = JobOptions.model_validate({"detector": {"name": "dpm", "upscale": 1.5}})
+    with pytest.raises(OptionsError, match="VTRACK_DPM_MODEL"):
+        check_options(options, PipelineResources())
