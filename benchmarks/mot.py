@@ -227,13 +227,18 @@ class OurTracker:
 
 
 def build_ours(
-    names: Sequence[str], dpm: Path, seeds: int = 1, dpm_options: dict | None = None
+    names: Sequence[str],
+    dpm: Path,
+    seeds: int = 1,
+    dpm_options: dict | None = None,
+    hog_options: dict | None = None,
 ) -> dict[str, OurTracker]:
     """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
     detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``). With ``seeds``
     above 1, ``ours`` also runs with the particle filter's seeds 1, 2... (``ours_seed1``...):
     the scores of a particle filter vary with its random draws, and one seed would hide by how
-    much. ``dpm_options``: ``DpmConfig`` fields for ``ours_dpm`` (default: its defaults).
+    much. ``dpm_options`` and ``hog_options``: ``DpmConfig`` fields for ``ours_dpm`` and
+    ``HogPeopleConfig`` fields for ``ours_hog`` (default: their defaults).
 
     ``tracking.people`` and ``tracking.detection`` are imported here, not at module level, so
     the harness also runs with the peers only while they are missing.
@@ -253,9 +258,10 @@ def build_ours(
 
     def with_detector(source: str | Path, options: dict | None = None) -> Callable[[], object]:
         def make() -> object:
-            from tracking.detection import DpmConfig, make_detector
+            from tracking.detection import DpmConfig, HogPeopleConfig, make_detector
 
-            detector_config = DpmConfig(**options) if options else None
+            kind = HogPeopleConfig if source == "default" else DpmConfig
+            detector_config = kind(**options) if options else None
             return MultiPersonTracker(config, detector=make_detector(source, detector_config))
 
         return make
@@ -272,9 +278,14 @@ def build_ours(
             for k in range(1, seeds)
         },
         "ours_hog": OurTracker(
-            with_detector("default"),
+            with_detector("default", hog_options),
             False,
-            {"detections": "embedded HOG", "detector": "default", **recorded},
+            {
+                "detections": "embedded HOG",
+                "detector": "default",
+                "detector_options": hog_options or {},
+                **recorded,
+            },
         ),
         "ours_dpm": OurTracker(
             with_detector(dpm, dpm_options),
@@ -772,6 +783,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         help='DpmConfig fields for ours_dpm as JSON, e.g. \'{"upscale": 1.3, '
         '"levels_per_octave": 5}\' (default: the DPM defaults)',
     )
+    parser.add_argument(
+        "--hog-config",
+        type=json.loads,
+        help="HogPeopleConfig fields for ours_hog as JSON (default: the embedded defaults)",
+    )
     parser.add_argument("--no-peers", action="store_true", help="skip SORT, ByteTrack...")
     parser.add_argument(
         "--peer-frame-rate",
@@ -870,7 +886,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ours_names.remove("ours_dpm")
     try:
         ours = (
-            build_ours(ours_names, args.dpm, max(args.seeds, 1), args.dpm_config)
+            build_ours(ours_names, args.dpm, max(args.seeds, 1), args.dpm_config, args.hog_config)
             if ours_names
             else {}
         )
