@@ -17,6 +17,7 @@ clock, so Foxglove pairs each annotation with its image.
 from __future__ import annotations
 
 import json
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -92,17 +93,19 @@ def _encode(document: dict[str, Any]) -> bytes:
 
 
 class McapWriter:
-    """``message_model`` is the model of the ``/tracks`` messages (its JSON Schema is stored)."""
+    """``message_model`` is the model of the ``/tracks`` messages (its JSON Schema is stored);
+    ``chunk_size`` the bytes of messages per compressed chunk."""
 
     def __init__(
         self,
         path: Path,
         info: StreamInfo,
         message_model: type[BaseModel] = FrameTracksMessage,
+        chunk_size: int = 1024 * 1024,
     ) -> None:
         self.path = path
         self._file = path.open("wb")
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="visual-tracking")
         self._channels = {}
         for topic, name, schema in (
@@ -157,3 +160,46 @@ class McapWriter:
 
     def abort(self) -> None:
         self._file.close()
+
+
+def salvage(partial: Path, target: Path) -> int:
+    """Write the complete records of an unfinished MCAP file (a writer killed mid-run: no
+    summary, the last chunk cut) to a finished file ``target``; return the messages kept.
+
+    Records are read in order until the first one that is cut off; what a killed writer had
+    not yet flushed (the open chunk) is lost.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+
+    kept = 0
+    with partial.open("rb") as source, target.open("wb") as sink:
+        writer = Writer(sink, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="visual-tracking")
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        try:
+            for record in StreamReader(source).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = writer.register_schema(
+                        record.name, record.encoding, record.data
+                    )
+                elif isinstance(record, Channel) and record.schema_id in schemas:
+                    channels[record.id] = writer.register_channel(
+                        record.topic, record.message_encoding, schemas[record.schema_id]
+                    )
+                elif isinstance(record, Message) and record.channel_id in channels:
+                    writer.add_message(
+                        channels[record.channel_id],
+                        log_time=record.log_time,
+                        publish_time=record.publish_time,
+                        data=record.data,
+                        sequence=record.sequence,
+                    )
+                    kept += 1
+        except (McapError, EOFError, ValueError, struct.error):
+            pass  # the cut-off end of the file
+        writer.add_metadata("vtrack", {"salvaged_from": partial.name})
+        writer.finish()
+    return kept

@@ -30,7 +30,7 @@ from service.analysis import PipelineResources, build_pipeline
 from service.convert import track_state
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
-from service.outputs.mcap_out import McapWriter
+from service.outputs.mcap_out import McapWriter, salvage
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
     PayloadError,
@@ -52,6 +52,10 @@ an upstream detector (and frames wait ``detections_wait`` for theirs)."""
 
 RECENT = 100
 """Frames over which latency percentiles and the frame rate are computed."""
+
+RECORDING_CHUNK_BYTES = 256 * 1024
+"""Bytes per compressed MCAP chunk of a recording (about ten 360-px JPEG frames): a worker
+killed mid-recording loses its open chunk only."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -215,6 +219,7 @@ class StreamWorker:
     # -- the loop ----------------------------------------------------------------------------
 
     def run(self, stop: threading.Event, parent_alive=lambda: True) -> None:
+        self._salvage_recordings()
         self._pipeline = self._new_pipeline()
         session = open_session(self.context.zenoh.member_config())
         try:
@@ -346,7 +351,10 @@ class StreamWorker:
                 mode="people",
             )
             partial = self._recording_path.with_suffix(".mcap.partial")
-            self._recorder = McapWriter(partial, info, StreamTracksMessage)
+            # Small chunks: a worker that dies loses at most its open chunk (about a second).
+            self._recorder = McapWriter(
+                partial, info, StreamTracksMessage, chunk_size=RECORDING_CHUNK_BYTES
+            )
             self._segment_start = message.timestamp
             self._segment_frames = 0
         frame = TimedFrame(message.frame_index, message.timestamp, image)
@@ -374,6 +382,32 @@ class StreamWorker:
             for old in sorted(self._recording_path.parent.glob("*.mcap"))[:-keep]:
                 old.unlink(missing_ok=True)
                 log.info("camera %s: recording %s deleted (record_keep)", self.spec.camera, old)
+
+    def _salvage_recordings(self) -> None:
+        """Finish the recordings a killed predecessor left as ``.mcap.partial``: what it had
+        written (all but its open chunk) becomes a ``.mcap`` like any other."""
+        folder = self.context.recordings_dir
+        if folder is None or not folder.is_dir():
+            return
+        for partial in sorted(folder.glob("*.mcap.partial")):
+            target = partial.with_suffix("")  # x.mcap.partial -> x.mcap
+            try:
+                kept = salvage(partial, target)
+            except Exception:  # a file we cannot read must not keep the camera from starting
+                log.exception("camera %s: could not salvage %s", self.spec.camera, partial)
+                target.unlink(missing_ok=True)
+                partial.rename(partial.with_suffix(".broken"))  # x.mcap.broken: not retried
+                continue
+            partial.unlink()
+            if kept:
+                log.warning(
+                    "camera %s: salvaged %d messages of an unfinished recording into %s",
+                    self.spec.camera,
+                    kept,
+                    target,
+                )
+            else:
+                target.unlink()
 
     # -- status ------------------------------------------------------------------------------
 

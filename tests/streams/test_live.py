@@ -426,6 +426,42 @@ def test_recordings_rotate_by_stream_time_and_keep_the_newest(server, session, p
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
 
 
+def test_a_recording_cut_by_a_killed_worker_is_salvaged(server, session, pets_frames):
+    import os
+    import signal
+
+    camera = "crash"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera, record=True)
+        publish_frames(session, keys, iter(pets_frames[:40]), 10.0, block=True)
+        wait_for(
+            lambda: (
+                (c := status(client, camera)["counters"])["frames_in"] == 40
+                and c["frames_processed"] >= 20
+            ),
+            60,
+            "frames to be recorded",
+        )
+        worker = status(client, camera)["worker_pid"]
+        os.kill(worker, signal.SIGKILL)  # no chance to finish the recording
+        restarted = wait_for(
+            lambda: (
+                (s := status(client, camera))["worker_starts"] == 2
+                and s["state"] == "waiting"
+                and s
+            ),
+            60,
+            "a new worker",
+        )
+        # The new worker finished what the killed one had written, all but its open chunk.
+        assert len(restarted["recordings"]) == 1
+        topics = read_mcap_topics(client.get(restarted["recordings"][0]).content)
+        assert topics["/camera/image"] >= 10
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
+        assert client.delete(f"/v1/streams/{camera}").status_code == 204
+
+
 def read_mcap_topics(data: bytes) -> dict[str, int]:
     import io
 
