@@ -230,15 +230,15 @@ def build_ours(
     names: Sequence[str],
     dpm: Path,
     seeds: int = 1,
-    dpm_options: dict | None = None,
-    hog_options: dict | None = None,
+    dpm_config: object | None = None,
+    hog_config: object | None = None,
 ) -> dict[str, OurTracker]:
     """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
     detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``). With ``seeds``
     above 1, ``ours`` also runs with the particle filter's seeds 1, 2... (``ours_seed1``...):
     the scores of a particle filter vary with its random draws, and one seed would hide by how
-    much. ``dpm_options`` and ``hog_options``: ``DpmConfig`` fields for ``ours_dpm`` and
-    ``HogPeopleConfig`` fields for ``ours_hog`` (default: their defaults).
+    much. ``dpm_config`` and ``hog_config``: a ``DpmConfig`` for ``ours_dpm`` and a
+    ``HogPeopleConfig`` for ``ours_hog`` (default: their defaults).
 
     ``tracking.people`` and ``tracking.detection`` are imported here, not at module level, so
     the harness also runs with the peers only while they are missing.
@@ -256,12 +256,10 @@ def build_ours(
     def plain() -> object:
         return MultiPersonTracker(config, detector=None)
 
-    def with_detector(source: str | Path, options: dict | None = None) -> Callable[[], object]:
+    def with_detector(source: str | Path, detector_config: object = None) -> Callable[[], object]:
         def make() -> object:
-            from tracking.detection import DpmConfig, HogPeopleConfig, make_detector
+            from tracking.detection import make_detector
 
-            kind = HogPeopleConfig if source == "default" else DpmConfig
-            detector_config = kind(**options) if options else None
             return MultiPersonTracker(config, detector=make_detector(source, detector_config))
 
         return make
@@ -278,22 +276,22 @@ def build_ours(
             for k in range(1, seeds)
         },
         "ours_hog": OurTracker(
-            with_detector("default", hog_options),
+            with_detector("default", hog_config),
             False,
             {
                 "detections": "embedded HOG",
                 "detector": "default",
-                "detector_options": hog_options or {},
+                "detector_options": dataclasses.asdict(hog_config) if hog_config else {},
                 **recorded,
             },
         ),
         "ours_dpm": OurTracker(
-            with_detector(dpm, dpm_options),
+            with_detector(dpm, dpm_config),
             False,
             {
                 "detections": "DPM",
                 "detector": str(dpm),
-                "detector_options": dpm_options or {},
+                "detector_options": dataclasses.asdict(dpm_config) if dpm_config else {},
                 **recorded,
             },
         ),
@@ -740,6 +738,19 @@ def _names(text: str | None) -> list[str] | None:
     return None if text is None else [n.strip() for n in text.split(",") if n.strip()]
 
 
+def _detector_config(kind: str, text: str) -> object:
+    """``--dpm-config`` / ``--hog-config``: the JSON object as a checked detector config."""
+    import tracking.detection
+
+    try:
+        fields = json.loads(text)
+        if not isinstance(fields, dict):
+            raise ValueError("expected a JSON object of field names and values")
+        return getattr(tracking.detection, kind)(**fields)
+    except (ValueError, TypeError) as error:  # JSONDecodeError is a ValueError
+        raise argparse.ArgumentTypeError(f"not a valid {kind}: {error}") from None
+
+
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         description="Run our multi-person tracker and SORT, ByteTrack, OC-SORT, BoT-SORT on "
@@ -779,13 +790,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument(
         "--dpm-config",
-        type=json.loads,
+        type=lambda text: _detector_config("DpmConfig", text),
         help='DpmConfig fields for ours_dpm as JSON, e.g. \'{"upscale": 1.3, '
         '"levels_per_octave": 5}\' (default: the DPM defaults)',
     )
     parser.add_argument(
         "--hog-config",
-        type=json.loads,
+        type=lambda text: _detector_config("HogPeopleConfig", text),
         help="HogPeopleConfig fields for ours_hog as JSON (default: the embedded defaults)",
     )
     parser.add_argument("--no-peers", action="store_true", help="skip SORT, ByteTrack...")

@@ -17,11 +17,15 @@ clock, so Foxglove pairs each annotation with its image.
 from __future__ import annotations
 
 import json
+import os
 import struct
 from pathlib import Path
 from typing import Any
 
 import cv2
+from mcap.exceptions import McapError
+from mcap.records import Channel, Message, Schema
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
@@ -167,39 +171,41 @@ def salvage(partial: Path, target: Path) -> int:
     summary, the last chunk cut) to a finished file ``target``; return the messages kept.
 
     Records are read in order until the first one that is cut off; what a killed writer had
-    not yet flushed (the open chunk) is lost.
+    not yet flushed (the open chunk) is lost. ``target`` appears only when it is complete.
     """
-    from mcap.exceptions import McapError
-    from mcap.records import Channel, Message, Schema
-    from mcap.stream_reader import StreamReader
-
     kept = 0
-    with partial.open("rb") as source, target.open("wb") as sink:
-        writer = Writer(sink, compression=CompressionType.ZSTD)
-        writer.start(profile="", library="visual-tracking")
-        schemas: dict[int, int] = {}
-        channels: dict[int, int] = {}
-        try:
-            for record in StreamReader(source).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = writer.register_schema(
-                        record.name, record.encoding, record.data
-                    )
-                elif isinstance(record, Channel) and record.schema_id in schemas:
-                    channels[record.id] = writer.register_channel(
-                        record.topic, record.message_encoding, schemas[record.schema_id]
-                    )
-                elif isinstance(record, Message) and record.channel_id in channels:
-                    writer.add_message(
-                        channels[record.channel_id],
-                        log_time=record.log_time,
-                        publish_time=record.publish_time,
-                        data=record.data,
-                        sequence=record.sequence,
-                    )
-                    kept += 1
-        except (McapError, EOFError, ValueError, struct.error):
-            pass  # the cut-off end of the file
-        writer.add_metadata("vtrack", {"salvaged_from": partial.name})
-        writer.finish()
+    building = target.with_name(target.name + ".salvage")
+    try:
+        with partial.open("rb") as source, building.open("wb") as sink:
+            writer = Writer(sink, compression=CompressionType.ZSTD)
+            writer.start(profile="", library="visual-tracking")
+            schemas: dict[int, int] = {}
+            channels: dict[int, int] = {}
+            try:
+                for record in StreamReader(source).records:
+                    if isinstance(record, Schema):
+                        schemas[record.id] = writer.register_schema(
+                            record.name, record.encoding, record.data
+                        )
+                    elif isinstance(record, Channel) and record.schema_id in schemas:
+                        channels[record.id] = writer.register_channel(
+                            record.topic, record.message_encoding, schemas[record.schema_id]
+                        )
+                    elif isinstance(record, Message) and record.channel_id in channels:
+                        writer.add_message(
+                            channels[record.channel_id],
+                            log_time=record.log_time,
+                            publish_time=record.publish_time,
+                            data=record.data,
+                            sequence=record.sequence,
+                        )
+                        kept += 1
+            except (McapError, struct.error):  # what a cut-off record raises
+                pass
+            writer.add_metadata("vtrack", {"salvaged_from": partial.name})
+            writer.finish()
+    except BaseException:
+        building.unlink(missing_ok=True)
+        raise
+    os.replace(building, target)
     return kept

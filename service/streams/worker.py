@@ -395,7 +395,6 @@ class StreamWorker:
                 kept = salvage(partial, target)
             except Exception:  # a file we cannot read must not keep the camera from starting
                 log.exception("camera %s: could not salvage %s", self.spec.camera, partial)
-                target.unlink(missing_ok=True)
                 partial.rename(partial.with_suffix(".broken"))  # x.mcap.broken: not retried
                 continue
             partial.unlink()
