@@ -1,8 +1,10 @@
 """MOT benchmark: our multi-person tracker beside SORT, ByteTrack, OC-SORT and BoT-SORT.
 
     python benchmarks/mot.py [--data DIR] [--sequences NAME_OR_DIR ...] [--trackers a,b,...]
-                             [--frames N] [--repeats R] [--no-end-to-end] [--no-peers]
-                             [--json] [--picture PNG] [--results DIR] [--list]
+                             [--frames N] [--repeats R] [--seeds S] [--no-end-to-end]
+                             [--no-peers] [--dpm-config JSON] [--hog-config JSON]
+                             [--tracker-config JSON] [--json] [--picture PNG] [--results DIR]
+                             [--list]
 
 Sequences: the MOTChallenge folders under ``--data`` (default ``<repo>/../shared/data/mot`` or
 ``$VTRACK_SHARED_DATA/mot``: PETS09-S2L1 and TUD-Stadtmitte), or those named by
@@ -19,11 +21,16 @@ Trackers, all in one run:
   ``opencv-python`` 5, which would shadow the project's headless OpenCV 4;
 * ``ours``: :class:`tracking.people.MultiPersonTracker` with its default configuration on the
   same public detections (``detector=None``; ``update(frame, i / fps, detections)``);
-* end to end (``--end-to-end``, the default): ``ours_hog``, the same tracker running the embedded
-  HOG people detector (``make_detector("default")``), and ``ours_dpm`` running the voc-release5
-  INRIA person DPM (``--dpm``); the tracker gets no detections and runs its detector on the
+* end to end (``--end-to-end``, the default): ``ours_hog``, the same tracker running the
+  embedded HOG people detector (``make_detector("default")``), and ``ours_dpm`` running the
+  voc-release5 INRIA person DPM (``--dpm``) at its operating point for tracking
+  (``DPM_TRACKING_CONFIG``); the tracker gets no detections and runs its detector on the
   schedule of its configuration. The DPM is slow: ``--no-end-to-end`` skips both, ``--frames N``
-  shortens every sequence.
+  shortens every sequence;
+* with ``--seeds S`` (default 4) each of ours also runs with the particle filter's seeds 1 to
+  S - 1 (``ours_seed1``, ``ours_dpm_seed1``...), and the comparison with the peers adds the
+  mean over the seeds (``ours_mean``...). The seeded end-to-end runs replay the detections of
+  the first run, frame by frame (the detector is deterministic), so the detector runs once.
 
 Scores: TrackEval (``benchmarks/peers/trackeval_score.py``, in ``.venv-mot``) on the MOTChallenge
 result files written to ``--results`` (default: a new temporary folder, kept and named in the
@@ -44,7 +51,8 @@ and keep the file's coordinates throughout.
 Speed: frames per second of the trackers' ``update`` calls only (not image decoding, file
 reading, or building the detections), median over ``--repeats`` runs by fresh trackers (the
 end-to-end runs: ``--end-to-end-repeats``, default 1); for the end-to-end runs that includes the
-detector, which runs inside ``update``. Peers are timed in their own process, ours in this one.
+detector, which runs inside ``update`` (except in the seeded end-to-end runs, which replay the
+detections). Peers are timed in their own process, ours in this one.
 
 Output: a table per sequence and tracker, then the best peer per metric and the difference of
 each of ours to it; ``--json`` prints one JSON object on stdout instead (the table goes to
@@ -57,6 +65,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -226,19 +235,74 @@ class OurTracker:
     details: dict[str, object]
 
 
+def _frame_key(frame: np.ndarray) -> bytes:
+    """Identity of a frame's pixels."""
+    digest = hashlib.blake2b(np.ascontiguousarray(frame).data, digest_size=16).digest()
+    return digest + repr(frame.shape).encode()
+
+
+class RecordingDetector:
+    """A detector that runs on every frame and keeps its full-frame results by frame content.
+
+    The runs of one end-to-end tracker with different particle-filter seeds see the same frames
+    and detection is a pure function of the frame: the first run records, the others replay
+    (:class:`ReplayedDetector`; the DPM costs 2 s per frame, the tracker 10 ms). Every call of
+    the recording run detects, so its timed repeats include the detector. Region-of-interest and
+    dense-score calls go to the detector itself.
+    """
+
+    def __init__(self, make: Callable[[], object]) -> None:
+        self._make = make
+        self._detector: object | None = None
+        self.seen: dict[bytes, object] = {}
+
+    @property
+    def detector(self) -> object:
+        if self._detector is None:
+            self._detector = self._make()
+        return self._detector
+
+    def detect(self, frame: np.ndarray) -> object:
+        found = self.seen[_frame_key(frame)] = self.detector.detect(frame)
+        return found
+
+    def __getattr__(self, name: str) -> object:  # part_names, calibration, detect_region...
+        return getattr(self.detector, name)
+
+
+class ReplayedDetector:
+    """The recorded results of a :class:`RecordingDetector`; frames it has not seen are
+    detected (and recorded) anew."""
+
+    def __init__(self, recorder: RecordingDetector) -> None:
+        self._recorder = recorder
+
+    def detect(self, frame: np.ndarray) -> object:
+        found = self._recorder.seen.get(_frame_key(frame))
+        return self._recorder.detect(frame) if found is None else found
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._recorder, name)
+
+
 def build_ours(
     names: Sequence[str],
     dpm: Path,
     seeds: int = 1,
     dpm_config: object | None = None,
     hog_config: object | None = None,
+    tracker_config: object | None = None,
 ) -> dict[str, OurTracker]:
     """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
     detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``). With ``seeds``
-    above 1, ``ours`` also runs with the particle filter's seeds 1, 2... (``ours_seed1``...):
-    the scores of a particle filter vary with its random draws, and one seed would hide by how
-    much. ``dpm_config`` and ``hog_config``: a ``DpmConfig`` for ``ours_dpm`` and a
-    ``HogPeopleConfig`` for ``ours_hog`` (default: their defaults).
+    above 1, each also runs with the particle filter's seeds 1, 2... (``ours_seed1``,
+    ``ours_dpm_seed1``...): the scores of a particle filter vary with its random draws, and one
+    seed would hide by how much. The seeded end-to-end runs replay the detections of the first
+    run (:class:`ReplayedDetector`), so their speed is the tracker's alone. ``dpm_config`` and
+    ``hog_config``: a ``DpmConfig`` for ``ours_dpm`` (default: ``DPM_TRACKING_CONFIG``, the
+    DPM's operating point for tracking) and a ``HogPeopleConfig`` for ``ours_hog`` (default:
+    the embedded defaults); ``tracker_config``: a ``PeopleTrackerConfig`` for all of ours
+    (default: the defaults).
 
     ``tracking.people`` and ``tracking.detection`` are imported here, not at module level, so
     the harness also runs with the peers only while they are missing.
@@ -248,57 +312,43 @@ def build_ours(
     ImportError
         If ``tracking.people`` cannot be imported.
     """
+    from tracking.detection import DPM_TRACKING_CONFIG, make_detector
     from tracking.people import MultiPersonTracker, PeopleTrackerConfig
 
-    config = PeopleTrackerConfig()
+    config = tracker_config or PeopleTrackerConfig()
     recorded = {"config": dataclasses.asdict(config)}
-
-    def plain() -> object:
-        return MultiPersonTracker(config, detector=None)
-
-    def with_detector(source: str | Path, detector_config: object = None) -> Callable[[], object]:
-        def make() -> object:
-            from tracking.detection import make_detector
-
-            return MultiPersonTracker(config, detector=make_detector(source, detector_config))
-
-        return make
-
-    def seeded(seed: int) -> Callable[[], object]:
-        return lambda: MultiPersonTracker(dataclasses.replace(config, seed=seed), detector=None)
-
-    available = {
-        OURS: OurTracker(plain, True, {"detections": "public", **recorded}),
-        **{
-            f"{OURS}_seed{k}": OurTracker(
-                seeded(k), True, {"detections": "public", **recorded, "seed": k}
-            )
-            for k in range(1, seeds)
-        },
-        "ours_hog": OurTracker(
-            with_detector("default", hog_config),
-            False,
-            {
-                "detections": "embedded HOG",
-                "detector": "default",
-                "detector_options": dataclasses.asdict(hog_config) if hog_config else {},
-                **recorded,
-            },
+    sources = {
+        OURS: (None, None, {"detections": "public"}),
+        "ours_hog": (
+            "default",
+            hog_config,
+            {"detections": "embedded HOG", "detector": "default"},
         ),
-        "ours_dpm": OurTracker(
-            with_detector(dpm, dpm_config),
-            False,
-            {
-                "detections": "DPM",
-                "detector": str(dpm),
-                "detector_options": dataclasses.asdict(dpm_config) if dpm_config else {},
-                **recorded,
-            },
+        "ours_dpm": (
+            dpm,
+            dpm_config or DPM_TRACKING_CONFIG,
+            {"detections": "DPM", "detector": str(dpm)},
         ),
     }
-    if OURS in names:
-        names = [*names, *(f"{OURS}_seed{k}" for k in range(1, seeds))]
-    return {name: available[name] for name in names}
+    out: dict[str, OurTracker] = {}
+    for name in names:
+        source, options, details = sources[name]
+        details = {**details, **recorded}
+        if source is not None:
+            details["detector_options"] = dataclasses.asdict(options) if options else {}
+        recorder = (
+            RecordingDetector(lambda s=source, o=options: make_detector(s, o)) if source else None
+        )
+        for seed in range(seeds):
+            seeded = dataclasses.replace(config, seed=seed)
+            key = name if seed == 0 else f"{name}_seed{seed}"
+            detector = ReplayedDetector(recorder) if recorder is not None and seed else recorder
+            out[key] = OurTracker(
+                lambda c=seeded, d=detector: MultiPersonTracker(c, detector=d),
+                source is None,
+                {**details, "seed": seed} if seed else details,
+            )
+    return out
 
 
 def public_detections(sequence: SequenceInfo) -> object:
@@ -511,15 +561,16 @@ def summarize(outcome: Outcome, scored: dict[str, object], results: Path) -> dic
             ours = trackers.get(tracker, {}).get("sequences", {}).get(key)
             if ours:
                 versus.setdefault(tracker, {})[key] = versus_best(ours, best[key])
-        seeded = [
-            trackers[t]["sequences"][key]
-            for t in trackers
-            if (t == OURS or t.startswith(f"{OURS}_seed")) and key in trackers[t]["sequences"]
-        ]
-        if len(seeded) > 1:  # the mean over the particle filter's seeds
-            numbers = [m for m, v in seeded[0].items() if isinstance(v, (int, float))]
-            mean = {m: float(np.mean([r[m] for r in seeded])) for m in numbers}
-            versus.setdefault(f"{OURS}_mean", {})[key] = versus_best(mean, best[key])
+        for base in (OURS, *END_TO_END):
+            seeded = [
+                trackers[t]["sequences"][key]
+                for t in trackers
+                if (t == base or t.startswith(f"{base}_seed")) and key in trackers[t]["sequences"]
+            ]
+            if len(seeded) > 1:  # the mean over the particle filter's seeds
+                numbers = [m for m, v in seeded[0].items() if isinstance(v, (int, float))]
+                mean = {m: float(np.mean([r[m] for r in seeded])) for m in numbers}
+                versus.setdefault(f"{base}_mean", {})[key] = versus_best(mean, best[key])
     errors = {t: dict(e) for t, e in outcome.errors.items()}
     for tracker, message in scored.get("errors", {}).items():
         errors.setdefault(tracker, {})["trackeval"] = message
@@ -738,15 +789,22 @@ def _names(text: str | None) -> list[str] | None:
     return None if text is None else [n.strip() for n in text.split(",") if n.strip()]
 
 
-def _detector_config(kind: str, text: str) -> object:
-    """``--dpm-config`` / ``--hog-config``: the JSON object as a checked detector config."""
+def _config(kind: str, text: str) -> object:
+    """``--dpm-config``, ``--hog-config``, ``--tracker-config``: the JSON object's fields over
+    the default configuration of class ``kind`` (for the DPM: ``DPM_TRACKING_CONFIG``)."""
     import tracking.detection
+    import tracking.people
 
+    defaults = {
+        "DpmConfig": tracking.detection.DPM_TRACKING_CONFIG,
+        "HogPeopleConfig": tracking.detection.HogPeopleConfig(),
+        "PeopleTrackerConfig": tracking.people.PeopleTrackerConfig(),
+    }
     try:
         fields = json.loads(text)
         if not isinstance(fields, dict):
             raise ValueError("expected a JSON object of field names and values")
-        return getattr(tracking.detection, kind)(**fields)
+        return dataclasses.replace(defaults[kind], **fields)
     except (ValueError, TypeError) as error:  # JSONDecodeError is a ValueError
         raise argparse.ArgumentTypeError(f"not a valid {kind}: {error}") from None
 
@@ -773,8 +831,14 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--seeds",
         type=int,
         default=4,
-        help="particle-filter seeds of ours on the public detections (default 4: ours, "
-        "ours_seed1..3)",
+        help="particle-filter seeds of each of ours (default 4: ours, ours_seed1..3, "
+        "ours_dpm_seed1..3...); seeded end-to-end runs replay the first run's detections",
+    )
+    parser.add_argument(
+        "--tracker-config",
+        type=lambda text: _config("PeopleTrackerConfig", text),
+        help="PeopleTrackerConfig fields for all of ours as JSON, e.g. '{\"report_missing\": 0.6}' "
+        "(default: the tracker defaults)",
     )
     parser.add_argument(
         "--end-to-end",
@@ -790,14 +854,14 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument(
         "--dpm-config",
-        type=lambda text: _detector_config("DpmConfig", text),
-        help='DpmConfig fields for ours_dpm as JSON, e.g. \'{"upscale": 1.3, '
-        '"levels_per_octave": 5}\' (default: the DPM defaults)',
+        type=lambda text: _config("DpmConfig", text),
+        help="DpmConfig fields for ours_dpm as JSON, over DPM_TRACKING_CONFIG, e.g. "
+        '\'{"upscale": 1.3, "levels_per_octave": 5}\' (default: DPM_TRACKING_CONFIG)',
     )
     parser.add_argument(
         "--hog-config",
-        type=lambda text: _detector_config("HogPeopleConfig", text),
-        help="HogPeopleConfig fields for ours_hog as JSON (default: the embedded defaults)",
+        type=lambda text: _config("HogPeopleConfig", text),
+        help="HogPeopleConfig fields for ours_hog as JSON, over the embedded defaults",
     )
     parser.add_argument("--no-peers", action="store_true", help="skip SORT, ByteTrack...")
     parser.add_argument(
@@ -897,7 +961,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         ours_names.remove("ours_dpm")
     try:
         ours = (
-            build_ours(ours_names, args.dpm, max(args.seeds, 1), args.dpm_config, args.hog_config)
+            build_ours(
+                ours_names,
+                args.dpm,
+                max(args.seeds, 1),
+                args.dpm_config,
+                args.hog_config,
+                args.tracker_config,
+            )
             if ours_names
             else {}
         )

@@ -25,7 +25,7 @@ from service.outputs import RunSummary, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detector
-from tracking.detection.dpm.config import DpmConfig
+from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
 from tracking.detection.factory import make_detector
 from tracking.detection.hog_people import HogPeopleConfig
 from tracking.people import PeopleTrackerConfig
@@ -90,7 +90,9 @@ def job_detector(options: DetectorOptions, resources: PipelineResources) -> Dete
                 "detector 'dpm' needs a voc-release5 model, and this service has none: set "
                 "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
             )
-        config = DpmConfig(upscale=options.upscale) if options.upscale else None
+        config = DPM_TRACKING_CONFIG
+        if options.upscale:
+            config = dataclasses.replace(config, upscale=options.upscale)
         return make_detector(resources.dpm_model, config)
     config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
     return make_detector("default", config)

@@ -197,12 +197,30 @@ def test_heights_without_a_level_give_no_scores(detector, pets_frame):
         {"min_height": 100.0, "max_height": 50.0},
         {"deformation_window": -1},
         {"nms_overlap": 1.5},
+        {"nms_criterion": "area"},
         {"workers": 0},
     ],
 )
 def test_bad_config_is_rejected(options):
     with pytest.raises(ValueError):
         DpmConfig(**options)
+
+
+def test_iou_suppression_keeps_people_inside_a_group_box(inria_model, pets):
+    # PETS09-S2L1 frame 33: a pair walking one behind the other beside a third person, and a
+    # higher-scoring 80x245 window around them all. voc-release5's intersection over the smaller
+    # box suppresses everyone inside it; intersection over union keeps the pair's detection.
+    x0, y0 = 330, 20
+    crop = pets.read_frame(32)[y0 : y0 + 290, x0 : x0 + 140]
+    people = pets.gt[32][[0, 3, 4]] - np.array([x0, y0, 0, 0])
+    found = {
+        criterion: DpmDetector(
+            inria_model, DpmConfig(nms_criterion=criterion, nms_overlap=overlap)
+        ).detect(crop)
+        for criterion, overlap in (("smaller", 0.5), ("iou", 0.4))
+    }
+    assert match_frame(found["smaller"].boxes, found["smaller"].scores, people).sum() == 0
+    assert match_frame(found["iou"].boxes, found["iou"].scores, people).sum() == 1
 
 
 def test_five_levels_per_octave_still_find_the_person(inria_model, pets, pets_frame):

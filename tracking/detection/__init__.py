@@ -19,7 +19,13 @@ from tracking.detection.calibration import (
     fit_logistic,
     load_calibration,
 )
-from tracking.detection.dpm import DpmConfig, DpmDetector, ModelFileError, load_dpm_model
+from tracking.detection.dpm import (
+    DPM_TRACKING_CONFIG,
+    DpmConfig,
+    DpmDetector,
+    ModelFileError,
+    load_dpm_model,
+)
 from tracking.detection.external import (
     MotDetections,
     SubmittedDetections,
@@ -36,6 +42,7 @@ from tracking.detection.sequences import MotFormatError, MotSequence
 
 __all__ = [
     "DETECTOR_NAMES",
+    "DPM_TRACKING_CONFIG",
     "HOG_PEOPLE_CALIBRATION",
     "CalibrationError",
     "DenseScores",

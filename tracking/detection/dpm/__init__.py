@@ -1,6 +1,6 @@
 """The deformable part model engine (voc-release5 mixtures of star models)."""
 
-from tracking.detection.dpm.config import DpmConfig
+from tracking.detection.dpm.config import DPM_TRACKING_CONFIG, DpmConfig
 from tracking.detection.dpm.detector import (
     DEFAULT_DPM_CALIBRATION,
     KNOWN_CALIBRATIONS,
@@ -17,6 +17,7 @@ from tracking.detection.dpm.parts import component_part_names, model_part_names
 
 __all__ = [
     "DEFAULT_DPM_CALIBRATION",
+    "DPM_TRACKING_CONFIG",
     "KNOWN_CALIBRATIONS",
     "DpmComponent",
     "DpmConfig",

@@ -15,6 +15,7 @@ filter centres (``bboxpred_get.m``, ``bboxpred_input.m``), clip, suppression aga
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -194,11 +195,12 @@ def postprocess(
     shape: tuple[int, ...],
     overlap: float,
     regression: bool,
+    criterion: Literal["smaller", "iou"] = "smaller",
 ) -> Candidates:
     """Clip, suppress, regress, clip, suppress (``pascal_test.m`` + ``bboxpred_rescore.m``)."""
     c = c.with_windows(*clip_boxes(c.windows, shape))
-    c = c.take(nms(c.windows, c.scores, overlap))
+    c = c.take(nms(c.windows, c.scores, overlap, criterion))
     if regression and c.scores.size:
         c = c.with_windows(*clip_boxes(predict_boxes(model, c), shape))
-        c = c.take(nms(c.windows, c.scores, overlap))
+        c = c.take(nms(c.windows, c.scores, overlap, criterion))
     return c

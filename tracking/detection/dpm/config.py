@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
-__all__ = ["DpmConfig"]
+__all__ = ["DPM_TRACKING_CONFIG", "DpmConfig"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,7 +33,12 @@ class DpmConfig:
         Largest part displacement from its anchor in cells (voc-release5 ``bounded_dt``: 4);
         ``None``: unbounded, the exact linear-time distance transform.
     nms_overlap:
-        voc-release5 non-maximum suppression threshold (intersection over the smaller box).
+        Non-maximum suppression threshold (voc-release5: 0.5 of ``nms_criterion`` "smaller").
+    nms_criterion:
+        How two boxes' overlap is measured for suppression: "smaller", intersection over the
+        lower-scoring box's area (voc-release5 ``nms.m``), or "iou", intersection over union.
+        "smaller" suppresses a person standing half in front of a higher-scoring neighbour, or
+        inside a higher-scoring box around a group; "iou" keeps them (see ``docs/benchmarks.md``).
     bbox_prediction:
         Refine boxes with the model's bounding-box regression (``bboxpred``).
     max_candidates:
@@ -57,6 +63,7 @@ class DpmConfig:
     max_height: float | None = None
     deformation_window: int | None = 4
     nms_overlap: float = 0.5
+    nms_criterion: Literal["smaller", "iou"] = "smaller"
     bbox_prediction: bool = True
     max_candidates: int = 5000
     region_heights: tuple[float, float] = (0.4, 1.0)
@@ -90,6 +97,10 @@ class DpmConfig:
             raise ValueError(f"deformation_window must be non-negative, got {window}")
         if not 0.0 <= self.nms_overlap <= 1.0:
             raise ValueError(f"nms_overlap must be in [0, 1], got {self.nms_overlap}")
+        if self.nms_criterion not in ("smaller", "iou"):
+            raise ValueError(
+                f"nms_criterion must be 'smaller' or 'iou', got {self.nms_criterion!r}"
+            )
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise ValueError(f"workers must be a positive int, got {self.workers}")
         if self.max_candidates < 1:
@@ -97,3 +108,15 @@ class DpmConfig:
         low, high = self.region_heights
         if not (0 < low <= high):
             raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")
+
+
+DPM_TRACKING_CONFIG = DpmConfig(threshold=-0.7, nms_criterion="iou", nms_overlap=0.3)
+"""The DPM's operating point for tracking people (the service and ``benchmarks/mot.py`` use it).
+
+The voc-release5 defaults are tuned for average precision on single images. A tracker also
+wants the weaker detections near people it already follows (it never starts a track on one below
+its ``birth_confidence``, so they only carry tracks through hard frames), and it wants people
+in a group kept: intersection over the smaller box suppresses a person standing half in front
+of a neighbour or inside a higher-scoring window around the group, intersection over union
+keeps them. Chosen on PETS09-S2L1 and TUD-Stadtmitte (``docs/benchmarks.md``).
+"""

@@ -213,7 +213,10 @@ class DpmDetector:
         return [job() for job in jobs]
 
     def _detections(self, c: Candidates, shape: tuple[int, ...]) -> Detections:
-        c = postprocess(self.model, c, shape, self.config.nms_overlap, self.config.bbox_prediction)
+        config = self.config
+        c = postprocess(
+            self.model, c, shape, config.nms_overlap, config.bbox_prediction, config.nms_criterion
+        )
         parts = np.full((c.scores.size, len(self.part_names), 4), np.nan)
         for ci, slots in enumerate(self._slots):
             sel = np.flatnonzero(c.components == ci)
