@@ -1,15 +1,23 @@
-"""Job detector options reach the detector that runs: the DPM takes ``upscale`` too."""
+"""Job options reach what runs: the DPM takes ``upscale`` too, tracker options the tracker."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from api_schemas.jobs import JobOptions
-from service.analysis import OptionsError, PipelineResources, check_options, job_detector
+from service.analysis import (
+    OptionsError,
+    PipelineResources,
+    check_options,
+    job_detector,
+    people_config,
+)
 from tests.service.conftest import PETS_VIDEO
 from tracking.detection import box_iou
+from tracking.people import PeopleTrackerConfig
 
 
 @pytest.fixture(scope="module")
@@ -53,3 +61,14 @@ def test_dpm_job_without_a_model_is_refused():
     options = JobOptions.model_validate({"detector": {"name": "dpm", "upscale": 1.5}})
     with pytest.raises(OptionsError, match="VTRACK_DPM_MODEL"):
         check_options(options, PipelineResources())
+
+
+def test_tracker_options_reach_the_tracker_configuration():
+    options = JobOptions.model_validate(
+        {"tracker": {"report_missing": 0.6, "confirm_hits": 2, "seed": 3}}
+    )
+    config = people_config(options, PipelineResources())
+    assert (config.report_missing, config.confirm_hits, config.seed) == (0.6, 2, 3)
+    assert config.particles == PeopleTrackerConfig().particles  # unset: the default
+    with pytest.raises(ValidationError, match="report_missing"):
+        JobOptions.model_validate({"tracker": {"report_missing": -1}})
