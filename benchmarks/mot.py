@@ -247,8 +247,9 @@ class RecordingDetector:
     The runs of one end-to-end tracker with different particle-filter seeds see the same frames
     and detection is a pure function of the frame: the first run records, the others replay
     (:class:`ReplayedDetector`; the DPM costs 2 s per frame, the tracker 10 ms). Every call of
-    the recording run detects, so its timed repeats include the detector. Region-of-interest and
-    dense-score calls go to the detector itself.
+    the recording run detects, so its timed repeats include the detector (and the key, a hash of
+    the frame's pixels: 1.4 ms on a PETS frame, 2% of the embedded detector's time, 0.1% of the
+    DPM's). Region-of-interest and dense-score calls go to the detector itself.
     """
 
     def __init__(self, make: Callable[[], object]) -> None:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tracking.detection.base import DenseScores, Detections, Detector
+from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
 from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.metrics import match_frame
 from tracking.types import Box
@@ -221,6 +222,8 @@ def test_iou_suppression_keeps_people_inside_a_group_box(inria_model, pets):
     }
     assert match_frame(found["smaller"].boxes, found["smaller"].scores, people).sum() == 0
     assert match_frame(found["iou"].boxes, found["iou"].scores, people).sum() == 1
+    tracking = DpmDetector(inria_model, DPM_TRACKING_CONFIG).detect(crop)
+    assert match_frame(tracking.boxes, tracking.scores, people).sum() >= 1
 
 
 def test_five_levels_per_octave_still_find_the_person(inria_model, pets, pets_frame):

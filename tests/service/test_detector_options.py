@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
@@ -16,7 +18,7 @@ from service.analysis import (
     people_config,
 )
 from tests.service.conftest import PETS_VIDEO
-from tracking.detection import box_iou
+from tracking.detection import DPM_TRACKING_CONFIG, box_iou
 from tracking.people import PeopleTrackerConfig
 
 
@@ -48,10 +50,11 @@ def test_dpm_job_with_upscale_finds_small_people_with_parts(resources, shared_da
     options = JobOptions.model_validate({"detector": {"name": "dpm", "upscale": 1.5}})
     check_options(options, resources)
     enlarged = job_detector(options.detector, resources)
-    assert enlarged.config.upscale == 1.5
+    assert enlarged.config == dataclasses.replace(DPM_TRACKING_CONFIG, upscale=1.5)
     plain = job_detector(
         JobOptions.model_validate({"detector": {"name": "dpm"}}).detector, resources
     )
+    assert plain.config == DPM_TRACKING_CONFIG  # the DPM's operating point for tracking
     found = enlarged.detect(frame)
     assert _confident_people(found, people) >= 2 > _confident_people(plain.detect(frame), people)
     assert "head" in found.part_names and np.isfinite(found.parts).any()

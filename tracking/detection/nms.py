@@ -17,11 +17,15 @@ inclusive pixel ranges is already in ``w`` and ``h``.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
-__all__ = ["box_iou", "nms"]
+__all__ = ["NMS_CRITERIA", "NmsCriterion", "box_iou", "nms"]
+
+NmsCriterion = Literal["smaller", "iou"]
+"""How :func:`nms` measures overlap: over the lower-scoring box's area, or over the union."""
+NMS_CRITERIA: tuple[str, ...] = get_args(NmsCriterion)
 
 
 def _as_boxes(boxes: object) -> np.ndarray:
@@ -56,7 +60,7 @@ def nms(
     boxes: object,
     scores: object,
     overlap: float = 0.5,
-    criterion: Literal["smaller", "iou"] = "smaller",
+    criterion: NmsCriterion = "smaller",
 ) -> np.ndarray:
     """Indices of the boxes kept by greedy non-maximum suppression, best score first.
 
@@ -83,7 +87,7 @@ def nms(
         raise ValueError(f"scores must have shape ({boxes.shape[0]},), got {scores.shape}")
     if not 0.0 <= overlap <= 1.0:
         raise ValueError(f"overlap must be in [0, 1], got {overlap}")
-    if criterion not in ("smaller", "iou"):
+    if criterion not in NMS_CRITERIA:
         raise ValueError(f"criterion must be 'smaller' or 'iou', got {criterion!r}")
     order = np.argsort(-scores, kind="stable")
     x1, y1 = boxes[order, 0], boxes[order, 1]

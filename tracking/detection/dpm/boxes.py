@@ -15,13 +15,12 @@ filter centres (``bboxpred_get.m``, ``bboxpred_input.m``), clip, suppression aga
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from tracking.detection.dpm.model import DpmModel
 from tracking.detection.dpm.scoring import LevelScores
-from tracking.detection.nms import nms
+from tracking.detection.nms import NmsCriterion, nms
 from tracking.types import Box
 
 __all__ = ["Candidates", "candidates", "clip_boxes", "postprocess", "predict_boxes"]
@@ -195,7 +194,7 @@ def postprocess(
     shape: tuple[int, ...],
     overlap: float,
     regression: bool,
-    criterion: Literal["smaller", "iou"] = "smaller",
+    criterion: NmsCriterion = "smaller",
 ) -> Candidates:
     """Clip, suppress, regress, clip, suppress (``pascal_test.m`` + ``bboxpred_rescore.m``)."""
     c = c.with_windows(*clip_boxes(c.windows, shape))

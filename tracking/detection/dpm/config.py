@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+
+from tracking.detection.nms import NMS_CRITERIA, NmsCriterion
 
 __all__ = ["DPM_TRACKING_CONFIG", "DpmConfig"]
 
@@ -63,7 +64,7 @@ class DpmConfig:
     max_height: float | None = None
     deformation_window: int | None = 4
     nms_overlap: float = 0.5
-    nms_criterion: Literal["smaller", "iou"] = "smaller"
+    nms_criterion: NmsCriterion = "smaller"
     bbox_prediction: bool = True
     max_candidates: int = 5000
     region_heights: tuple[float, float] = (0.4, 1.0)
@@ -97,9 +98,9 @@ class DpmConfig:
             raise ValueError(f"deformation_window must be non-negative, got {window}")
         if not 0.0 <= self.nms_overlap <= 1.0:
             raise ValueError(f"nms_overlap must be in [0, 1], got {self.nms_overlap}")
-        if self.nms_criterion not in ("smaller", "iou"):
+        if self.nms_criterion not in NMS_CRITERIA:
             raise ValueError(
-                f"nms_criterion must be 'smaller' or 'iou', got {self.nms_criterion!r}"
+                f"nms_criterion must be one of {NMS_CRITERIA}, got {self.nms_criterion!r}"
             )
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise ValueError(f"workers must be a positive int, got {self.workers}")
