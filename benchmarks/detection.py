@@ -26,14 +26,17 @@ detections are used as published (confidence >= 0.5).
 
 Speed, at native resolution, on ``timing-frames`` frames of each sequence (median over
 ``repeats`` runs per frame, reported as frames per second): full-frame detection for each
-detector, OpenCV's HOG at 1.0x and at the DPM's upscale (the same image scale), and per region of
+detector, OpenCV's HOG at 1.0x, at the DPM's upscale (the same image scale) and at the scale of
+the DPM's finest features (twice its upscale for models with an extra octave), and per region of
 interest -- the DPM's ``dense_scores`` and ``detect_region`` over a window around each of up
 to three ground-truth people per frame (centre +- 0.25 of its height; window heights 0.8..1.25
 ("wide", 6 pyramid levels) or 0.9..1.1 ("narrow", 3 levels) of its height: the spread a
 particle filter searches).
 
-DPM variants are named ``dpm-<model>[@upscale][:levels per octave]``, e.g. ``dpm-inria`` (the
-voc-release5 defaults) or ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave).
+DPM variants are named ``dpm-<model>[@upscale][:levels per octave][>min height][+exact]``, e.g.
+``dpm-inria`` (the voc-release5 defaults with the star cascade), ``dpm-inria+exact`` (every root
+scored exactly), ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave) or
+``dpm-inria>128`` (only windows at least 128 pixels tall, the height of OpenCV's HOG window).
 
 The machine may be shared; timings are medians. ``--workers`` sets the DPM's level threads; with
 more than one the script runs BLAS single-threaded (set before numpy loads) so the two do not
@@ -64,6 +67,7 @@ if __name__ == "__main__":
 import dataclasses  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
+import re  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
@@ -146,20 +150,31 @@ def _opencv_peer(upscale: float) -> Detect:
 DPM_MODELS = {"inria": "INRIA/inriaperson_final.mat", "voc2007": "VOC2007/person_final.mat"}
 
 
-def parse_dpm_name(name: str) -> tuple[str, float, int | None]:
-    """``dpm-<model>[@upscale][:levels per octave]`` -> model file, upscale, levels."""
-    spec = name.removeprefix("dpm-")
-    levels = None
-    if ":" in spec:
-        spec, text = spec.split(":", 1)
-        levels = int(text)
-    upscale = 1.0
-    if "@" in spec:
-        spec, text = spec.split("@", 1)
-        upscale = float(text)
-    if spec not in DPM_MODELS:
-        raise SystemExit(f"unknown DPM model {spec!r} in {name!r}; known: {sorted(DPM_MODELS)}")
-    return DPM_MODELS[spec], upscale, levels
+_DPM_NAME = re.compile(
+    r"dpm-(?P<model>[a-z0-9]+)(@(?P<upscale>[0-9.]+))?(:(?P<levels>[0-9]+))?"
+    r"(>(?P<min_height>[0-9.]+))?(?P<exact>\+exact)?"
+)
+
+
+def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
+    """``dpm-<model>[@upscale][:levels][>min height][+exact]`` -> model file, DpmConfig fields.
+
+    ``+exact`` scores every root exactly (no star cascade).
+    """
+    match = _DPM_NAME.fullmatch(name)
+    if match is None or match["model"] not in DPM_MODELS:
+        raise SystemExit(
+            f"bad DPM detector name {name!r}: dpm-<model>[@upscale][:levels][>min height][+exact]"
+            f" with a model of {sorted(DPM_MODELS)}"
+        )
+    fields: dict[str, object] = {"cascade": match["exact"] is None}
+    if match["upscale"]:
+        fields["upscale"] = float(match["upscale"])
+    if match["levels"]:
+        fields["levels_per_octave"] = int(match["levels"])
+    if match["min_height"]:
+        fields["min_height"] = float(match["min_height"])
+    return DPM_MODELS[match["model"]], fields
 
 
 def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry]:
@@ -167,24 +182,23 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
     entries: dict[str, Entry] = {}
     for name in names:
         if name.startswith("dpm-"):
-            model, upscale, levels = parse_dpm_name(name)
+            model, fields = parse_dpm_name(name)
             probe = DpmDetector.from_file(args.data / "dpm" / model)
             config = DpmConfig(
-                threshold=probe.model.threshold - 1.0,
-                upscale=upscale,
-                levels_per_octave=levels,
-                workers=args.workers,
+                threshold=probe.model.threshold - 1.0, workers=args.workers, **fields
             )
             detector = DpmDetector(probe.model, config)
+            upscale = config.upscale
 
             def detect(frame: np.ndarray, index: int, d: DpmDetector = detector) -> tuple:
                 result = d.detect(frame)
                 return result.boxes, result.scores
 
-            per_octave = levels or probe.model.interval
             entries[name] = Entry(
                 name,
-                f"DPM {model}, upscale {upscale:g}, {per_octave} levels/octave, threshold thresh-1",
+                f"DPM {model}, upscale {upscale:g}, {detector.interval} levels/octave, windows "
+                f">= {config.min_height or 0:g} px, {'cascade' if config.cascade else 'exact'}, "
+                "threshold thresh-1",
                 detect,
                 upscale,
                 dpm=detector,
@@ -257,8 +271,12 @@ def timing(
     out: dict[str, dict[str, float]] = {}
     peers = {f"opencv-hog@{u:g}": _opencv_peer(u) for u in (1.0, PEER_UPSCALE)}
     for entry in entries.values():
-        if entry.dpm is not None and entry.upscale not in (1.0, PEER_UPSCALE):
-            peers[f"opencv-hog@{entry.upscale:g}"] = _opencv_peer(entry.upscale)
+        if entry.dpm is None:
+            continue
+        # The DPM's finest features: its upscale, doubled by the extra octave if it has one.
+        finest = entry.upscale * (2.0 if entry.dpm.model.extra_octave else 1.0)
+        for u in {entry.upscale, finest} - {1.0, PEER_UPSCALE}:
+            peers[f"opencv-hog@{u:g}"] = _opencv_peer(u)
     for sequence in sequences:
         picks = np.linspace(0, len(sequence) - 1, frames_per_sequence).round().astype(int)
         frames = [(i, sequence.read_frame(int(i))) for i in picks]

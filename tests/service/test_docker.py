@@ -97,6 +97,13 @@ def _replay(dockerfile, build: Path, env_dir: Path) -> None:
     assert replayed >= 3
 
 
+_SHIPPED_CASCADES = (
+    "from tracking.detection.dpm.detector import KNOWN_CASCADES; "
+    "from tracking.detection.dpm.cascade import load_cascade; "
+    "assert all(load_cascade(p) for p in KNOWN_CASCADES.values())"
+)
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path):
@@ -111,6 +118,8 @@ def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path):
     for command in (
         [str(bindir / "vtrack"), "--help"],
         [str(bindir / "python"), "-c", "import service.app, api_schemas, tracking.pipeline"],
+        # package data: the DPM cascade thresholds shipped for the INRIA person model
+        [str(bindir / "python"), "-c", _SHIPPED_CASCADES],
     ):
         result = subprocess.run(
             command, cwd=elsewhere, capture_output=True, text=True, env=clean_env

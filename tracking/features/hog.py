@@ -15,7 +15,11 @@ Each cell histogram is normalised by the energy of each of the four 2x2 cell blo
 it, clipped at 0.2 and the four results summed with weight 0.5 (the analytic projection of the
 36-dimensional Dalal-Triggs vector, §6.3).
 
-The computation follows voc-release5 step for step, vectorised:
+The computation follows voc-release5 step for step, in numba-compiled kernels (for speed: the
+per-pixel channel choice, orientation search and bilinear votes took numpy a dozen passes over
+whole-image temporaries; the kernels go through the image a few rows at a time, in the cache,
+and are 3-6x faster). They run single-threaded and release the GIL, so callers can compute
+pyramid levels in threads.
 
 1. ``cells = round(H / sbin), round(W / sbin)`` (C ``round``: halves away from zero); only the
    pixels ``1 .. cells * sbin - 2`` of each axis are visited, with image coordinates clamped to
@@ -23,9 +27,7 @@ The computation follows voc-release5 step for step, vectorised:
 2. centred differences per colour channel; the channel with the largest squared magnitude wins
    (ties to the first channel);
 3. the orientation is the first maximum of ``±(uu[o] dx + vv[o] dy)`` over the 18 directions in
-   the order ``+0, -0, +1, -1, ...`` with the 4-decimal ``uu``/``vv`` tables of ``features.cc``
-   (for 8-bit images the bin of each of the 511 x 511 possible gradients is computed once, in
-   the same way, and looked up);
+   the order ``+0, -0, +1, -1, ...`` with the 4-decimal ``uu``/``vv`` tables of ``features.cc``;
 4. the magnitude is shared bilinearly between the four nearest cell centres;
 5. normalisation, truncation at 0.2 and the texture features as above; the outermost ring of
    cells is dropped, so the output is ``max(cells - 2, 0)`` cells along each axis.
@@ -38,8 +40,7 @@ for other float images the features agree to ~1e-7.
 
 from __future__ import annotations
 
-import functools
-
+import numba
 import numpy as np
 
 __all__ = ["NUM_FEATURES", "fhog", "hog_feature_map"]
@@ -55,19 +56,6 @@ _NUM_ORIENTATIONS = 18
 _EPS = 1e-4  # features.cc: keeps the block normalisation finite on flat images
 _CLIP = np.float32(0.2)  # truncation of each normalised value (§6.2)
 _TEXTURE_WEIGHT = np.float32(0.2357)  # ~ 1 / sqrt(18)
-
-# Visited pixels per strip of _histograms (keeps temporaries in cache); images with no more
-# are done in a single pass.
-_STRIP_PIXELS = 32768
-
-_MAX_BYTE_GRADIENT = 255  # centred differences of 8-bit values lie in -255..255
-_BYTE_CODE_SCALE = 2 * _MAX_BYTE_GRADIENT + 1  # (dx, dy) -> 511 dx + dy: distinct codes
-
-# np.minimum against an array is vectorised, against a scalar it is not (~5x slower).
-_CLIP_BLOCK = np.full(1 << 16, _CLIP, dtype=np.float32)
-_CLIP_BLOCK.flags.writeable = False
-# Cells per band of the block normalisation: its 27 values per cell fit one _CLIP_BLOCK.
-_NORM_BAND_CELLS = _CLIP_BLOCK.size // 27
 
 NUM_FEATURES = 31
 """Features per cell without the truncation channel (18 + 9 + 4)."""
@@ -106,304 +94,288 @@ def _validated(image: np.ndarray) -> np.ndarray:
     return image
 
 
-def _select(mask: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.where(mask, a, b)`` for float32 arrays, exact and branch-free (on the bit patterns).
+def _pixels(image: np.ndarray) -> np.ndarray:
+    """A validated image as the kernels take it: ``(H, W, C)``, uint8 or float32, any strides.
 
-    ``np.where`` branches on every element and is ~30x slower on the random masks met here.
+    The kernels read each pixel once, converting it to float32 (exactly for uint8), so neither
+    a conversion of 8-bit images nor a contiguous copy would pay for itself (a copy of a BGR
+    -> RGB view costs about as much as the whole kernel); other dtypes become float32, as the
+    gradients are taken in single precision. A grayscale image becomes ``C = 1``: one channel
+    gives the same features as three equal ones (ties go to the first channel) for a third of
+    the work.
     """
-    bits_a, bits_b = a.view(np.uint32), b.view(np.uint32)
-    ones = np.negative(mask, dtype=np.uint32)  # True -> 0xFFFFFFFF, False -> 0
-    return (bits_b ^ ((bits_a ^ bits_b) & ones)).view(np.float32)
+    if image.dtype != np.uint8:
+        image = image.astype(np.float32, copy=False)
+    return image[:, :, np.newaxis] if image.ndim == 2 else image
 
 
-def _orientations(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
-    """Orientation bin (uint8, 0..17) of the float32 gradients ``(gx, gy)`` (features.cc).
+@numba.njit(cache=True, nogil=True)
+def _padded_row(image, pad, y, line):  # pragma: no cover - compiled
+    """Fill ``line`` (float32 ``(C, n)``) with columns ``0 .. n - 1`` of row ``y`` of ``image``
+    edge-padded by ``pad`` pixels on every side, one channel per row of ``line``.
 
-    Snap to 18 orientations: the first o maximising |uu[o] dx + vv[o] dy|, then o if that dot
-    is positive, o + 9 if negative. This is features.cc's "if (dot > best) ... else if
-    (-dot > best)" chain: a strictly larger |dot| can only pass one of its two branches.
-    The bin is updated arithmetically (bin += better * (new - bin), wrapping uint8), which
-    is exact and, unlike a masked assignment, does not branch per pixel.
+    ``image`` is ``(H, W, C)``; padded pixel ``(y, x)`` is image pixel ``(y - pad, x - pad)``
+    with both coordinates clamped to the image, which is edge replication without a padded
+    copy. uint8 values convert to float32 exactly.
     """
-    best = np.zeros_like(gx)
-    orient = np.zeros(gx.shape, dtype=np.uint8)
-    dot = np.empty_like(gx)
-    absolute = np.empty_like(gx)
-    better = np.empty(gx.shape, dtype=np.bool_)
-    candidate = np.empty_like(orient)
+    height, width, channels = image.shape
+    n = line.shape[1]
+    source = image[min(max(y - pad, 0), height - 1)]
+    first, stop = min(pad, n), min(pad + width, n)  # padded columns that are image columns
+    for c in range(channels):
+        out, inside = line[c], line[c, first:stop]
+        out[:first] = source[0, c]
+        # A loop from 0 over slices: the compiler then knows the indices are non-negative and
+        # skips the negative-index wraparound (twice faster).
+        values = source[: stop - first, c]
+        for x in range(inside.shape[0]):
+            inside[x] = values[x]
+        out[stop:] = source[width - 1, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_gradients(above, row, below, gx, gy, energy):  # pragma: no cover - compiled
+    """Centred differences of the strongest channel along one image row (features.cc).
+
+    ``above``, ``row``, ``below`` are three consecutive rows as :func:`_padded_row` gives them,
+    ``(C, n + 2)``; column ``j`` of the outputs (float32 ``(n,)``) is pixel ``j + 1``:
+    ``gx = row[j + 2] - row[j]``, ``gy = below[j + 1] - above[j + 1]`` of the channel with the
+    largest ``energy = gx^2 + gy^2`` (strict ``>``: ties go to the first channel). Selects
+    rather than branches, as the winning channel is unpredictable; the loops vectorise.
+    """
+    n = gx.shape[0]
+    for c in range(row.shape[0]):
+        for j in range(n):
+            dx = row[c, j + 2] - row[c, j]
+            dy = below[c, j + 1] - above[c, j + 1]
+            value = dx * dx + dy * dy
+            better = c == 0 or value > energy[j]
+            gx[j] = dx if better else gx[j]
+            gy[j] = dy if better else gy[j]
+            energy[j] = value if better else energy[j]
+
+
+@numba.njit(cache=True, nogil=True)
+def _orientations(gx, gy, best, orientation):  # pragma: no cover - compiled
+    """Orientation bins (int32, 0..17) of float32 gradients ``(gx, gy)``, as features.cc snaps
+    them; ``best`` is float32 scratch of the same length.
+
+    The first o maximising ``|uu[o] dx + vv[o] dy|``, then o if that dot is positive, o + 9 if
+    negative: features.cc's "if (dot > best) ... else if (-dot > best)" chain, as a strictly
+    larger ``|dot|`` can pass only one of its two branches. The dots are float32 products and
+    sums (no fused multiply-add), which makes every decision exact for 8-bit images. One pass
+    per direction over the whole row, with selects: the per-pixel chain of 9 unpredictable
+    branches was the slowest part of the computation.
+    """
+    best[:] = 0.0
+    orientation[:] = 0
     for o in range(9):
-        np.multiply(gx, _UU[o], out=dot)
-        np.multiply(gy, _VV[o], out=absolute)
-        dot += absolute  # uu[o] dx + vv[o] dy
-        np.abs(dot, out=absolute)
-        np.greater(absolute, best, out=better)
-        np.maximum(best, absolute, out=best)
-        np.less(dot, 0, out=candidate.view(np.bool_))
-        candidate *= 9
-        candidate += o  # o, or o + 9 for a negative dot
-        candidate -= orient
-        candidate *= better
-        orient += candidate
-    return orient
+        u, v = _UU[o], _VV[o]
+        for j in range(gx.shape[0]):
+            dot = u * gx[j] + v * gy[j]
+            magnitude = abs(dot)
+            better = magnitude > best[j]
+            best[j] = magnitude if better else best[j]
+            snapped = np.int32(o) if dot > 0 else np.int32(o + 9)
+            orientation[j] = snapped if better else orientation[j]
 
 
-@functools.cache
-def _orientation_table() -> np.ndarray:
-    """:func:`_orientations` of every integer gradient ``-255 <= dx, dy <= 255`` (read-only).
-
-    Entry ``511 dx + dy`` (a negative code counts from the end, as numpy indexes) holds the
-    bin of ``(dx, dy)``: the codes of the 511 x 511 gradients are distinct and fill the table.
-    """
-    span = np.arange(-_MAX_BYTE_GRADIENT, _MAX_BYTE_GRADIENT + 1)
-    dx, dy = np.repeat(span, span.size), np.tile(span, span.size)
-    table = np.empty(span.size * span.size, dtype=np.uint8)
-    table[_BYTE_CODE_SCALE * dx + dy] = _orientations(dx.astype(np.float32), dy.astype(np.float32))
-    table.flags.writeable = False
-    return table
-
-
-@functools.lru_cache(maxsize=16)
-def _channel_rank(size: int) -> tuple[np.ndarray, np.ndarray]:
-    """For ``size`` interleaved RGB values: ``2 - c`` of each, and ``3 i + 2`` of pixel i.
-
-    Both int32 and read-only; see :func:`_byte_gradients`.
-    """
-    rank = np.tile(np.array([2, 1, 0], dtype=np.int32), size // 3)
-    last = np.arange(2, size, 3, dtype=np.int32)
-    rank.flags.writeable = last.flags.writeable = False
-    return rank, last
-
-
-def _planes(
-    image: np.ndarray, pad: int, n_rows: int, n_cols: int, dtype: type[np.generic]
-) -> np.ndarray:
-    """Rows ``0 .. n_rows - 1`` and columns ``0 .. n_cols - 1`` of ``image`` edge-padded by
-    ``pad`` pixels on every side, as a contiguous ``(n_rows, n_cols, C)`` ``dtype`` array.
-
-    The window must not extend beyond the padded image.
-    """
-    height, width = image.shape[:2]
-    planes = np.empty((n_rows, n_cols, 1 if image.ndim == 2 else 3), dtype=dtype)
-    rows, cols = min(height, n_rows - pad), min(width, n_cols - pad)  # of the image itself
-    bottom, right = pad + rows, pad + cols
-    source = image[:rows, :cols].reshape(rows, cols, -1)
-    planes[pad:bottom, pad:right] = source
-    if pad:  # replicate the first/last column, then the first/last row (corners included)
-        planes[pad:bottom, :pad] = source[:, :1]
-        planes[pad:bottom, right:] = source[:, -1:]
-        planes[:pad] = planes[pad]
-        planes[bottom:] = planes[bottom - 1]
-    return planes
-
-
-def _gradients(planes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Orientation bin and magnitude of the strongest-channel gradient (features.cc).
-
-    ``planes`` is ``(rows + 2, cols + 2, C)``, C = 1 or 3, int32 (an 8-bit image) or float32.
-    Returns the orientation bin (uint8, 0..17) and ``sqrt(dx^2 + dy^2)`` (float32) of the
-    pixels ``1 .. rows`` by ``0 .. cols + 1``: columns 1 .. cols are the interior pixels, the
-    first and the last column are junk (finite, computed across the row ends).
-
-    The centred differences are taken on the flattened array, so every step is one
-    contiguous pass.
-    """
-    flat = planes.reshape(-1)
-    step, row = planes.shape[2], planes.shape[1] * planes.shape[2]
-    n = flat.size - 2 * row
-    dx = flat[row + step : row + step + n] - flat[row - step : row - step + n]
-    dy = flat[2 * row :] - flat[:n]
-    if planes.dtype == np.int32:
-        orient, mag = _byte_gradients(dx, dy, step)
-    else:
-        orient, mag = _float_gradients(dx, dy, step)
-    return orient.reshape(-1, planes.shape[1]), mag.reshape(-1, planes.shape[1])
-
-
-def _float_gradients(dx: np.ndarray, dy: np.ndarray, step: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_gradients` from float32 centred differences, ``step`` channels interleaved."""
-    energy = dx * dx + dy * dy  # v = dx^2 + dy^2 per channel
-    gx, gy, v = dx[::step], dy[::step], energy[::step]
-    for c in range(1, step):  # "pick channel with strongest gradient" (strict >)
-        better = energy[c::step] > v
-        gx = _select(better, dx[c::step], gx)
-        gy = _select(better, dy[c::step], gy)
-        v = np.maximum(v, energy[c::step])
-    return _orientations(gx, gy), np.sqrt(v)
-
-
-def _byte_gradients(dx: np.ndarray, dy: np.ndarray, step: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_gradients` from the int32 centred differences of an 8-bit image.
-
-    They are integers in -255..255, so the bin of the winning channel is read from
-    :func:`_orientation_table` (which holds the float32 computation of every such gradient)
-    and the magnitude is ``sqrt`` of the exact integer energy. The strongest channel is the
-    maximum of ``4 (dx^2 + dy^2) + 2 - c``: ties go to the first channel, as features.cc's
-    strict ``>`` gives them.
-    """
-    code = dx * _BYTE_CODE_SCALE
-    code += dy  # the table entry of (dx, dy)
-    energy = np.multiply(dx, dx, out=dx)
-    energy += np.multiply(dy, dy, out=dy)  # dx^2 + dy^2 <= 130050
-    if step == 3:
-        rank, last = _channel_rank(energy.size)
-        energy <<= 2
-        energy += rank
-        key = np.maximum(energy[0::3], energy[1::3])
-        np.maximum(key, energy[2::3], out=key)
-        winner = np.bitwise_and(key, 3)  # 2 - c
-        np.subtract(last, winner, out=winner)  # 3 i + c: the winner's entry in code
-        code = code.take(winner)
-        energy = np.right_shift(key, 2, out=key)
-    return _orientation_table().take(code), np.sqrt(energy, dtype=np.float32)
-
-
-def _plane_dtype(image: np.ndarray) -> type[np.generic]:
-    """int32 planes (table look-up) for 8-bit images, float32 planes for the others."""
-    return np.int32 if image.dtype == np.uint8 else np.float32
-
-
-def _bilinear_weights(n_pixels: int, sbin: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cell index and weight of the pixels ``1 .. n_pixels`` along one axis (features.cc).
+@numba.njit(cache=True, nogil=True)
+def _bilinear_weights(n_visited, sbin):  # pragma: no cover - compiled
+    """Cell index and weight of the pixels ``1 .. n_visited`` along one axis (features.cc).
 
     ``xp = (x + 0.5) / sbin - 0.5``; the pixel gives ``1 - frac(xp)`` to cell ``floor(xp)`` and
     ``frac(xp)`` to the next. The returned index is ``floor(xp) + 1``, i.e. into a cell array
     padded by one cell on each side (cells outside ``0 .. cells - 1`` are later dropped, as the
-    bounds checks of features.cc drop them).
+    bounds checks of features.cc drop them). Returns int64 and float64 ``(n_visited,)``.
     """
-    xp = (np.arange(1, n_pixels + 1, dtype=np.float64) + 0.5) / sbin - 0.5
-    ixp = np.floor(xp)
-    return (ixp + 1).astype(np.int64), xp - ixp
+    cell = np.empty(n_visited, dtype=np.int64)
+    weight = np.empty(n_visited, dtype=np.float64)
+    for i in range(n_visited):
+        xp = (i + 1.5) / sbin - 0.5
+        floor = np.floor(xp)
+        cell[i] = int(floor) + 1
+        weight[i] = xp - floor
+    return cell, weight
 
 
-@functools.lru_cache(maxsize=16)
-def _single_pass_layout(
-    sbin: int, cells: tuple[int, int], interior: tuple[int, int]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Histogram index and bilinear weights of the gradients, for :func:`_histograms`.
+@numba.njit(cache=True, nogil=True)
+def _vote(window, wy, orientation, magnitude, cell_x, far_x):  # pragma: no cover - compiled
+    """Add one visited row of pixels to the float64 histograms of its two cell rows.
 
-    The gradients come as :func:`_gradients` gives them for ``interior`` visited rows and
-    columns: ``interior[0]`` rows of ``interior[1] + 2`` values, the first and last junk.
-    Returns, read-only:
-
-    * ``index``: ``(4, pixels)`` int64, the flat index of orientation 0 of the pixel's four
-      cells in the ``(cells_y + 2, cells_x + 2, 18)`` padded histogram: the upper-left one,
-      the one to its right, the one below and the diagonal one;
-    * ``weights``: ``(4, pixels)`` float64, the pixel's bilinear share of each of them;
-    * ``source``: None when the visited pixels are the interior ones, index and weights then
-      cover the gradients in their order (the junk with weight 0); otherwise the visited
-      pixels extend beyond the interior (features.cc clamps their coordinates), index and
-      weights cover the visited pixels and ``source`` is the flat index of the gradient each
-      one takes.
+    ``window`` is ``(2, cells_x + 2, 18)``: the padded cell row of the pixel row and the next;
+    the row's weight is ``wy`` (:func:`_bilinear_weights`). Pixel ``j`` has the bin
+    ``orientation[min(j, n - 1)]`` and the float32 ``magnitude`` at the same index, ``n`` their
+    length: pixels beyond the interior repeat the last one's gradient (features.cc clamps
+    their coordinates). Each vote is ``(y weight * x weight) * magnitude``, as features.cc
+    computes it. (One array with constant row indices: with the rows as two arrays, the
+    compiler cannot tell that they never overlap, and the histograms took 20% longer.)
     """
-    n_rows, n_cols = cells[0] * sbin - 2, cells[1] * sbin - 2
-    cy, wy = _bilinear_weights(n_rows, sbin)
-    cx, wx = _bilinear_weights(n_cols, sbin)
-    if interior == (n_rows, n_cols):  # add the junk columns
-        cx, wx = np.pad(cx, 1), np.pad(wx, 1)
-        vx = np.pad(1.0 - wx[1:-1], 1)
-        source = None
-    else:
+    vy = 1.0 - wy
+    last = orientation.shape[0] - 1
+    for j in range(cell_x.shape[0]):
+        k = min(j, last)
+        o = orientation[k]
+        value = np.float64(magnitude[k])
+        cx, wx = cell_x[j], far_x[j]
         vx = 1.0 - wx
-        rows = np.minimum(np.arange(n_rows), interior[0] - 1)
-        cols = np.minimum(np.arange(n_cols), interior[1] - 1) + 1
-        source = (rows[:, np.newaxis] * (interior[1] + 2) + cols).ravel()
-        source.flags.writeable = False
-    index = (cy[:, np.newaxis] * (cells[1] + 2) + cx).ravel()
-    # The upper-left cell, the one to its right, the one below, the diagonal one.
-    neighbours = np.array([0, 1, cells[1] + 2, cells[1] + 3])[:, np.newaxis]
-    index = _NUM_ORIENTATIONS * (index + neighbours)  # (4, pixels)
-    wy, vy = wy[:, np.newaxis], 1.0 - wy[:, np.newaxis]
-    weights = np.stack([vy * vx, vy * wx, wy * vx, wy * wx]).reshape(4, -1)
-    index.flags.writeable = weights.flags.writeable = False
-    return index, weights, source
+        window[0, cx, o] += vy * vx * value
+        window[0, cx + 1, o] += vy * wx * value
+        window[1, cx, o] += wy * vx * value
+        window[1, cx + 1, o] += wy * wx * value
 
 
-def _histograms(image: np.ndarray, sbin: int, cells: tuple[int, int], pad: int) -> np.ndarray:
-    """Soft-binned orientation histograms (§6.1) of ``image`` edge-padded by ``pad`` pixels on
-    every side: float64 ``(cells_y + 2, cells_x + 2, 18)``, a ring of cells outside the image
-    (which collects the weights that features.cc's bounds checks drop) around the cells.
+@numba.njit(cache=True, nogil=True)
+def _next_cell_row(window, row, hist):  # pragma: no cover - compiled
+    """Store the complete padded cell row ``row`` (``window[0]``) and shift the window down.
 
-    features.cc visits ``y = 1 .. cells_y * sbin - 2`` (likewise x) and reads the image at
-    ``min(y, H - 2)``: the gradient is computed on the interior rows and columns that exist
-    and the last one is repeated for the clamped rest.
-
-    Up to ``_STRIP_PIXELS`` visited pixels are done in one pass, with cached index and weight
-    arrays and the padding built into the gradient planes (on small patches the per-call
-    overhead dominates). Larger images are done in strips of whole cell rows so that the
-    temporaries stay in the cache (about 2x faster than whole-image arrays on a 768x576
-    image).
+    ``hist`` holds the image's cells, float32; rows 0 and ``cells_y + 1`` are the ring outside
+    the image and are dropped (features.cc's bounds checks). ``window[1]`` (row ``row + 1``)
+    moves to ``window[0]`` and row ``row + 2`` starts empty.
     """
-    height, width = image.shape[0] + 2 * pad, image.shape[1] + 2 * pad
-    n_rows, n_cols = cells[0] * sbin - 2, cells[1] * sbin - 2  # visited pixels per axis
-    rows_in, cols_in = min(n_rows, height - 2), min(n_cols, width - 2)  # of which interior
-    dtype = _plane_dtype(image)
-    padded = (cells[0] + 2, cells[1] + 2, _NUM_ORIENTATIONS)
-
-    if n_rows * n_cols <= _STRIP_PIXELS:
-        index, weights, source = _single_pass_layout(sbin, cells, (rows_in, cols_in))
-        orient, mag = _gradients(_planes(image, pad, rows_in + 2, cols_in + 2, dtype))
-        if source is not None:  # clamped coordinates repeat the last row/column
-            orient, mag = orient.take(source), mag.take(source)
-        index = index + orient.reshape(-1)
-        weighted = weights * mag.reshape(-1)
-        size = padded[0] * padded[1] * _NUM_ORIENTATIONS
-        hist = np.bincount(index.reshape(-1), weighted.reshape(-1), minlength=size)
-        return hist.reshape(padded)
-    return _strip_histograms(image, sbin, cells, pad, (rows_in, cols_in))
+    if 1 <= row <= hist.shape[0]:
+        out = hist[row - 1]
+        for x in range(out.shape[0]):
+            for o in range(_NUM_ORIENTATIONS):
+                out[x, o] = window[0, x + 1, o]
+    window[0] = window[1]
+    window[1] = 0.0
 
 
-def _strip_histograms(
-    image: np.ndarray, sbin: int, cells: tuple[int, int], pad: int, interior: tuple[int, int]
-) -> np.ndarray:
-    """The padded float64 ``(cells_y + 2, cells_x + 2, 18)`` histograms, strip by strip."""
-    if pad:
-        image = np.pad(image, ((pad, pad), (pad, pad)) + ((0, 0),) * (image.ndim - 2), "edge")
-    dtype = _plane_dtype(image)
-    n_rows, n_cols = cells[0] * sbin - 2, cells[1] * sbin - 2  # visited pixels per axis
-    rows_in, cols_in = interior
-    cy, wy = _bilinear_weights(n_rows, sbin)
-    cx, wx = _bilinear_weights(n_cols, sbin)
-    wx = wx.astype(np.float32)
-    padded = (cells[0] + 2, cells[1] + 2, _NUM_ORIENTATIONS)
-    hist = np.zeros(padded, dtype=np.float64)
+@numba.njit(cache=True, nogil=True)
+def _histograms(image, sbin, cells_y, cells_x, pad):  # pragma: no cover - compiled
+    """Soft-binned orientation histograms (§6.1) of ``image`` edge-padded by ``pad`` pixels on
+    every side: float32 ``(cells_y, cells_x, 18)``, accumulated in float64.
 
-    strip = sbin * max(1, _STRIP_PIXELS // (sbin * n_cols))
-    for start in range(0, rows_in, strip):
-        stop = min(start + strip, rows_in)
-        planes = _planes(image[start:], 0, stop - start + 2, cols_in + 2, dtype)
-        orient, mag = (a[:, 1:-1] for a in _gradients(planes))
-        end = n_rows if stop == rows_in else stop  # the last strip takes the clamped rows
-        if end > stop or n_cols > cols_in:  # clamped coordinates repeat the last row/column
-            pad_width = ((0, end - stop), (0, n_cols - cols_in))
-            orient = np.pad(orient, pad_width, mode="edge")
-            mag = np.pad(mag, pad_width, mode="edge")
-        n = end - start
+    ``image`` is ``(H, W, C)``, C = 1 or 3. features.cc visits ``y = 1 .. cells_y * sbin - 2``
+    (likewise x) and reads the image at ``min(y, H - 2)``: the gradients are computed on the
+    interior rows and columns that exist, and the last one is repeated for the clamped rest.
 
-        # Along x, by bincount into (row, padded cell, orientation): the near cell gets
-        # (1 - wx) m, the far cell (index + 1) wx m; same index, the second shifted by a cell.
-        index = orient + _NUM_ORIENTATIONS * (cx + padded[1] * np.arange(n)[:, np.newaxis])
-        size = n * padded[1] * _NUM_ORIENTATIONS
-        far = mag * wx
-        by_row = np.bincount(index.ravel(), (mag - far).ravel(), minlength=size)
-        far = np.bincount(index.ravel(), far.ravel(), minlength=size)
-        by_row = by_row.reshape(n, *padded[1:])
-        by_row[:, 1:] += far.reshape(n, *padded[1:])[:, :-1]
+    Everything works on a few rows at a time, so it stays in the cache and large images need
+    no large temporaries: the image is read into a ring of three float32 pixel rows (each
+    pixel converted once), and the votes go to a float64 window of the two cell rows that the
+    pixel row touches; the cells outside the image, in a ring around them, collect the votes
+    that features.cc's bounds checks drop.
+    """
+    height, width, channels = image.shape
+    n_rows, n_cols = cells_y * sbin - 2, cells_x * sbin - 2  # visited pixels per axis
+    rows_in = min(n_rows, height + 2 * pad - 2)  # of which interior
+    cols_in = min(n_cols, width + 2 * pad - 2)
+    cell_y, far_y = _bilinear_weights(n_rows, sbin)
+    cell_x, far_x = _bilinear_weights(n_cols, sbin)
+    hist = np.zeros((cells_y, cells_x, _NUM_ORIENTATIONS), dtype=np.float32)
+    window = np.zeros((2, cells_x + 2, _NUM_ORIENTATIONS), dtype=np.float64)
 
-        # Along y: rows y = 1 + offset + k sbin (k = 0, 1, ...) fall in consecutive cells, so
-        # each residue class is one strided slice added to two shifted slices of hist.
-        for offset in range(min(sbin, n)):
-            rows = slice(offset, n, sbin)
-            first = cy[start + offset]
-            count = len(range(offset, n, sbin))
-            weight = wy[start:end][rows, np.newaxis, np.newaxis]
-            hist[first : first + count] += (1.0 - weight) * by_row[rows]
-            hist[first + 1 : first + count + 1] += weight * by_row[rows]
+    lines = np.empty((3, channels, cols_in + 2), dtype=np.float32)  # padded row y in y % 3
+    _padded_row(image, pad, 0, lines[0])
+    _padded_row(image, pad, 1, lines[1])
+    gx = np.empty(cols_in, dtype=np.float32)
+    gy = np.empty_like(gx)
+    magnitude = np.empty_like(gx)
+    scratch = np.empty_like(gx)
+    orientation = np.empty(cols_in, dtype=np.int32)
+    current = cell_y[0]  # the padded cell row in window[0]; cell_y grows by 0 or 1 per row
+    for i in range(n_rows):
+        y = i + 1  # the visited row; past rows_in, the gradients of row rows_in are reused
+        if y <= rows_in:
+            _padded_row(image, pad, y + 1, lines[(y + 1) % 3])
+            _row_gradients(lines[(y - 1) % 3], lines[y % 3], lines[(y + 1) % 3], gx, gy, magnitude)
+            _orientations(gx, gy, scratch, orientation)
+            np.sqrt(magnitude, magnitude)
+        if cell_y[i] != current:  # no later pixel row votes into the current row
+            _next_cell_row(window, current, hist)
+            current += 1
+        _vote(window, far_y[i], orientation, magnitude, cell_x, far_x)
+    _next_cell_row(window, current, hist)
+    _next_cell_row(window, current + 1, hist)
     return hist
 
 
-def _clip(values: np.ndarray) -> None:
-    """``values = min(values, 0.2)`` in place, for a float32 array of at most 65536 values."""
-    np.minimum(values, _CLIP_BLOCK[: values.size].reshape(values.shape), out=values)
+@numba.njit(cache=True, nogil=True)
+def _block_inverses(hist):  # pragma: no cover - compiled
+    """``1 / sqrt(energy + eps)`` of every 2x2 block of cells, float32 ``(rows - 1, cols - 1)``.
+
+    ``hist`` is float32 ``(rows, cols, 18)``; the energy of a cell is
+    ``sum_o (h[o] + h[o + 9])^2`` (of the contrast-insensitive histogram), summed over the
+    block in features.cc's order in float32, the square root taken in double.
+    """
+    n_rows, n_cols = hist.shape[0], hist.shape[1]
+    norm = np.empty((n_rows, n_cols), dtype=np.float32)
+    for y in range(n_rows):
+        for x in range(n_cols):
+            energy = np.float32(0.0)  # a local sum: no chain of loads and stores through norm
+            for o in range(9):
+                value = hist[y, x, o] + hist[y, x, o + 9]
+                energy += value * value
+            norm[y, x] = energy
+    inverse = np.empty((n_rows - 1, n_cols - 1), dtype=np.float32)
+    for y in range(n_rows - 1):
+        for x in range(n_cols - 1):
+            block = norm[y, x] + norm[y + 1, x] + norm[y, x + 1] + norm[y + 1, x + 1]
+            inverse[y, x] = np.float32(1.0 / np.sqrt(np.float64(block) + _EPS))
+    return inverse
+
+
+@numba.njit(cache=True, nogil=True)
+def _clipped(value, inverse):  # pragma: no cover - compiled
+    """``min(value * inverse, 0.2)`` in float32: one normalised, truncated value (§6.2)."""
+    normalised = value * inverse
+    return normalised if normalised < _CLIP else _CLIP
+
+
+@numba.njit(cache=True, nogil=True)
+def _normalised(hist, feat):  # pragma: no cover - compiled
+    """Fill ``feat[..., :31]`` from the float32 ``(rows, cols, 18)`` histograms (§6.2, §6.3).
+
+    Output cell ``(y, x)`` is histogram cell ``(y + 1, x + 1)`` (the outer ring is dropped);
+    each of its 27 orientation values is normalised by the four blocks that contain it
+    (features.cc's n1..n4, the order of the texture features), clipped at 0.2 and the four
+    results summed with weight 0.5; texture feature k is 0.2357 times the sum of the 18
+    contrast-sensitive values under block k. All in float32, as voc-release5 stores them.
+
+    The texture sums are a second pass over the row: in one loop with the orientation values
+    they kept it from vectorising, and their chains of dependent additions overlap better
+    when nothing else sits between consecutive cells.
+    """
+    inverse = _block_inverses(hist)
+    half = np.float32(0.5)
+    for y in range(feat.shape[0]):
+        for x in range(feat.shape[1]):
+            h, out = hist[y + 1, x + 1], feat[y, x]
+            n1, n2 = inverse[y + 1, x + 1], inverse[y, x + 1]
+            n3, n4 = inverse[y + 1, x], inverse[y, x]
+            for o in range(27):
+                # contrast-sensitive h[o], then contrast-insensitive h[o] + h[o + 9]
+                value = h[o] if o < _NUM_ORIENTATIONS else h[o - 18] + h[o - 9]
+                total = _clipped(value, n1) + _clipped(value, n2) + _clipped(value, n3)
+                out[o] = (total + _clipped(value, n4)) * half
+        for x in range(feat.shape[1]):
+            h, out = hist[y + 1, x + 1], feat[y, x]
+            n1, n2 = inverse[y + 1, x + 1], inverse[y, x + 1]
+            n3, n4 = inverse[y + 1, x], inverse[y, x]
+            t1 = t2 = t3 = t4 = np.float32(0.0)
+            for o in range(_NUM_ORIENTATIONS):
+                t1 += _clipped(h[o], n1)
+                t2 += _clipped(h[o], n2)
+                t3 += _clipped(h[o], n3)
+                t4 += _clipped(h[o], n4)
+            out[27] = t1 * _TEXTURE_WEIGHT
+            out[28] = t2 * _TEXTURE_WEIGHT
+            out[29] = t3 * _TEXTURE_WEIGHT
+            out[30] = t4 * _TEXTURE_WEIGHT
+
+
+@numba.njit(cache=True, nogil=True)
+def _features(image, sbin, cells_y, cells_x, pad, n_features):  # pragma: no cover - compiled
+    """The float32 ``(cells_y - 2, cells_x - 2, n_features)`` map of :func:`_fhog`.
+
+    ``image`` is as :func:`_pixels` gives it; both cell counts must be at least 3. The 32nd
+    (truncation) channel, if any, stays 0.
+    """
+    hist = _histograms(image, sbin, cells_y, cells_x, pad)
+    feat = np.zeros((cells_y - 2, cells_x - 2, n_features), dtype=np.float32)
+    _normalised(hist, feat)
+    return feat
 
 
 def fhog(image: np.ndarray, cell_size: int = 8, *, truncation_feature: bool = False) -> np.ndarray:
@@ -449,50 +421,11 @@ def _fhog(image: np.ndarray, sbin: int, truncation_feature: bool, pad: int = 0) 
     """:func:`fhog` of a validated image edge-padded by ``pad`` pixels on every side."""
     height, width = image.shape[0] + 2 * pad, image.shape[1] + 2 * pad
     cells = (_c_round_div(height, sbin), _c_round_div(width, sbin))
-    out_shape = (max(cells[0] - 2, 0), max(cells[1] - 2, 0))
     n_features = NUM_FEATURES + int(truncation_feature)
-    feat = np.zeros((*out_shape, n_features), dtype=np.float32)
-    if 0 in out_shape:  # nothing survives the dropped border ring (and H, W may be < 3)
-        return feat
-
-    # Feature-major (feature, row, column) layout over all the cells, the outer ring included
-    # until the end: every step below is then a few long contiguous passes.
-    hist = np.empty((27, *cells), dtype=np.float32)
-    hist[:18] = _histograms(image, sbin, cells, pad)[1:-1, 1:-1].transpose(2, 0, 1)
-    insensitive = np.add(hist[:9], hist[9:18], out=hist[18:])  # h[o] + h[o + 9]
-
-    # Block energies: norm = sum_o (h[o] + h[o + 9])^2 per cell, summed over each 2x2 block.
-    # With a ring of zero norms, block[a + 1, b + 1] is the block of cells (a..a+1, b..b+1)
-    # and the ring of blocks around them is finite junk.
-    norm = np.zeros((cells[0] + 2, cells[1] + 2), dtype=np.float32)
-    np.einsum("kij,kij->ij", insensitive, insensitive, out=norm[1:-1, 1:-1])
-    block = norm[:-1, :-1] + norm[1:, :-1] + norm[:-1, 1:] + norm[1:, 1:]
-    inv = np.add(block, _EPS, dtype=np.float64)
-    inv = np.divide(1.0, np.sqrt(inv, out=inv), out=inv).astype(np.float32)
-    # The four blocks holding cell (y, x): block index offsets (1,1), (0,1), (1,0), (0,0) are
-    # n1..n4 of features.cc (the order of the texture features).
-    norms = (inv[1:, 1:], inv[:-1, 1:], inv[1:, :-1], inv[:-1, :-1])
-    sums = np.empty((NUM_FEATURES, *cells), dtype=np.float32)
-    # Bands of cell rows keep the (27, rows, cells_x) temporary in the cache (about 2x faster
-    # than one (4, 27, cells_y, cells_x) product on large maps).
-    band = max(1, _NORM_BAND_CELLS // cells[1])
-    clipped = np.empty((27, min(band, cells[0]), cells[1]), dtype=np.float32)
-    for top in range(0, cells[0], band):
-        rows = slice(top, min(top + band, cells[0]))
-        h_k = clipped[:, : rows.stop - top]
-        total = sums[:27, rows]
-        for k, n_k in enumerate(norms):
-            np.multiply(hist[:, rows], n_k[rows], out=h_k)
-            _clip(h_k)  # h_k = min(h * n_k, 0.2)
-            if k:
-                total += h_k
-            else:
-                np.copyto(total, h_k)
-            np.add.reduce(h_k[:18], axis=0, out=sums[27 + k, rows])  # t_k
-    sums[:27] *= np.float32(0.5)  # 0.5 * (h1 + h2 + h3 + h4)
-    sums[27:] *= _TEXTURE_WEIGHT  # 0.2357 * t_k
-    feat[..., :NUM_FEATURES] = sums[:, 1:-1, 1:-1].transpose(1, 2, 0)
-    return feat
+    if min(cells) < 3:  # nothing survives the dropped border ring (and H, W may be < 3)
+        shape = (max(cells[0] - 2, 0), max(cells[1] - 2, 0), n_features)
+        return np.zeros(shape, dtype=np.float32)
+    return _features(_pixels(image), sbin, cells[0], cells[1], pad, n_features)
 
 
 def hog_feature_map(image: np.ndarray, cell_size: int = 4) -> np.ndarray:

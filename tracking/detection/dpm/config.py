@@ -55,6 +55,16 @@ class DpmConfig:
     calibration:
         JSON calibration file; ``None``: ``<model>.calibration.json`` beside the model if it
         exists, else the detector module's ``DEFAULT_DPM_CALIBRATION``.
+    cascade:
+        Score whole frames with the star cascade (:mod:`.cascade`) when thresholds fitted for
+        the model and for a detection threshold at or below ``threshold`` exist: the same
+        scores for the roots it keeps, several times faster, but a person scoring lower at some
+        stage than every positive the thresholds were fitted on is lost. Needs a bounded
+        ``deformation_window``. Regions of interest and dense scores always score exactly.
+    cascade_thresholds:
+        JSON thresholds file (``python -m tracking.detection.dpm.cascade_fit``); ``None``:
+        ``<model>.cascade.json`` beside the model if it exists, else the thresholds shipped for
+        the voc-release5 INRIA person model (``KNOWN_CASCADES``), else no cascade.
     """
 
     threshold: float | None = None
@@ -70,6 +80,8 @@ class DpmConfig:
     region_heights: tuple[float, float] = (0.4, 1.0)
     workers: int = 1
     calibration: Path | None = None
+    cascade: bool = True
+    cascade_thresholds: Path | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.upscale) and self.upscale > 0):

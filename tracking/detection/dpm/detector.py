@@ -21,6 +21,7 @@ import os
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
@@ -32,6 +33,15 @@ from tracking.detection.calibration import (
     load_calibration,
 )
 from tracking.detection.dpm.boxes import Candidates, candidates, postprocess
+from tracking.detection.dpm.cascade import (
+    CascadeThresholds,
+    PcaProjection,
+    cascade_level,
+    cascade_path,
+    load_cascade,
+    pca_projection,
+    select_thresholds,
+)
 from tracking.detection.dpm.config import DpmConfig
 from tracking.detection.dpm.dense import dense_scores
 from tracking.detection.dpm.model import DpmModel, load_dpm_model
@@ -41,7 +51,13 @@ from tracking.detection.dpm.scoring import LevelScores, root_grid, score_level
 from tracking.detection.regions import checked_heights, checked_region, clip_region
 from tracking.types import Box, validate_frame
 
-__all__ = ["DEFAULT_DPM_CALIBRATION", "KNOWN_CALIBRATIONS", "DpmConfig", "DpmDetector"]
+__all__ = [
+    "DEFAULT_DPM_CALIBRATION",
+    "KNOWN_CALIBRATIONS",
+    "KNOWN_CASCADES",
+    "DpmConfig",
+    "DpmDetector",
+]
 
 # Fitted with our calibration command on 1 frame in 4 of PETS09-S2L1 and TUD-Stadtmitte
 # (244 frames; 1253 positives, 1281 negatives), default options, threshold model.thresh - 1:
@@ -72,6 +88,18 @@ KNOWN_CALIBRATIONS: Mapping[tuple[str, int], LogisticCalibration] = MappingProxy
     }
 )
 """Default calibrations of the voc-release5 person models, by ``(model.name, components)``."""
+
+KNOWN_CASCADES: Mapping[tuple[str, int], Path] = MappingProxyType(
+    {
+        # Fitted with our command on 180 positives of the OTB sequences Crossing, Skating1 and
+        # Basketball (1 frame in 4), none of them a benchmark sequence:
+        #   python -m tracking.detection.dpm.cascade_fit --model INRIA/inriaperson_final.mat \
+        #       --sequences <data>/otb/Crossing <data>/otb/Skating1 \
+        #       <data>/otb/Basketball_first200 --out tracking/detection/dpm/cascades/...
+        ("inriaperson", 2): Path(__file__).with_name("cascades") / "inriaperson.cascade.json",
+    }
+)
+"""Cascade thresholds shipped for the voc-release5 person models, by ``(name, components)``."""
 
 _HOG_BORDER = 1.5  # root cells a crop needs beyond the parts' reach for exact-enough HOG
 
@@ -114,11 +142,17 @@ class DpmDetector:
     calibration: LogisticCalibration | None = None
     part_names: tuple[str, ...] = field(init=False)
     _slots: tuple[tuple[int, ...], ...] = field(init=False, repr=False)
+    _cascade: tuple[CascadeThresholds, PcaProjection] | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.part_names, self._slots = model_part_names(self.model)
         if self.calibration is None:
             self.calibration = _find_calibration(self.model, self.config)
+        self._cascade = None
+        if self.config.cascade and self.config.deformation_window is not None:
+            thresholds = _find_cascade(self.model, self.config, self.threshold)
+            if thresholds is not None:
+                self._cascade = thresholds, pca_projection(self.model)
 
     @classmethod
     def from_file(
@@ -132,6 +166,11 @@ class DpmDetector:
         """The score threshold in use."""
         t = self.config.threshold
         return self.model.threshold if t is None else float(t)
+
+    @property
+    def cascade(self) -> CascadeThresholds | None:
+        """The star-cascade thresholds ``detect`` prunes with; ``None``: it scores exactly."""
+        return None if self._cascade is None else self._cascade[0]
 
     @property
     def interval(self) -> int:
@@ -169,8 +208,14 @@ class DpmDetector:
             return (root, levels[root.index - self.interval])
         return (root,)
 
-    def _run(self, plans: list[_Plan], shared: np.ndarray | None = None) -> list[tuple]:
-        """Score the plans; ``shared``: one image for all plans, features computed once."""
+    def _run(
+        self, plans: list[_Plan], shared: np.ndarray | None = None, cascade: bool = False
+    ) -> list[tuple]:
+        """Score the plans; ``shared``: one image for all plans, features computed once.
+
+        ``cascade`` (with ``shared`` and cascade thresholds): score with the star cascade.
+        """
+        cascade_setup = self._cascade if cascade and shared is not None else None
 
         def score(plan: _Plan, features: dict[int, np.ndarray]) -> LevelScores | None:
             return score_level(
@@ -196,7 +241,21 @@ class DpmDetector:
             ]
             for part in self._map(compute):
                 features.update(part)  # type: ignore[arg-type]
-            jobs = [(lambda p=plan: score(p, features)) for plan in plans]
+            if cascade_setup is not None:
+                thresholds, projection = cascade_setup
+                projected = {k: projection.project(v) for k, v in features.items()}
+                window = self.config.deformation_window or 0
+
+                def cascade_score(plan: _Plan) -> LevelScores | None:
+                    result = cascade_level(
+                        self.model, features, projected, projection, plan.root, self.pad,
+                        thresholds, self.threshold, window,
+                    )  # fmt: skip
+                    return None if result is None else result[0]
+
+                jobs = [(lambda p=plan: cascade_score(p)) for plan in plans]
+            else:
+                jobs = [(lambda p=plan: score(p, features)) for plan in plans]
         else:
             jobs = [
                 (lambda p=plan: score(p, level_features(p.image, p.levels, self.pad)))
@@ -291,7 +350,7 @@ class DpmDetector:
         levels = self._pyramid(frame.shape)
         roots = self._root_levels(levels, (self.config.min_height, self.config.max_height))
         plans = [_Plan(r, self._with_parts(r, levels), (0, 0), frame) for r in roots]
-        scored = self._run(plans, shared=frame)
+        scored = self._run(plans, shared=frame, cascade=True)
         found = candidates(
             self.model, scored, self.pad, self.threshold, limit=self.config.max_candidates
         )
@@ -370,3 +429,15 @@ def _find_calibration(model: DpmModel, config: DpmConfig) -> LogisticCalibration
         if candidate.is_file():
             return load_calibration(candidate)
     return KNOWN_CALIBRATIONS.get((model.name, len(model.components)), DEFAULT_DPM_CALIBRATION)
+
+
+def _find_cascade(model: DpmModel, config: DpmConfig, threshold: float) -> CascadeThresholds | None:
+    """The cascade thresholds for ``threshold`` (see ``DpmConfig.cascade_thresholds``)."""
+    path = config.cascade_thresholds
+    if path is None and model.path is not None and cascade_path(model.path).is_file():
+        path = cascade_path(model.path)
+    if path is None:
+        path = KNOWN_CASCADES.get((model.name, len(model.components)))
+    if path is None:
+        return None
+    return select_thresholds(load_cascade(path), threshold)

@@ -1,0 +1,178 @@
+"""The star cascade: exact when it prunes nothing, admissible for its positives, and its files."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from tracking.detection.dpm.cascade import (
+    CascadeThresholds,
+    cascade_level,
+    load_cascade,
+    pca_projection,
+    select_thresholds,
+)
+from tracking.detection.dpm.cascade_fit import (
+    main as fit_main,
+)
+from tracking.detection.dpm.cascade_fit import (
+    record_positive,
+    thresholds_for,
+)
+from tracking.detection.dpm.detector import DpmConfig, DpmDetector
+from tracking.detection.dpm.model import load_dpm_model
+from tracking.detection.dpm.pyramid import level_features
+from tracking.detection.dpm.scoring import score_level
+from tracking.detection.metrics import match_frame
+from tracking.evaluation.otb import load_otb_sequence, read_frame
+
+
+@pytest.fixture(scope="module")
+def exact(inria_model) -> DpmDetector:
+    return DpmDetector(inria_model, DpmConfig(cascade=False))
+
+
+def test_pca_basis_is_orthonormal_and_keeps_most_filter_energy(inria_model):
+    projection = pca_projection(inria_model, dims=6)
+    basis = projection.basis.astype(np.float64)
+    np.testing.assert_allclose(basis.T @ basis, np.eye(6), atol=1e-5)
+    cells = np.concatenate([s.weights.reshape(-1, 32) for s in inria_model.components[0].symbols])
+    kept = np.linalg.norm(cells @ basis) ** 2 / np.linalg.norm(cells) ** 2
+    assert kept > 0.5  # 6 of 32 directions hold most of the filters' energy
+
+
+def test_without_pruning_the_cascade_equals_exact_scoring(exact, inria_model, pets_frame):
+    crop = pets_frame[150:420, 180:420]  # two people
+    levels = exact._pyramid(crop.shape)
+    projection = pca_projection(inria_model)
+    threshold = -2.0
+    compared = 0
+    for root in exact._root_levels(levels, (None, None))[::4]:
+        features = level_features(crop, exact._with_parts(root, levels), exact.pad)
+        projected = {k: projection.project(v) for k, v in features.items()}
+        reference = score_level(inria_model, features, root, exact.pad, window=4)
+        result = cascade_level(
+            inria_model, features, projected, projection, root, exact.pad,
+            CascadeThresholds.exact(inria_model.num_parts), threshold,
+        )  # fmt: skip
+        assert result is not None and reference is not None
+        got = result[0]
+        above = reference.component_scores > threshold
+        np.testing.assert_array_equal(np.isfinite(got.component_scores), above)
+        np.testing.assert_allclose(
+            got.component_scores[above], reference.component_scores[above], atol=1e-4
+        )
+        where = np.broadcast_to(above[:, None, :, :, None], got.placements.shape)
+        np.testing.assert_array_equal(got.placements[where], reference.placements[where])
+        compared += int(above.sum())
+    assert compared > 20
+
+
+@pytest.mark.slow
+def test_cascade_keeps_the_exact_detections_of_pets_frames(inria_model, exact, pets):
+    cascade = DpmDetector(inria_model, DpmConfig())
+    assert cascade.cascade is not None
+    kept = total = 0
+    for i in (0, 200, 400, 600):
+        frame = pets.read_frame(i)
+        reference, found = exact.detect(frame), cascade.detect(frame)
+        total += len(reference)
+        matched = match_frame(found.boxes, found.scores, reference.boxes)
+        kept += int(matched.sum())
+        # the boxes it keeps carry their exact scores
+        for box, score in zip(found.boxes, found.scores, strict=True):
+            same = np.all(np.abs(reference.boxes - box) < 1e-6, axis=1)
+            if same.any():
+                assert reference.scores[same][0] == pytest.approx(score, abs=1e-4)
+    assert total >= 15
+    assert kept / total >= 0.9, f"the cascade kept {kept} of {total} detections"
+
+
+def _crossing_positives(shared_data, count):
+    sequence = load_otb_sequence(shared_data / "otb" / "Crossing")
+    for index in range(0, count * 30, 30):
+        image = read_frame(sequence.frame_paths[index])
+        x, y, w, h = sequence.ground_truth[index]
+        # the person is ~50 px tall: enlarge 2.5x so that the model's windows fit
+        y0, x0 = max(0, int(y - h / 2)), max(0, int(x - w))
+        crop = image[y0 : int(y + 1.5 * h), x0 : int(x + 2 * w)]
+        crop = cv2.resize(crop, None, fx=2.5, fy=2.5, interpolation=cv2.INTER_LINEAR)
+        yield crop, ((x - x0) * 2.5, (y - y0) * 2.5, w * 2.5, h * 2.5)
+
+
+def test_fitted_thresholds_admit_their_positives(inria_model, shared_data):
+    detector = DpmDetector(inria_model, DpmConfig(cascade=False))
+    positives = list(_crossing_positives(shared_data, 3))
+    records = [record_positive(detector, crop, box) for crop, box in positives]
+    assert all(r is not None for r in records)
+    for score, stages, margins in records:
+        assert stages[-1] == pytest.approx(score, abs=1e-4)  # the last stage is the exact score
+        assert np.all(np.isfinite(stages))
+        parts = inria_model.num_parts
+        assert np.isnan(margins[0]) and np.isnan(margins[1 + parts])  # root stages: no margin
+        # a part's margin is the partial score before it minus a non-negative deformation cost
+        assert np.all(margins[1 : 1 + parts] <= stages[:parts] + 1e-9)
+    low = min(r[0] for r in records) - 0.01
+    thresholds = thresholds_for(records, low)
+    assert thresholds is not None
+    pruned = DpmDetector(inria_model, DpmConfig(threshold=low))
+    pruned._cascade = (thresholds, pca_projection(inria_model))
+    for (crop, _), (score, _, _) in zip(positives, records, strict=True):
+        found = pruned.detect(crop)
+        assert len(found) and found.scores.max() >= score - 1e-4
+    assert thresholds_for(records, max(r[0] for r in records)) is None
+
+
+def test_select_thresholds_takes_the_highest_fit_not_above_the_threshold():
+    table = [CascadeThresholds(t, np.zeros(4), np.zeros(4)) for t in (-1.0, -0.5, 0.0)]
+    assert select_thresholds(table, -0.7).score_threshold == -1.0
+    assert select_thresholds(table, 0.3).score_threshold == 0.0
+    assert select_thresholds(table, -0.5).score_threshold == -0.5
+    assert select_thresholds(table, -1.5) is None
+
+
+def test_shipped_thresholds_load_for_the_inria_model(inria_model):
+    detector = DpmDetector(inria_model, DpmConfig())
+    assert detector.cascade is not None
+    assert detector.cascade.score_threshold <= detector.threshold
+    assert detector.cascade.stage.shape == (2 + 2 * inria_model.num_parts,)
+    # below the lowest fitted threshold, or with the cascade off: exact scoring
+    assert DpmDetector(inria_model, DpmConfig(threshold=-5.0)).cascade is None
+    assert DpmDetector(inria_model, DpmConfig(cascade=False)).cascade is None
+    assert DpmDetector(inria_model, DpmConfig(deformation_window=None)).cascade is None
+
+
+def test_models_without_thresholds_score_exactly(voc_path):
+    assert DpmDetector(load_dpm_model(voc_path), DpmConfig()).cascade is None
+
+
+@pytest.mark.parametrize(
+    "text", ["not json", "{}", '{"thresholds": [{"score_threshold": -1}]}', "[1, 2]"]
+)
+def test_bad_threshold_files_raise_clear_errors(tmp_path, text):
+    path = tmp_path / "bad.cascade.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match="is not a cascade thresholds file"):
+        load_cascade(path)
+
+
+def test_fit_command_writes_thresholds_the_detector_uses(inria_path, shared_data, tmp_path):
+    out = tmp_path / "inria.cascade.json"
+    code = fit_main(
+        ["--model", str(inria_path), "--sequences", str(shared_data / "otb" / "Crossing"),
+         "--step", "40", "--out", str(out)]
+    )  # fmt: skip
+    assert code == 0
+    payload = json.loads(out.read_text())
+    assert payload["model"] == "inriaperson" and payload["thresholds"]
+    table = load_cascade(out)
+    assert [t.score_threshold for t in table] == sorted(t.score_threshold for t in table)
+    lowest = table[0].score_threshold
+    detector = DpmDetector.from_file(
+        inria_path, DpmConfig(threshold=lowest, cascade_thresholds=out)
+    )
+    assert detector.cascade is not None and math.isclose(detector.cascade.score_threshold, lowest)

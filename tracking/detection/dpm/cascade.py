@@ -1,0 +1,463 @@
+"""Star-cascade scoring: the DPM score of a root computed part by part, pruned early.
+
+Felzenszwalb, Girshick, McAllester, "Cascade Object Detection with Deformable Part Models",
+CVPR 2010. The score of a root (:mod:`.scoring`) is a sum of ``1 + P`` terms, the root response
+and ``P`` deformed part responses. The cascade adds them one at a time and drops a root as soon
+as its partial sum falls below the stage's threshold; most roots of a frame are dropped after
+the first term, so most part responses are never computed. The first ``1 + P`` stages use
+cheap approximate filters (features and filters projected on ``k`` principal directions, ``k``
+of 32 multiply-adds per cell); the next ``1 + P`` stages replace each approximate term by the
+exact one, so every root that passes all stages has exactly the score of :func:`.scoring.
+score_level` and its argmax placements (ties of equal scores aside).
+
+Two pruning rules per part stage, both with thresholds fitted on positive examples
+(:mod:`.cascade_fit`): the partial score after the stage must reach ``stage[i]``, and a
+placement ``q`` of the part is tried only when ``partial - d(q) >= deformation[i]`` (the
+deformation cost alone already rules the others out). Thresholds that are ``-inf`` prune
+nothing: the cascade is then exact. Fitted thresholds are the lowest partial scores of the
+positives that scored above the detection threshold ("probably approximately admissible", §4
+of the paper): a true detection below them is lost.
+
+Part responses are computed lazily, at most once per position and part (a cache per level),
+in a numba kernel: this is a per-root, data-dependent loop that numpy cannot vectorise.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from tracking.detection.dpm.model import DpmComponent, DpmModel
+from tracking.detection.dpm.pyramid import PyramidLevel
+from tracking.detection.dpm.responses import filter_responses
+from tracking.detection.dpm.scoring import LevelScores, root_grid
+
+__all__ = [
+    "CascadeThresholds",
+    "PcaProjection",
+    "cascade_level",
+    "cascade_path",
+    "load_cascade",
+    "pca_projection",
+    "select_thresholds",
+]
+
+DEFAULT_PCA_DIMS = 6
+
+
+@dataclass(frozen=True, slots=True)
+class PcaProjection:
+    """Principal directions of a model's filter cells and the filters projected on them.
+
+    Attributes
+    ----------
+    basis:
+        ``(32, k)`` float32 orthonormal columns: the top eigenvectors of ``sum_cells w w^T``
+        over every cell of every filter, i.e. the ``k``-dimensional subspace that keeps the
+        most of the filters' energy. A feature cell ``f`` becomes ``basis^T f`` and a filter
+        cell ``w`` becomes ``basis^T w``; their dot product approximates ``w . f`` by
+        ``w . P f`` with ``P`` the projector on the subspace.
+    roots, parts:
+        Per component: the projected ``(h, w, k)`` root filter and ``(P, h, w, k)`` parts.
+    """
+
+    basis: np.ndarray
+    roots: tuple[np.ndarray, ...]
+    parts: tuple[np.ndarray, ...]
+
+    def project(self, features: np.ndarray) -> np.ndarray:
+        """``(H, W, 32)`` features -> ``(H, W, k)`` float32."""
+        h, w, c = features.shape
+        return (features.reshape(-1, c) @ self.basis).reshape(h, w, -1)
+
+
+def pca_projection(model: DpmModel, dims: int = DEFAULT_PCA_DIMS) -> PcaProjection:
+    """The model's :class:`PcaProjection` on ``dims`` directions.
+
+    The paper projects on the principal components of HOG features of training images; we use
+    the model's own filter cells instead, which needs no data and keeps the part of the filters
+    that the score depends on (the exact stages correct whatever the projection loses).
+    """
+    cells = np.concatenate(
+        [s.weights.reshape(-1, model.num_features) for c in model.components for s in c.symbols]
+    ).astype(np.float64)
+    _, vectors = np.linalg.eigh(cells.T @ cells)
+    basis = np.ascontiguousarray(vectors[:, ::-1][:, :dims], dtype=np.float32)
+    roots = tuple(np.ascontiguousarray(c.root.weights @ basis) for c in model.components)
+    parts = tuple(
+        np.ascontiguousarray(np.stack([p.weights @ basis for p in c.parts]))
+        if c.parts
+        else np.zeros((0, 1, 1, dims), dtype=np.float32)
+        for c in model.components
+    )
+    return PcaProjection(basis, roots, parts)
+
+
+@dataclass(frozen=True, slots=True)
+class CascadeThresholds:
+    """Pruning thresholds of the ``2 (1 + P)`` stages, for one detection threshold.
+
+    Attributes
+    ----------
+    score_threshold:
+        The detection threshold the thresholds were fitted for: they are admissible for the
+        positives scoring above it (use them with that threshold or a higher one).
+    stage:
+        ``(2 + 2 P,)``: lowest admissible partial score after stage ``i`` (stage 0 the
+        approximate root, ``1..P`` the approximate parts, ``P + 1`` the exact root, then the
+        exact parts).
+    deformation:
+        ``(2 + 2 P,)``: lowest admissible ``partial - deformation cost`` of a part placement
+        (entries 0 and ``P + 1``, the root stages, are unused).
+    """
+
+    score_threshold: float
+    stage: np.ndarray
+    deformation: np.ndarray
+
+    @classmethod
+    def exact(cls, num_parts: int) -> CascadeThresholds:
+        """No pruning: every root gets its exact score."""
+        n = 2 + 2 * num_parts
+        return cls(-math.inf, np.full(n, -np.inf), np.full(n, -np.inf))
+
+
+def cascade_path(model_path: str | os.PathLike[str]) -> Path:
+    """``<model>.cascade.json`` beside the model file."""
+    path = Path(model_path)
+    return path.with_name(path.stem + ".cascade.json")
+
+
+def load_cascade(path: str | os.PathLike[str]) -> list[CascadeThresholds]:
+    """The thresholds of a ``.cascade.json`` file, lowest detection threshold first."""
+    try:
+        payload = json.loads(Path(path).read_text())
+        out = [
+            CascadeThresholds(
+                float(row["score_threshold"]),
+                np.array(row["stage"], dtype=np.float64),
+                np.array([-np.inf if v is None else v for v in row["deformation"]], np.float64),
+            )
+            for row in payload["thresholds"]
+        ]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ValueError(f"{path} is not a cascade thresholds file: {error}") from error
+    return sorted(out, key=lambda t: t.score_threshold)
+
+
+def select_thresholds(
+    table: list[CascadeThresholds], score_threshold: float
+) -> CascadeThresholds | None:
+    """The thresholds fitted for the highest detection threshold not above ``score_threshold``.
+
+    Those were fitted on a superset of the positives scoring above ``score_threshold``, so
+    they are admissible for them. ``None`` when every entry was fitted for a higher one.
+    """
+    usable = [t for t in table if t.score_threshold <= score_threshold]
+    return max(usable, key=lambda t: t.score_threshold) if usable else None
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def _dot(features, row, col, weights, channels):  # pragma: no cover - compiled
+    """One filter response: ``sum weights[dy, dx, c] features[row + dy, col + dx, c]``.
+
+    ``features`` is ``(H, W C)`` and ``weights`` ``(h, w C)`` (the cells and channels of a row
+    flattened), so each filter row is one contiguous dot product that the compiler
+    vectorises (with ``C = 6`` a per-cell loop is too short for that).
+    """
+    h, row_length = weights.shape
+    start = col * channels
+    total = np.float32(0.0)
+    for dy in range(h):
+        line = features[row + dy]
+        for i in range(row_length):
+            total += weights[dy, i] * line[start + i]
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def _deformed_part(
+    partial, features, weights, channels, cache, anchor_row, anchor_col, deformation, window, prune
+):  # pragma: no cover - compiled
+    """Best ``response(q) - d(anchor - q)`` over placements within ``window`` of the anchor.
+
+    ``features`` and ``weights`` as :func:`_dot` takes them. Placements with
+    ``partial - d < prune`` are skipped; responses come from ``cache`` (NaN: not yet
+    computed). Returns ``(value, row, col, partial - d at the best placement)``;
+    ``-inf`` when no placement qualifies.
+    """
+    height = features.shape[0] - weights.shape[0]
+    width = (features.shape[1] - weights.shape[1]) // channels
+    ax, bx, ay, by = deformation[0], deformation[1], deformation[2], deformation[3]
+    best, best_row, best_col, best_margin = -np.inf, -1, -1, -np.inf
+    for t in range(window, -window - 1, -1):  # t = anchor - placement, placements ascending
+        row = anchor_row - t
+        if row < 0 or row > height:
+            continue
+        cost_y = ay * t * t + by * t
+        for u in range(window, -window - 1, -1):
+            col = anchor_col - u
+            if col < 0 or col > width:
+                continue
+            cost = cost_y + ax * u * u + bx * u
+            if partial - cost < prune:
+                continue
+            response = cache[row, col]
+            if np.isnan(response):
+                response = _dot(features, row, col, weights, channels)
+                cache[row, col] = response
+            value = response - cost
+            if value > best:
+                best, best_row, best_col, best_margin = value, row, col, partial - cost
+    return best, best_row, best_col, best_margin
+
+
+@numba.njit(cache=True, nogil=True)
+def _cascade(
+    start,  # (ny, nx) float32: offsets + approximate root response per root position
+    root_approx,  # (ny, nx) float32: the approximate root response alone
+    root_features,  # (H, W, 32) exact features of the root level
+    root_weights,  # (h, w, 32)
+    root_offset,  # (row, col) of root grid element [0, 0] in root_features
+    part_features_approx,  # (H2, W2 k)
+    part_features,  # (H2, W2 C)
+    parts_approx,  # (P, h, w k)
+    parts,  # (P, h, w C)
+    approx_channels,  # k
+    channels,  # C
+    anchors,  # (P, 2) int64: part-level (row, col) of the anchor of root grid [0, 0]
+    steps,  # (P,) int64: 2^ds
+    deformations,  # (P, 4) float64
+    window,
+    stage,  # (2 + 2P,)
+    margin,  # (2 + 2P,)
+    threshold,
+    record,  # bool: keep every stage's partial score and margin (fitting)
+):  # pragma: no cover - compiled
+    """Roots of one component on one level passing every stage with a score above threshold.
+
+    Features and filters come with the cells and channels of a row flattened (:func:`_dot`).
+    Returns ``(rows, cols, scores, placements (N, P, 2) (col, row), stages (N, 2 + 2P),
+    margins (N, 2 + 2P))``; stages and margins are filled only with ``record``.
+    """
+    ny, nx = start.shape
+    n_parts = parts.shape[0]
+    n_stages = 2 + 2 * n_parts
+    part_rows, part_cols = part_features.shape[0], part_features.shape[1] // channels
+    cache_approx = np.full((n_parts, part_rows, part_cols), np.nan, dtype=np.float32)
+    cache = np.full_like(cache_approx, np.nan)
+    capacity = ny * nx
+    rows = np.empty(capacity, dtype=np.int64)
+    cols = np.empty(capacity, dtype=np.int64)
+    scores = np.empty(capacity, dtype=np.float64)
+    placements = np.empty((capacity, n_parts, 2), dtype=np.int64)
+    kept = capacity if record else 1
+    stages = np.full((kept, n_stages), np.nan)
+    margins = np.full((kept, n_stages), np.nan)
+    here_stages = np.empty(n_stages)
+    here_margins = np.full(n_stages, np.nan)
+    approx = np.empty(n_parts)
+    place = np.empty((n_parts, 2), dtype=np.int64)
+    count = 0
+    last_row = part_rows - parts.shape[1]
+    last_col = part_cols - parts.shape[2] // channels
+    for y in range(ny):
+        for x in range(nx):
+            s = np.float64(start[y, x])
+            if s == -np.inf or not s >= stage[0]:  # -inf: the root does not fit here
+                continue
+            here_stages[0] = s
+            alive = True
+            for p in range(n_parts):  # approximate parts
+                ar = anchors[p, 0] + steps[p] * y
+                ac = anchors[p, 1] + steps[p] * x
+                if ar < 0 or ar > last_row or ac < 0 or ac > last_col:
+                    alive = False  # as scoring: an anchor off the response map scores -inf
+                    break
+                value, _, _, m = _deformed_part(
+                    s, part_features_approx, parts_approx[p], approx_channels, cache_approx[p],
+                    ar, ac, deformations[p], window, margin[1 + p],
+                )  # fmt: skip
+                s += value
+                here_stages[1 + p], here_margins[1 + p] = s, m
+                approx[p] = value
+                if s == -np.inf or not s >= stage[1 + p]:
+                    alive = False
+                    break
+            if not alive:
+                continue
+            r0, c0 = root_offset[0] + y, root_offset[1] + x
+            s += _dot(root_features, r0, c0, root_weights, channels) - root_approx[y, x]
+            here_stages[1 + n_parts] = s
+            if not s >= stage[1 + n_parts]:
+                continue
+            for p in range(n_parts):  # exact parts replace the approximate ones
+                k = 2 + n_parts + p
+                ar = anchors[p, 0] + steps[p] * y
+                ac = anchors[p, 1] + steps[p] * x
+                rest = s - approx[p]
+                value, pr, pc, m = _deformed_part(
+                    rest, part_features, parts[p], channels, cache[p], ar, ac, deformations[p],
+                    window, margin[k],
+                )  # fmt: skip
+                s = rest + value
+                here_stages[k], here_margins[k] = s, m
+                place[p, 0], place[p, 1] = pc, pr
+                if s == -np.inf or not s >= stage[k]:
+                    alive = False
+                    break
+            if not alive or not s > threshold:
+                continue
+            rows[count], cols[count], scores[count] = y, x, s
+            placements[count] = place
+            if record:
+                stages[count] = here_stages
+                margins[count] = here_margins
+            count += 1
+    return (
+        rows[:count], cols[:count], scores[:count], placements[:count], stages[:count],
+        margins[:count],
+    )  # fmt: skip
+
+
+def _flat(array: np.ndarray) -> np.ndarray:
+    """``(..., W, C)`` -> contiguous ``(..., W C)``: the layout :func:`_dot` reads."""
+    return np.ascontiguousarray(array).reshape(*array.shape[:-2], -1)
+
+
+def _component_offset(component: DpmComponent, level: PyramidLevel) -> float:
+    """The constant terms of a root's score on ``level``: rule offsets and octave weights."""
+    total = component.bias + component.location[level.octave]
+    for symbol in component.symbols:
+        table_level = level.index - level.interval * symbol.anchor[2]
+        octave = min(max(table_level, 0) // level.interval, 2)
+        total += symbol.bias + symbol.location[octave]
+    return float(total)
+
+
+def cascade_level(
+    model: DpmModel,
+    features: dict[int, np.ndarray],
+    projected: dict[int, np.ndarray],
+    projection: PcaProjection,
+    level: PyramidLevel,
+    pad: tuple[int, int],
+    thresholds: CascadeThresholds,
+    threshold: float,
+    window: int = 4,
+    positions: np.ndarray | None = None,
+) -> tuple[LevelScores, list[tuple[np.ndarray, np.ndarray]]] | None:
+    """Scores of the roots of ``level`` that pass the cascade, in :class:`LevelScores` form.
+
+    Parameters
+    ----------
+    features, projected:
+        Exact and projected (:meth:`PcaProjection.project`) padded maps by level index; must
+        hold ``level.index`` and, for models with parts, ``level.index - level.interval``.
+    thresholds:
+        Stage thresholds (:meth:`CascadeThresholds.exact` for none).
+    threshold:
+        Detection threshold: roots at or below it get ``-inf``.
+    window:
+        Largest part displacement in cells (as :func:`.scoring.score_level`).
+    positions:
+        ``(N, 2)`` root (row, col) positions to consider; default every one.
+
+    Returns
+    -------
+    (LevelScores, records) or None
+        Every root that passed with its exact score (``-inf`` elsewhere), and per component the
+        ``(stages, margins)`` partial scores of those roots (filled when ``positions`` is given,
+        for fitting; empty otherwise). ``None`` when the level has no root positions.
+    """
+    root_features = features[level.index]
+    grid = root_grid(model, root_features.shape)
+    ny, nx = grid
+    if ny <= 0 or nx <= 0:
+        return None
+    components = model.components
+    n_symbols = max(len(c.symbols) for c in components)
+    component_scores = np.full((len(components), ny, nx), -np.inf)
+    placements = np.full((len(components), n_symbols, ny, nx, 2), -1, dtype=np.int32)
+    approx_roots = filter_responses(
+        projected[level.index], list(projection.roots), (0, ny), (0, nx)
+    )
+    records = []
+    pad_y, pad_x = pad
+    for ci, component in enumerate(components):
+        start = approx_roots[ci] + np.float32(_component_offset(component, level))
+        if positions is not None:
+            chosen = np.full_like(start, -np.inf)
+            chosen[positions[:, 0], positions[:, 1]] = start[positions[:, 0], positions[:, 1]]
+            start = chosen
+        if component.parts:
+            ds = component.parts[0].anchor[2]
+            if any(p.anchor[2] != ds or p.size != component.parts[0].size for p in component.parts):
+                raise ValueError("the cascade needs parts of one size on one level")
+            part_level = level.index - level.interval * ds
+            step = 2**ds
+            part_maps = features[part_level], projected[part_level]
+            anchors = np.array(
+                [
+                    (p.anchor[1] - (step - 1) * pad_y, p.anchor[0] - (step - 1) * pad_x)
+                    for p in component.parts
+                ],
+                dtype=np.int64,
+            )
+            parts = np.stack([p.weights for p in component.parts])
+            deformations = np.array([p.deformation for p in component.parts], dtype=np.float64)
+        else:
+            part_maps = root_features[:1, :1], projected[level.index][:1, :1]
+            anchors = np.zeros((0, 2), dtype=np.int64)
+            parts = np.zeros((0, 1, 1, root_features.shape[2]), dtype=np.float32)
+            deformations = np.zeros((0, 4))
+            step = 1
+        n_parts = len(component.parts)
+        stage = thresholds.stage[: 2 + 2 * n_parts]
+        margin = thresholds.deformation[: 2 + 2 * n_parts]
+        rows, cols, scores, place, stages, margins = _cascade(
+            start,
+            approx_roots[ci],
+            _flat(root_features),
+            _flat(component.root.weights),
+            np.array(component.root.anchor[1::-1], dtype=np.int64),
+            _flat(part_maps[1]),
+            _flat(part_maps[0]),
+            _flat(projection.parts[ci]),
+            _flat(parts),
+            projection.basis.shape[1],
+            root_features.shape[2],
+            anchors,
+            np.full(n_parts, step, dtype=np.int64),
+            deformations,
+            window,
+            np.asarray(stage, dtype=np.float64),
+            np.asarray(margin, dtype=np.float64),
+            float(threshold),
+            positions is not None,
+        )
+        component_scores[ci, rows, cols] = scores
+        placements[ci, 0, rows, cols, 0] = cols + component.root.anchor[0]
+        placements[ci, 0, rows, cols, 1] = rows + component.root.anchor[1]
+        for p in range(n_parts):
+            placements[ci, 1 + p, rows, cols] = place[:, p]
+        records.append((stages, margins))
+    best = component_scores.argmax(axis=0)
+    scores = np.take_along_axis(component_scores, best[None], axis=0)[0]
+    return (
+        LevelScores(
+            level=level,
+            origin=(0, 0),
+            scores=scores,
+            component=best,
+            component_scores=component_scores,
+            placements=placements,
+        ),
+        records,
+    )
