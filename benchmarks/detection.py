@@ -24,14 +24,15 @@ precision/recall curve is seen: the DPM at ``model.thresh - 1``, the embedded de
 score -0.5; OpenCV's peer runs as OpenCV does by default (score 0, its own grouping); the public
 detections are used as published (confidence >= 0.5).
 
-Speed, at native resolution, on ``timing-frames`` frames of each sequence (median over
-``repeats`` runs per frame, reported as frames per second): full-frame detection for each
-detector, OpenCV's HOG at 1.0x, at the DPM's upscale (the same image scale) and at the scale of
-the DPM's finest features (twice its upscale for models with an extra octave), and per region of
-interest -- the DPM's ``dense_scores`` and ``detect_region`` over a window around each of up
-to three ground-truth people per frame (centre +- 0.25 of its height; window heights 0.8..1.25
-("wide", 6 pyramid levels) or 0.9..1.1 ("narrow", 3 levels) of its height: the spread a
-particle filter searches).
+Speed, at native resolution, on ``timing-frames`` frames of each sequence (median over ``repeats``
+runs per frame, reported as frames per second): full-frame detection for each detector (the DPM at
+the evaluation threshold and at the model's own, ``@model-threshold``: the star cascade prunes less
+at lower thresholds), OpenCV's HOG at 1.0x, at the DPM's upscale (the same image scale) and at the
+scale of the DPM's finest features (twice its upscale for models with an extra octave), and per
+region of interest -- the DPM's ``dense_scores`` and ``detect_region`` over a window around each of
+up to three ground-truth people per frame (centre +- 0.25 of its height; window heights 0.8..1.25
+("wide", 6 pyramid levels) or 0.9..1.1 ("narrow", 3 levels) of its height: the spread a particle
+filter searches).
 
 DPM variants are named ``dpm-<model>[@upscale][:levels per octave][>min height][+exact]``, e.g.
 ``dpm-inria`` (the voc-release5 defaults with the star cascade), ``dpm-inria+exact`` (every root
@@ -284,6 +285,12 @@ def timing(
         calls: dict[str, Callable[[np.ndarray, int], object]] = {
             name: entry.detect for name, entry in entries.items() if entry.timed
         }
+        for name, entry in entries.items():
+            if entry.dpm is not None:  # also at the threshold it runs at by default
+                operating = DpmDetector(
+                    entry.dpm.model, dataclasses.replace(entry.dpm.config, threshold=None)
+                )
+                calls[f"{name}@model-threshold"] = lambda f, i, d=operating: d.detect(f)
         calls.update(peers)
         for name, call in calls.items():
             per_frame = [_median_time(lambda c=call, f=f, i=i: c(f, i), repeats) for i, f in frames]

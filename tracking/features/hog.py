@@ -40,10 +40,12 @@ for other float images the features agree to ~1e-7.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+
 import numba
 import numpy as np
 
-__all__ = ["NUM_FEATURES", "fhog", "hog_feature_map"]
+__all__ = ["NUM_FEATURES", "fhog", "fhog_cells", "hog_feature_map"]
 
 # Unit vectors of the 9 directions o * 20° (features.cc: uu = cos, vv = sin, 4 decimals).
 _UU = np.array(
@@ -61,6 +63,7 @@ NUM_FEATURES = 31
 """Features per cell without the truncation channel (18 + 9 + 4)."""
 
 
+@numba.njit(cache=True, nogil=True)
 def _c_round_div(n: int, d: int) -> int:
     """``round(n / d)`` for non-negative ints with C's rounding (halves up, unlike ``round``)."""
     return (2 * n + d) // (2 * d)
@@ -181,139 +184,75 @@ def _orientations(gx, gy, best, orientation):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _bilinear_weights(n_visited, sbin):  # pragma: no cover - compiled
-    """Cell index and weight of the pixels ``1 .. n_visited`` along one axis (features.cc).
+def _bilinear_weights(sbin, cell, weight):  # pragma: no cover - compiled
+    """Fill ``cell`` and ``weight`` (int64 and float64 ``(n,)``) with the cell index and weight
+    of the pixels ``1 .. n`` along one axis (features.cc).
 
     ``xp = (x + 0.5) / sbin - 0.5``; the pixel gives ``1 - frac(xp)`` to cell ``floor(xp)`` and
-    ``frac(xp)`` to the next. The returned index is ``floor(xp) + 1``, i.e. into a cell array
-    padded by one cell on each side (cells outside ``0 .. cells - 1`` are later dropped, as the
-    bounds checks of features.cc drop them). Returns int64 and float64 ``(n_visited,)``.
+    ``frac(xp)`` to the next. The index is ``floor(xp) + 1``, i.e. into a cell array padded by
+    one cell on each side (cells outside ``0 .. cells - 1`` are later dropped, as the bounds
+    checks of features.cc drop them).
     """
-    cell = np.empty(n_visited, dtype=np.int64)
-    weight = np.empty(n_visited, dtype=np.float64)
-    for i in range(n_visited):
+    for i in range(cell.shape[0]):
         xp = (i + 1.5) / sbin - 0.5
         floor = np.floor(xp)
         cell[i] = int(floor) + 1
         weight[i] = xp - floor
-    return cell, weight
 
 
 @numba.njit(cache=True, nogil=True)
-def _vote(window, wy, orientation, magnitude, cell_x, far_x):  # pragma: no cover - compiled
-    """Add one visited row of pixels to the float64 histograms of its two cell rows.
+def _vote(windows, k, wy, orientation, magnitude, cell_x, far_x):  # pragma: no cover - compiled
+    """Add one visited row of pixels to the float64 histograms of its two cell rows, for cell
+    size ``k`` (row ``k`` of the stacked per-size arrays, see :func:`_features`).
 
-    ``window`` is ``(2, cells_x + 2, 18)``: the padded cell row of the pixel row and the next;
-    the row's weight is ``wy`` (:func:`_bilinear_weights`). Pixel ``j`` has the bin
-    ``orientation[min(j, n - 1)]`` and the float32 ``magnitude`` at the same index, ``n`` their
-    length: pixels beyond the interior repeat the last one's gradient (features.cc clamps
-    their coordinates). Each vote is ``(y weight * x weight) * magnitude``, as features.cc
-    computes it. (One array with constant row indices: with the rows as two arrays, the
-    compiler cannot tell that they never overlap, and the histograms took 20% longer.)
+    ``windows[k]`` is ``(2, cells_x + 2, 18)`` (or wider): the padded cell row of the pixel row
+    and the next; the row's weight is ``wy`` (:func:`_bilinear_weights`). Pixel ``j`` has the
+    bin ``orientation[min(j, n - 1)]`` and the float32 ``magnitude`` at the same index, ``n``
+    their length: pixels beyond the interior repeat the last one's gradient (features.cc
+    clamps their coordinates). ``cell_x[k]`` and ``far_x[k]`` hold the size's pixels, then
+    padding; ``cell_x[k, -1]`` is their number. Each vote is ``(y weight * x weight) *
+    magnitude``, as features.cc computes it. (One array with constant indices: with the rows
+    as two arrays, the compiler cannot tell that they never overlap, and the histograms took
+    20% longer.)
     """
     vy = 1.0 - wy
     last = orientation.shape[0] - 1
-    for j in range(cell_x.shape[0]):
-        k = min(j, last)
-        o = orientation[k]
-        value = np.float64(magnitude[k])
-        cx, wx = cell_x[j], far_x[j]
+    for j in range(cell_x[k, -1]):
+        i = min(j, last)
+        o = orientation[i]
+        value = np.float64(magnitude[i])
+        cx, wx = cell_x[k, j], far_x[k, j]
         vx = 1.0 - wx
-        window[0, cx, o] += vy * vx * value
-        window[0, cx + 1, o] += vy * wx * value
-        window[1, cx, o] += wy * vx * value
-        window[1, cx + 1, o] += wy * wx * value
+        windows[k, 0, cx, o] += vy * vx * value
+        windows[k, 0, cx + 1, o] += vy * wx * value
+        windows[k, 1, cx, o] += wy * vx * value
+        windows[k, 1, cx + 1, o] += wy * wx * value
 
 
 @numba.njit(cache=True, nogil=True)
-def _next_cell_row(window, row, hist):  # pragma: no cover - compiled
-    """Store the complete padded cell row ``row`` (``window[0]``) and shift the window down.
+def _store_cell_row(windows, hists, norms, k, r, cells_x):  # pragma: no cover - compiled
+    """Store image cell row ``r`` of size ``k`` (padded row ``r + 1``, ``windows[k, 0]``) as
+    float32 in ``hists[k, r % 2]``, its cell energies in ``norms[k, 0, r % 2]`` and, with row
+    ``r - 1``'s, the inverse norms of block row ``r - 1`` in ``norms[k, 1, (r - 1) % 2]``.
 
-    ``hist`` holds the image's cells, float32; rows 0 and ``cells_y + 1`` are the ring outside
-    the image and are dropped (features.cc's bounds checks). ``window[1]`` (row ``row + 1``)
-    moves to ``window[0]`` and row ``row + 2`` starts empty.
+    The energy of a cell is ``sum_o (h[o] + h[o + 9])^2`` (of the contrast-insensitive
+    histogram), a block's the sum over its 2x2 cells in features.cc's order, both in float32;
+    the inverse is ``1 / sqrt(energy + eps)``, the square root taken in double.
     """
-    if 1 <= row <= hist.shape[0]:
-        out = hist[row - 1]
-        for x in range(out.shape[0]):
-            for o in range(_NUM_ORIENTATIONS):
-                out[x, o] = window[0, x + 1, o]
-    window[0] = window[1]
-    window[1] = 0.0
-
-
-@numba.njit(cache=True, nogil=True)
-def _histograms(image, sbin, cells_y, cells_x, pad):  # pragma: no cover - compiled
-    """Soft-binned orientation histograms (§6.1) of ``image`` edge-padded by ``pad`` pixels on
-    every side: float32 ``(cells_y, cells_x, 18)``, accumulated in float64.
-
-    ``image`` is ``(H, W, C)``, C = 1 or 3. features.cc visits ``y = 1 .. cells_y * sbin - 2``
-    (likewise x) and reads the image at ``min(y, H - 2)``: the gradients are computed on the
-    interior rows and columns that exist, and the last one is repeated for the clamped rest.
-
-    Everything works on a few rows at a time, so it stays in the cache and large images need
-    no large temporaries: the image is read into a ring of three float32 pixel rows (each
-    pixel converted once), and the votes go to a float64 window of the two cell rows that the
-    pixel row touches; the cells outside the image, in a ring around them, collect the votes
-    that features.cc's bounds checks drop.
-    """
-    height, width, channels = image.shape
-    n_rows, n_cols = cells_y * sbin - 2, cells_x * sbin - 2  # visited pixels per axis
-    rows_in = min(n_rows, height + 2 * pad - 2)  # of which interior
-    cols_in = min(n_cols, width + 2 * pad - 2)
-    cell_y, far_y = _bilinear_weights(n_rows, sbin)
-    cell_x, far_x = _bilinear_weights(n_cols, sbin)
-    hist = np.zeros((cells_y, cells_x, _NUM_ORIENTATIONS), dtype=np.float32)
-    window = np.zeros((2, cells_x + 2, _NUM_ORIENTATIONS), dtype=np.float64)
-
-    lines = np.empty((3, channels, cols_in + 2), dtype=np.float32)  # padded row y in y % 3
-    _padded_row(image, pad, 0, lines[0])
-    _padded_row(image, pad, 1, lines[1])
-    gx = np.empty(cols_in, dtype=np.float32)
-    gy = np.empty_like(gx)
-    magnitude = np.empty_like(gx)
-    scratch = np.empty_like(gx)
-    orientation = np.empty(cols_in, dtype=np.int32)
-    current = cell_y[0]  # the padded cell row in window[0]; cell_y grows by 0 or 1 per row
-    for i in range(n_rows):
-        y = i + 1  # the visited row; past rows_in, the gradients of row rows_in are reused
-        if y <= rows_in:
-            _padded_row(image, pad, y + 1, lines[(y + 1) % 3])
-            _row_gradients(lines[(y - 1) % 3], lines[y % 3], lines[(y + 1) % 3], gx, gy, magnitude)
-            _orientations(gx, gy, scratch, orientation)
-            np.sqrt(magnitude, magnitude)
-        if cell_y[i] != current:  # no later pixel row votes into the current row
-            _next_cell_row(window, current, hist)
-            current += 1
-        _vote(window, far_y[i], orientation, magnitude, cell_x, far_x)
-    _next_cell_row(window, current, hist)
-    _next_cell_row(window, current + 1, hist)
-    return hist
-
-
-@numba.njit(cache=True, nogil=True)
-def _block_inverses(hist):  # pragma: no cover - compiled
-    """``1 / sqrt(energy + eps)`` of every 2x2 block of cells, float32 ``(rows - 1, cols - 1)``.
-
-    ``hist`` is float32 ``(rows, cols, 18)``; the energy of a cell is
-    ``sum_o (h[o] + h[o + 9])^2`` (of the contrast-insensitive histogram), summed over the
-    block in features.cc's order in float32, the square root taken in double.
-    """
-    n_rows, n_cols = hist.shape[0], hist.shape[1]
-    norm = np.empty((n_rows, n_cols), dtype=np.float32)
-    for y in range(n_rows):
-        for x in range(n_cols):
-            energy = np.float32(0.0)  # a local sum: no chain of loads and stores through norm
-            for o in range(9):
-                value = hist[y, x, o] + hist[y, x, o + 9]
-                energy += value * value
-            norm[y, x] = energy
-    inverse = np.empty((n_rows - 1, n_cols - 1), dtype=np.float32)
-    for y in range(n_rows - 1):
-        for x in range(n_cols - 1):
-            block = norm[y, x] + norm[y + 1, x] + norm[y, x + 1] + norm[y + 1, x + 1]
-            inverse[y, x] = np.float32(1.0 / np.sqrt(np.float64(block) + _EPS))
-    return inverse
+    window, hist, below = windows[k, 0], hists[k, r % 2], norms[k, 0, r % 2]
+    for x in range(cells_x):
+        energy = np.float32(0.0)  # a local sum: no chain of loads and stores through below
+        for o in range(_NUM_ORIENTATIONS):
+            hist[x, o] = window[x + 1, o]
+        for o in range(9):
+            value = hist[x, o] + hist[x, o + 9]
+            energy += value * value
+        below[x] = energy
+    if r >= 1:
+        above, inverse = norms[k, 0, (r - 1) % 2], norms[k, 1, (r - 1) % 2]
+        for x in range(cells_x - 1):
+            block = above[x] + below[x] + above[x + 1] + below[x + 1]
+            inverse[x] = np.float32(1.0 / np.sqrt(np.float64(block) + _EPS))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -324,58 +263,163 @@ def _clipped(value, inverse):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _normalised(hist, feat):  # pragma: no cover - compiled
-    """Fill ``feat[..., :31]`` from the float32 ``(rows, cols, 18)`` histograms (§6.2, §6.3).
+def _normalised_row(hists, norms, k, r, out):  # pragma: no cover - compiled
+    """Fill ``out[..., :31]``, the row of features of size ``k``'s histogram row ``r`` (in
+    ``hists[k, r % 2]``), with the inverse norms of block rows ``r - 1`` and ``r`` in
+    ``norms[k, 1]`` (:func:`_store_cell_row`); §6.2, §6.3.
 
-    Output cell ``(y, x)`` is histogram cell ``(y + 1, x + 1)`` (the outer ring is dropped);
-    each of its 27 orientation values is normalised by the four blocks that contain it
-    (features.cc's n1..n4, the order of the texture features), clipped at 0.2 and the four
-    results summed with weight 0.5; texture feature k is 0.2357 times the sum of the 18
-    contrast-sensitive values under block k. All in float32, as voc-release5 stores them.
+    Output cell ``x`` is histogram cell ``x + 1`` (the outer ring is dropped); each of its 27
+    orientation values is normalised by the four blocks that contain it (features.cc's n1..n4,
+    the order of the texture features), clipped at 0.2 and the four results summed with weight
+    0.5; texture feature k is 0.2357 times the sum of the 18 contrast-sensitive values under
+    block k. All in float32, as voc-release5 stores them.
 
     The texture sums are a second pass over the row: in one loop with the orientation values
     they kept it from vectorising, and their chains of dependent additions overlap better
     when nothing else sits between consecutive cells.
     """
-    inverse = _block_inverses(hist)
+    hist, above, below = hists[k, r % 2], norms[k, 1, (r - 1) % 2], norms[k, 1, r % 2]
     half = np.float32(0.5)
-    for y in range(feat.shape[0]):
-        for x in range(feat.shape[1]):
-            h, out = hist[y + 1, x + 1], feat[y, x]
-            n1, n2 = inverse[y + 1, x + 1], inverse[y, x + 1]
-            n3, n4 = inverse[y + 1, x], inverse[y, x]
-            for o in range(27):
-                # contrast-sensitive h[o], then contrast-insensitive h[o] + h[o + 9]
-                value = h[o] if o < _NUM_ORIENTATIONS else h[o - 18] + h[o - 9]
-                total = _clipped(value, n1) + _clipped(value, n2) + _clipped(value, n3)
-                out[o] = (total + _clipped(value, n4)) * half
-        for x in range(feat.shape[1]):
-            h, out = hist[y + 1, x + 1], feat[y, x]
-            n1, n2 = inverse[y + 1, x + 1], inverse[y, x + 1]
-            n3, n4 = inverse[y + 1, x], inverse[y, x]
-            t1 = t2 = t3 = t4 = np.float32(0.0)
-            for o in range(_NUM_ORIENTATIONS):
-                t1 += _clipped(h[o], n1)
-                t2 += _clipped(h[o], n2)
-                t3 += _clipped(h[o], n3)
-                t4 += _clipped(h[o], n4)
-            out[27] = t1 * _TEXTURE_WEIGHT
-            out[28] = t2 * _TEXTURE_WEIGHT
-            out[29] = t3 * _TEXTURE_WEIGHT
-            out[30] = t4 * _TEXTURE_WEIGHT
+    for x in range(out.shape[0]):
+        h, cell = hist[x + 1], out[x]
+        n1, n2, n3, n4 = below[x + 1], above[x + 1], below[x], above[x]
+        for o in range(27):
+            # contrast-sensitive h[o], then contrast-insensitive h[o] + h[o + 9]
+            value = h[o] if o < _NUM_ORIENTATIONS else h[o - 18] + h[o - 9]
+            total = _clipped(value, n1) + _clipped(value, n2) + _clipped(value, n3)
+            cell[o] = (total + _clipped(value, n4)) * half
+    for x in range(out.shape[0]):
+        h, cell = hist[x + 1], out[x]
+        n1, n2, n3, n4 = below[x + 1], above[x + 1], below[x], above[x]
+        t1 = t2 = t3 = t4 = np.float32(0.0)
+        for o in range(_NUM_ORIENTATIONS):
+            t1 += _clipped(h[o], n1)
+            t2 += _clipped(h[o], n2)
+            t3 += _clipped(h[o], n3)
+            t4 += _clipped(h[o], n4)
+        cell[27] = t1 * _TEXTURE_WEIGHT
+        cell[28] = t2 * _TEXTURE_WEIGHT
+        cell[29] = t3 * _TEXTURE_WEIGHT
+        cell[30] = t4 * _TEXTURE_WEIGHT
 
 
 @numba.njit(cache=True, nogil=True)
-def _features(image, sbin, cells_y, cells_x, pad, n_features):  # pragma: no cover - compiled
-    """The float32 ``(cells_y - 2, cells_x - 2, n_features)`` map of :func:`_fhog`.
+def _next_cell_row(windows, hists, norms, k, row, feat):  # pragma: no cover - compiled
+    """Finish size ``k``'s complete padded cell row ``row`` (``windows[k, 0]``) and shift its
+    window down.
 
-    ``image`` is as :func:`_pixels` gives it; both cell counts must be at least 3. The 32nd
-    (truncation) channel, if any, stays 0.
+    ``feat`` is the size's float32 ``(cells_y - 2, cells_x - 2, n)`` map. Padded rows 0 and
+    ``cells_y + 1`` are the ring outside the image and are dropped (features.cc's bounds
+    checks); image cell row ``r = row - 1`` is stored (:func:`_store_cell_row`) and completes
+    the map's row ``r - 2`` (histogram row ``r - 1``, normalised by block rows ``r - 2`` and
+    ``r - 1``). Normalising as the rows complete needs no image-sized histogram array (whose
+    fresh pages cost more than the normalisation itself) and finds the rows in the cache.
+    ``windows[k, 1]`` (row ``row + 1``) moves to ``windows[k, 0]``; row ``row + 2`` starts
+    empty.
     """
-    hist = _histograms(image, sbin, cells_y, cells_x, pad)
-    feat = np.zeros((cells_y - 2, cells_x - 2, n_features), dtype=np.float32)
-    _normalised(hist, feat)
-    return feat
+    cells_x = feat.shape[1] + 2
+    r = row - 1
+    if 0 <= r < feat.shape[0] + 2:
+        _store_cell_row(windows, hists, norms, k, r, cells_x)
+        if r >= 2:
+            _normalised_row(hists, norms, k, r - 1, feat[r - 2])
+    window = windows[k]
+    for x in range(cells_x + 2):
+        for o in range(_NUM_ORIENTATIONS):
+            window[0, x, o] = window[1, x, o]
+            window[1, x, o] = 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
+    """The float32 ``(max(cells_y - 2, 0), max(cells_x - 2, 0), n_features)`` maps of ``image``
+    edge-padded by ``pad`` pixels on every side, one per cell size in the int64 ``sbins``, all
+    from one pass over the pixels. The 32nd (truncation) channel, if any, stays 0.
+
+    ``image`` is as :func:`_pixels` gives it. For each cell size, features.cc visits
+    ``y = 1 .. cells_y * sbin - 2`` (likewise x) and reads the image at ``min(y, H - 2)``: the
+    gradients are computed on the interior rows and columns that exist, and the last one is
+    repeated for the clamped rest. A pixel's gradient, orientation and magnitude do not
+    depend on the cell size, so they are computed once, on the union of the visited rows and
+    columns, and every size votes with them. That is exact for each size: a size visits fewer
+    pixels than the union only if it stops before the last interior row (column), so it never
+    clamps; a size that clamps does so at the last interior one, as the union does
+    (:func:`_vote` repeats the last column).
+
+    Everything works on a few rows at a time, so it stays in the cache and large images need
+    no large temporaries: the image is read into a ring of three float32 pixel rows (each
+    pixel converted once); each size's votes go to a float64 window of the two cell rows that
+    the pixel row touches (the cells outside the image, in a ring around them, collect the
+    votes that features.cc's bounds checks drop); each cell row is normalised as soon as the
+    rows below it are complete (:func:`_next_cell_row`).
+
+    The sizes' state is stacked in arrays padded to the largest size, row ``k`` for size
+    ``k``, and the kernels take the whole arrays and ``k``: a view (``windows[k]``) or a list
+    element passed to a function costs two atomic reference counts per call, which once per
+    pixel row made small maps 5% slower.
+    """
+    height, width, channels = image.shape[0] + 2 * pad, image.shape[1] + 2 * pad, image.shape[2]
+    feats = []
+    # Of the sizes with a non-empty map: sbin, cells_x, visited pixel rows and columns.
+    grids = np.zeros((len(sbins), 4), dtype=np.int64)
+    n_sizes = n_rows = n_cols = cells = 0  # of them all, the largest
+    for sbin in sbins:
+        cells_y, cells_x = _c_round_div(height, sbin), _c_round_div(width, sbin)
+        shape = (max(cells_y - 2, 0), max(cells_x - 2, 0), n_features)
+        feat = np.zeros(shape, dtype=np.float32)
+        if min(cells_y, cells_x) >= 3:  # else nothing survives the dropped border ring
+            grids[n_sizes] = sbin, cells_x, sbin * cells_y - 2, sbin * cells_x - 2
+            n_sizes += 1
+            n_rows, n_cols = max(n_rows, grids[n_sizes - 1, 2]), max(n_cols, grids[n_sizes - 1, 3])
+            cells = max(cells, cells_x)
+        feats.append(feat)
+    if n_sizes == 0:
+        return feats
+    maps = [feat for feat in feats if feat.size]  # the non-empty ones, in the order of grids
+    cell_y, far_y = np.empty((n_sizes, n_rows + 1), np.int64), np.empty((n_sizes, n_rows))
+    cell_x, far_x = np.empty((n_sizes, n_cols + 1), np.int64), np.empty((n_sizes, n_cols))
+    for k in range(n_sizes):
+        sbin, _, rows, cols = grids[k]
+        _bilinear_weights(sbin, cell_y[k, :rows], far_y[k, :rows])
+        _bilinear_weights(sbin, cell_x[k, :cols], far_x[k, :cols])
+        cell_y[k, -1], cell_x[k, -1] = rows, cols
+    windows = np.zeros((n_sizes, 2, cells + 2, _NUM_ORIENTATIONS), dtype=np.float64)
+    hists = np.empty((n_sizes, 2, cells, _NUM_ORIENTATIONS), dtype=np.float32)
+    norms = np.empty((n_sizes, 2, 2, cells), dtype=np.float32)  # energies, inverses
+    current = np.zeros(n_sizes, dtype=np.int64)  # the padded cell row in each windows[k, 0]
+    rows_in = min(n_rows, height - 2)  # visited rows that are interior
+    cols_in = min(n_cols, width - 2)
+
+    lines = np.empty((3, channels, cols_in + 2), dtype=np.float32)  # padded row y in y % 3
+    _padded_row(image, pad, 0, lines[0])
+    _padded_row(image, pad, 1, lines[1])
+    gx = np.empty(cols_in, dtype=np.float32)
+    gy = np.empty_like(gx)
+    magnitude = np.empty_like(gx)
+    scratch = np.empty_like(gx)
+    orientation = np.empty(cols_in, dtype=np.int32)
+    for i in range(n_rows):
+        y = i + 1  # the visited row; past rows_in, the gradients of row rows_in are reused
+        if y <= rows_in:
+            _padded_row(image, pad, y + 1, lines[(y + 1) % 3])
+            _row_gradients(lines[(y - 1) % 3], lines[y % 3], lines[(y + 1) % 3], gx, gy, magnitude)
+            _orientations(gx, gy, scratch, orientation)
+            np.sqrt(magnitude, magnitude)
+        for k in range(n_sizes):
+            if i >= cell_y[k, -1]:  # past the rows this size visits
+                continue
+            # Every cell row is finished in turn, even one that no pixel row votes into (image
+            # row 0 with 1-pixel cells), as it is normalised too.
+            while cell_y[k, i] != current[k]:  # no later pixel row votes into the current one
+                _next_cell_row(windows, hists, norms, k, current[k], maps[k])
+                current[k] += 1
+            # The gradient row is longer than this size's visited columns only where the size
+            # does not clamp, so _vote's repetition of the last pixel is the size's clamping.
+            _vote(windows, k, far_y[k, i], orientation, magnitude, cell_x, far_x)
+    for k in range(n_sizes):
+        _next_cell_row(windows, hists, norms, k, current[k], maps[k])
+        _next_cell_row(windows, hists, norms, k, current[k] + 1, maps[k])
+    return feats
 
 
 def fhog(image: np.ndarray, cell_size: int = 8, *, truncation_feature: bool = False) -> np.ndarray:
@@ -414,18 +458,63 @@ def fhog(image: np.ndarray, cell_size: int = 8, *, truncation_feature: bool = Fa
     Discriminatively Trained Part-Based Models", IEEE TPAMI 32(9), 2010, §6; voc-release5
     ``features/features.cc``.
     """
-    return _fhog(_validated(image), _check_cell_size(cell_size), truncation_feature)
+    sbin = _check_cell_size(cell_size)
+    return _fhog_cells(_validated(image), [sbin], truncation_feature)[0]
 
 
-def _fhog(image: np.ndarray, sbin: int, truncation_feature: bool, pad: int = 0) -> np.ndarray:
-    """:func:`fhog` of a validated image edge-padded by ``pad`` pixels on every side."""
-    height, width = image.shape[0] + 2 * pad, image.shape[1] + 2 * pad
-    cells = (_c_round_div(height, sbin), _c_round_div(width, sbin))
+def fhog_cells(
+    image: np.ndarray, cell_sizes: Sequence[int], *, truncation_feature: bool = False
+) -> list[np.ndarray]:
+    """:func:`fhog` of one image for several cell sizes, with one pass over the pixels.
+
+    Equal, bit for bit, to ``[fhog(image, s, truncation_feature=truncation_feature) for s in
+    cell_sizes]``, but each pixel's gradient, orientation and magnitude are computed once and
+    vote into the histograms of every cell size (the DPM feature pyramid takes cells of 2, 4
+    and 8 pixels on the same resized image). Repeated sizes give equal, separate arrays.
+
+    Parameters
+    ----------
+    image:
+        As for :func:`fhog`.
+    cell_sizes:
+        Cell sides in pixels, positive ints, in any order; empty gives an empty list.
+    truncation_feature:
+        As for :func:`fhog`.
+
+    Returns
+    -------
+    list of np.ndarray
+        One float32 map per cell size, in the order of ``cell_sizes``, shaped as :func:`fhog`
+        shapes it (empty along an axis of fewer than 2.5 cells).
+
+    Raises
+    ------
+    ValueError
+        As :func:`fhog`; also when ``cell_sizes`` is not a sequence (a single int).
+    """
+    if isinstance(cell_sizes, str | bytes) or not isinstance(cell_sizes, Iterable):
+        raise ValueError(f"cell_sizes must be a sequence of positive ints, got {cell_sizes!r}")
+    sbins = [_check_cell_size(s) for s in cell_sizes]
+    return _fhog_cells(_validated(image), sbins, truncation_feature)
+
+
+def _fhog_cells(
+    image: np.ndarray, sbins: list[int], truncation_feature: bool, pad: int = 0
+) -> list[np.ndarray]:
+    """:func:`fhog_cells` of a validated image edge-padded by ``pad`` pixels on every side."""
+    if len(sbins) > 1 and len(set(sbins)) < len(sbins):  # each size once; repeats get copies
+        distinct = list(dict.fromkeys(sbins))
+        maps = _fhog_cells(image, distinct, truncation_feature, pad)
+        computed = dict(zip(distinct, maps, strict=True))
+        out, seen = [], set()
+        for sbin in sbins:  # the first of a repeated size gets the map, later ones copies
+            out.append(computed[sbin].copy() if sbin in seen else computed[sbin])
+            seen.add(sbin)
+        return out
+    if not sbins:
+        return []
     n_features = NUM_FEATURES + int(truncation_feature)
-    if min(cells) < 3:  # nothing survives the dropped border ring (and H, W may be < 3)
-        shape = (max(cells[0] - 2, 0), max(cells[1] - 2, 0), n_features)
-        return np.zeros(shape, dtype=np.float32)
-    return _features(_pixels(image), sbin, cells[0], cells[1], pad, n_features)
+    return _features(_pixels(image), np.array(sbins, dtype=np.int64), pad, n_features)
 
 
 def hog_feature_map(image: np.ndarray, cell_size: int = 4) -> np.ndarray:
@@ -456,4 +545,4 @@ def hog_feature_map(image: np.ndarray, cell_size: int = 4) -> np.ndarray:
     if height == 0 or width == 0:  # nothing to replicate
         shape = (_c_round_div(height, sbin), _c_round_div(width, sbin), NUM_FEATURES)
         return np.zeros(shape, dtype=np.float32)
-    return _fhog(image, sbin, truncation_feature=False, pad=sbin)
+    return _fhog_cells(image, [sbin], truncation_feature=False, pad=sbin)[0]

@@ -30,12 +30,12 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numba
 import numpy as np
 
 from tracking.detection.dpm.model import DpmComponent, DpmModel
 from tracking.detection.dpm.pyramid import PyramidLevel
-from tracking.detection.dpm.responses import filter_responses
 from tracking.detection.dpm.scoring import LevelScores, root_grid
 
 __all__ = [
@@ -175,21 +175,24 @@ def _dot(features, row, col, weights, channels):  # pragma: no cover - compiled
     start = col * channels
     total = np.float32(0.0)
     for dy in range(h):
-        line = features[row + dy]
+        # 1-D slices: with them the compiler vectorises the loop (2x faster than 2-D indexing)
+        line = features[row + dy, start : start + row_length]
+        taps = weights[dy]
         for i in range(row_length):
-            total += weights[dy, i] * line[start + i]
+            total += taps[i] * line[i]
     return total
 
 
 @numba.njit(cache=True, nogil=True)
 def _deformed_part(
-    partial, features, weights, channels, cache, anchor_row, anchor_col, deformation, window, prune
-):  # pragma: no cover - compiled
+    partial, features, weights, channels, cache, done, anchor_row, anchor_col, deformation,
+    window, prune,
+):  # pragma: no cover - compiled  # fmt: skip
     """Best ``response(q) - d(anchor - q)`` over placements within ``window`` of the anchor.
 
     ``features`` and ``weights`` as :func:`_dot` takes them. Placements with
-    ``partial - d < prune`` are skipped; responses come from ``cache`` (NaN: not yet
-    computed). Returns ``(value, row, col, partial - d at the best placement)``;
+    ``partial - d < prune`` are skipped; responses come from ``cache`` where ``done`` says
+    they were computed. Returns ``(value, row, col, partial - d at the best placement)``;
     ``-inf`` when no placement qualifies.
     """
     height = features.shape[0] - weights.shape[0]
@@ -208,10 +211,12 @@ def _deformed_part(
             cost = cost_y + ax * u * u + bx * u
             if partial - cost < prune:
                 continue
-            response = cache[row, col]
-            if np.isnan(response):
+            if done[row, col]:
+                response = cache[row, col]
+            else:
                 response = _dot(features, row, col, weights, channels)
                 cache[row, col] = response
+                done[row, col] = True
             value = response - cost
             if value > best:
                 best, best_row, best_col, best_margin = value, row, col, partial - cost
@@ -238,6 +243,9 @@ def _cascade(
     stage,  # (2 + 2P,)
     margin,  # (2 + 2P,)
     threshold,
+    cache,  # (2, P, H2, W2) float32: approximate and exact part responses, computed lazily
+    done,  # (2, P, H2, W2) bool: which of them are computed
+    approximate,  # bool: run the approximate stages (else every root is scored exactly)
     record,  # bool: keep every stage's partial score and margin (fitting)
 ):  # pragma: no cover - compiled
     """Roots of one component on one level passing every stage with a score above threshold.
@@ -250,8 +258,6 @@ def _cascade(
     n_parts = parts.shape[0]
     n_stages = 2 + 2 * n_parts
     part_rows, part_cols = part_features.shape[0], part_features.shape[1] // channels
-    cache_approx = np.full((n_parts, part_rows, part_cols), np.nan, dtype=np.float32)
-    cache = np.full_like(cache_approx, np.nan)
     capacity = ny * nx
     rows = np.empty(capacity, dtype=np.int64)
     cols = np.empty(capacity, dtype=np.int64)
@@ -274,15 +280,16 @@ def _cascade(
                 continue
             here_stages[0] = s
             alive = True
-            for p in range(n_parts):  # approximate parts
+            approx[:] = 0.0
+            for p in range(n_parts if approximate else 0):  # approximate parts
                 ar = anchors[p, 0] + steps[p] * y
                 ac = anchors[p, 1] + steps[p] * x
                 if ar < 0 or ar > last_row or ac < 0 or ac > last_col:
                     alive = False  # as scoring: an anchor off the response map scores -inf
                     break
                 value, _, _, m = _deformed_part(
-                    s, part_features_approx, parts_approx[p], approx_channels, cache_approx[p],
-                    ar, ac, deformations[p], window, margin[1 + p],
+                    s, part_features_approx, parts_approx[p], approx_channels, cache[0, p],
+                    done[0, p], ar, ac, deformations[p], window, margin[1 + p],
                 )  # fmt: skip
                 s += value
                 here_stages[1 + p], here_margins[1 + p] = s, m
@@ -301,10 +308,13 @@ def _cascade(
                 k = 2 + n_parts + p
                 ar = anchors[p, 0] + steps[p] * y
                 ac = anchors[p, 1] + steps[p] * x
+                if ar < 0 or ar > last_row or ac < 0 or ac > last_col:
+                    alive = False  # (checked here too for runs without approximate stages)
+                    break
                 rest = s - approx[p]
                 value, pr, pc, m = _deformed_part(
-                    rest, part_features, parts[p], channels, cache[p], ar, ac, deformations[p],
-                    window, margin[k],
+                    rest, part_features, parts[p], channels, cache[1, p], done[1, p], ar, ac,
+                    deformations[p], window, margin[k],
                 )  # fmt: skip
                 s = rest + value
                 here_stages[k], here_margins[k] = s, m
@@ -326,6 +336,33 @@ def _cascade(
     )  # fmt: skip
 
 
+def _approx_root_responses(
+    features: np.ndarray, roots: tuple[np.ndarray, ...], grid: tuple[int, int]
+) -> list[np.ndarray]:
+    """Responses of the projected root filters on the ``grid`` of root positions.
+
+    One OpenCV correlation per channel: with ``k = 6`` channels that is about 2.5x faster than
+    the matrix-product route of :func:`.responses.filter_responses`, which suits 32 channels.
+    Positions where a root does not fit get ``-inf``. The float32 sums differ from the
+    product's in the last bits; the exact stage subtracts these very values again.
+    """
+    height, width, channels = features.shape
+    planes = [np.ascontiguousarray(features[..., c]) for c in range(channels)]
+    out = []
+    for weights in roots:
+        h, w = weights.shape[:2]
+        total = np.zeros((height, width), dtype=np.float32)
+        for c, plane in enumerate(planes):
+            kernel = np.ascontiguousarray(weights[..., c])
+            total += cv2.filter2D(plane, cv2.CV_32F, kernel, anchor=(0, 0),
+                                  borderType=cv2.BORDER_CONSTANT)  # fmt: skip
+        response = np.full(grid, -np.inf, dtype=np.float32)
+        fit_h, fit_w = min(grid[0], height - h + 1), min(grid[1], width - w + 1)
+        response[:fit_h, :fit_w] = total[:fit_h, :fit_w]
+        out.append(response)
+    return out
+
+
 def _flat(array: np.ndarray) -> np.ndarray:
     """``(..., W, C)`` -> contiguous ``(..., W C)``: the layout :func:`_dot` reads."""
     return np.ascontiguousarray(array).reshape(*array.shape[:-2], -1)
@@ -344,14 +381,16 @@ def _component_offset(component: DpmComponent, level: PyramidLevel) -> float:
 def cascade_level(
     model: DpmModel,
     features: dict[int, np.ndarray],
-    projected: dict[int, np.ndarray],
-    projection: PcaProjection,
+    projected: dict[int, np.ndarray] | None,
+    projection: PcaProjection | None,
     level: PyramidLevel,
     pad: tuple[int, int],
     thresholds: CascadeThresholds,
     threshold: float,
     window: int = 4,
     positions: np.ndarray | None = None,
+    rows: tuple[int, int] | None = None,
+    cols: tuple[int, int] | None = None,
 ) -> tuple[LevelScores, list[tuple[np.ndarray, np.ndarray]]] | None:
     """Scores of the roots of ``level`` that pass the cascade, in :class:`LevelScores` form.
 
@@ -360,6 +399,9 @@ def cascade_level(
     features, projected:
         Exact and projected (:meth:`PcaProjection.project`) padded maps by level index; must
         hold ``level.index`` and, for models with parts, ``level.index - level.interval``.
+    projection:
+        The model's projection; ``None`` (with ``projected`` None): skip the approximate
+        stages and score every root exactly (``thresholds`` must then prune nothing).
     thresholds:
         Stage thresholds (:meth:`CascadeThresholds.exact` for none).
     threshold:
@@ -368,70 +410,94 @@ def cascade_level(
         Largest part displacement in cells (as :func:`.scoring.score_level`).
     positions:
         ``(N, 2)`` root (row, col) positions to consider; default every one.
+    rows, cols:
+        Half-open ranges of root positions (padded-map indices) to score; default all.
 
     Returns
     -------
     (LevelScores, records) or None
         Every root that passed with its exact score (``-inf`` elsewhere), and per component the
         ``(stages, margins)`` partial scores of those roots (filled when ``positions`` is given,
-        for fitting; empty otherwise). ``None`` when the level has no root positions.
+        for fitting; empty otherwise). ``None`` when the rectangle is empty.
     """
     root_features = features[level.index]
     grid = root_grid(model, root_features.shape)
-    ny, nx = grid
+    rows = rows if rows is not None else (0, grid[0])
+    cols = cols if cols is not None else (0, grid[1])
+    ny, nx = rows[1] - rows[0], cols[1] - cols[0]
     if ny <= 0 or nx <= 0:
         return None
     components = model.components
     n_symbols = max(len(c.symbols) for c in components)
     component_scores = np.full((len(components), ny, nx), -np.inf)
     placements = np.full((len(components), n_symbols, ny, nx, 2), -1, dtype=np.int32)
-    approx_roots = filter_responses(
-        projected[level.index], list(projection.roots), (0, ny), (0, nx)
-    )
+    approximate = projection is not None and projected is not None
+    if approximate:
+        full = _approx_root_responses(projected[level.index], projection.roots, grid)
+        approx_roots = [r[rows[0] : rows[1], cols[0] : cols[1]] for r in full]
+    else:  # zeros where the root fits (the exact stage adds its response), -inf elsewhere
+        approx_roots = []
+        for component in components:
+            fit = np.full((ny, nx), -np.inf, dtype=np.float32)
+            h, w = component.root.size
+            last_row = max(root_features.shape[0] - h + 1 - rows[0], 0)
+            last_col = max(root_features.shape[1] - w + 1 - cols[0], 0)
+            fit[:last_row, :last_col] = 0
+            approx_roots.append(fit)
     records = []
     pad_y, pad_x = pad
+    origin = np.array([rows[0], cols[0]], dtype=np.int64)
     for ci, component in enumerate(components):
         start = approx_roots[ci] + np.float32(_component_offset(component, level))
         if positions is not None:
             chosen = np.full_like(start, -np.inf)
-            chosen[positions[:, 0], positions[:, 1]] = start[positions[:, 0], positions[:, 1]]
+            at = positions[:, 0] - rows[0], positions[:, 1] - cols[0]
+            chosen[at] = start[at]
             start = chosen
+        n_parts = len(component.parts)
+        step, part_level = 1, level.index
+        anchors = np.zeros((0, 2), dtype=np.int64)
+        parts = np.zeros((0, 1, 1, root_features.shape[2]), dtype=np.float32)
+        deformations = np.zeros((0, 4))
+        part_maps = root_features[:1, :1]
         if component.parts:
             ds = component.parts[0].anchor[2]
             if any(p.anchor[2] != ds or p.size != component.parts[0].size for p in component.parts):
                 raise ValueError("the cascade needs parts of one size on one level")
             part_level = level.index - level.interval * ds
             step = 2**ds
-            part_maps = features[part_level], projected[part_level]
-            anchors = np.array(
-                [
-                    (p.anchor[1] - (step - 1) * pad_y, p.anchor[0] - (step - 1) * pad_x)
-                    for p in component.parts
-                ],
-                dtype=np.int64,
+            part_maps = features[part_level]
+            anchors = (
+                np.array(
+                    [
+                        (p.anchor[1] - (step - 1) * pad_y, p.anchor[0] - (step - 1) * pad_x)
+                        for p in component.parts
+                    ],
+                    dtype=np.int64,
+                )
+                + step * origin
             )
             parts = np.stack([p.weights for p in component.parts])
             deformations = np.array([p.deformation for p in component.parts], dtype=np.float64)
-        else:
-            part_maps = root_features[:1, :1], projected[level.index][:1, :1]
-            anchors = np.zeros((0, 2), dtype=np.int64)
-            parts = np.zeros((0, 1, 1, root_features.shape[2]), dtype=np.float32)
-            deformations = np.zeros((0, 4))
-            step = 1
-        n_parts = len(component.parts)
+        if approximate:
+            approx_maps = projected[part_level]
+            approx_parts, approx_channels = projection.parts[ci], projection.basis.shape[1]
+        else:  # never read: no approximate stage runs
+            approx_maps = np.zeros((1, 1, 1), np.float32)
+            approx_parts, approx_channels = np.zeros((n_parts, 1, 1, 1), np.float32), 1
         stage = thresholds.stage[: 2 + 2 * n_parts]
         margin = thresholds.deformation[: 2 + 2 * n_parts]
-        rows, cols, scores, place, stages, margins = _cascade(
+        found, found_cols, scores, place, stages, margins = _cascade(
             start,
             approx_roots[ci],
             _flat(root_features),
             _flat(component.root.weights),
-            np.array(component.root.anchor[1::-1], dtype=np.int64),
-            _flat(part_maps[1]),
-            _flat(part_maps[0]),
-            _flat(projection.parts[ci]),
+            np.array(component.root.anchor[1::-1], dtype=np.int64) + origin,
+            _flat(approx_maps),
+            _flat(part_maps),
+            _flat(approx_parts),
             _flat(parts),
-            projection.basis.shape[1],
+            approx_channels,
             root_features.shape[2],
             anchors,
             np.full(n_parts, step, dtype=np.int64),
@@ -440,20 +506,25 @@ def cascade_level(
             np.asarray(stage, dtype=np.float64),
             np.asarray(margin, dtype=np.float64),
             float(threshold),
+            # np.zeros maps zero pages that memory touches only where a response is computed
+            np.empty((2, n_parts, *part_maps.shape[:2]), dtype=np.float32),
+            np.zeros((2, n_parts, *part_maps.shape[:2]), dtype=np.bool_),
+            approximate,
             positions is not None,
         )
-        component_scores[ci, rows, cols] = scores
-        placements[ci, 0, rows, cols, 0] = cols + component.root.anchor[0]
-        placements[ci, 0, rows, cols, 1] = rows + component.root.anchor[1]
+        component_scores[ci, found, found_cols] = scores
+        root_row, root_col = rows[0] + component.root.anchor[1], cols[0] + component.root.anchor[0]
+        placements[ci, 0, found, found_cols, 0] = found_cols + root_col
+        placements[ci, 0, found, found_cols, 1] = found + root_row
         for p in range(n_parts):
-            placements[ci, 1 + p, rows, cols] = place[:, p]
+            placements[ci, 1 + p, found, found_cols] = place[:, p]
         records.append((stages, margins))
     best = component_scores.argmax(axis=0)
     scores = np.take_along_axis(component_scores, best[None], axis=0)[0]
     return (
         LevelScores(
             level=level,
-            origin=(0, 0),
+            origin=(rows[0], cols[0]),
             scores=scores,
             component=best,
             component_scores=component_scores,

@@ -46,7 +46,12 @@ from tracking.detection.dpm.config import DpmConfig
 from tracking.detection.dpm.dense import dense_scores
 from tracking.detection.dpm.model import DpmModel, load_dpm_model
 from tracking.detection.dpm.parts import model_part_names
-from tracking.detection.dpm.pyramid import PyramidLevel, level_features, pyramid_levels
+from tracking.detection.dpm.pyramid import (
+    PyramidLevel,
+    level_chains,
+    level_features,
+    pyramid_levels,
+)
 from tracking.detection.dpm.scoring import LevelScores, root_grid, score_level
 from tracking.detection.regions import checked_heights, checked_region, clip_region
 from tracking.types import Box, validate_frame
@@ -143,11 +148,13 @@ class DpmDetector:
     part_names: tuple[str, ...] = field(init=False)
     _slots: tuple[tuple[int, ...], ...] = field(init=False, repr=False)
     _cascade: tuple[CascadeThresholds, PcaProjection] | None = field(init=False, repr=False)
+    _exact: CascadeThresholds = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.part_names, self._slots = model_part_names(self.model)
         if self.calibration is None:
             self.calibration = _find_calibration(self.model, self.config)
+        self._exact = CascadeThresholds.exact(self.model.num_parts)
         self._cascade = None
         if self.config.cascade and self.config.deformation_window is not None:
             thresholds = _find_cascade(self.model, self.config, self.threshold)
@@ -217,39 +224,39 @@ class DpmDetector:
         """
         cascade_setup = self._cascade if cascade and shared is not None else None
 
+        window = self.config.deformation_window
+
         def score(plan: _Plan, features: dict[int, np.ndarray]) -> LevelScores | None:
-            return score_level(
-                self.model,
-                features,
-                plan.root,
-                self.pad,
-                plan.rows,
-                plan.cols,
-                self.config.deformation_window,
-            )
+            if window is None:
+                return score_level(
+                    self.model, features, plan.root, self.pad, plan.rows, plan.cols, None
+                )
+            # exact scores of every root, in the compiled kernel (faster than dense numpy on
+            # the small grids of a region; the same values)
+            result = cascade_level(
+                self.model, features, None, None, plan.root, self.pad, self._exact,
+                -math.inf, window, rows=plan.rows, cols=plan.cols,
+            )  # fmt: skip
+            return None if result is None else result[0]
 
         jobs: list[Callable[[], object]]
         if shared is not None:
             needed = {level.index: level for plan in plans for level in plan.levels}
-            by_factor: dict[float, list[PyramidLevel]] = {}
-            for level in needed.values():
-                by_factor.setdefault(level.factor, []).append(level)
             features: dict[int, np.ndarray] = {}
             compute = [
-                (lambda g=group: level_features(shared, g, self.pad))
-                for group in by_factor.values()
+                (lambda g=chain: level_features(shared, g, self.pad))
+                for chain in level_chains(list(needed.values()))
             ]
             for part in self._map(compute):
                 features.update(part)  # type: ignore[arg-type]
             if cascade_setup is not None:
                 thresholds, projection = cascade_setup
                 projected = {k: projection.project(v) for k, v in features.items()}
-                window = self.config.deformation_window or 0
 
                 def cascade_score(plan: _Plan) -> LevelScores | None:
                     result = cascade_level(
                         self.model, features, projected, projection, plan.root, self.pad,
-                        thresholds, self.threshold, window,
+                        thresholds, self.threshold, window or 0,
                     )  # fmt: skip
                     return None if result is None else result[0]
 

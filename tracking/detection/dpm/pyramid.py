@@ -17,11 +17,12 @@ on level ``k`` sit there. Every level is padded by ``(pad_y + 1, pad_x + 1)`` ce
 (``pad = model.maxsize``; the 1 replaces the border ring that HOG drops), and the truncation
 channel (the 32nd) is 1 in the padding, 0 inside (featpyramid.m).
 
-Differences from featpyramid.m, all documented approximations: images are resized with OpenCV
-(``INTER_AREA`` when shrinking, ``INTER_LINEAR`` when enlarging) in float32 instead of
-voc-release5's ``resize.cc``, each level directly from the input instead of by repeated halving,
-and an optional ``upscale`` enlarges the input first (to find people smaller than the model's
-smallest root). Only the levels asked for are computed.
+As featpyramid.m, the first octave's images are resized from the input and every image an
+octave below one already made is that image halved (cheaper than resizing the whole input for
+every level). Differences from featpyramid.m, all documented approximations: images are resized
+with OpenCV (``INTER_AREA`` when shrinking, ``INTER_LINEAR`` when enlarging) in float32 instead
+of voc-release5's ``resize.cc``, and an optional ``upscale`` enlarges the input first (to find
+people smaller than the model's smallest root). Only the levels asked for are computed.
 """
 
 from __future__ import annotations
@@ -32,9 +33,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from tracking.features.hog import fhog
+from tracking.features.hog import fhog_cells
 
-__all__ = ["PyramidLevel", "level_features", "pad_features", "pyramid_levels"]
+__all__ = ["PyramidLevel", "level_chains", "level_features", "pad_features", "pyramid_levels"]
 
 TRUNCATION_CHANNEL = 31  # model.features.truncation_dim (1-based 32)
 
@@ -129,7 +130,8 @@ def pad_features(features: np.ndarray, pad: tuple[int, int]) -> np.ndarray:
     Parameters
     ----------
     features:
-        ``(h, w, 32)`` float32 from :func:`fhog` with ``truncation_feature=True``.
+        ``(h, w, 32)`` float32 from :func:`~tracking.features.hog.fhog` with
+        ``truncation_feature=True``.
     pad:
         ``(pad_y, pad_x)`` in cells (``model.maxsize``).
 
@@ -160,6 +162,23 @@ def resize_image(image: np.ndarray, factor: float) -> np.ndarray:
     return cv2.resize(source, size, interpolation=interpolation)
 
 
+def _octave_key(factor: float) -> float:
+    """The same value for factors a power of two apart (their images form one halving chain)."""
+    return round(factor / 2.0 ** math.floor(math.log2(factor)), 9)
+
+
+def level_chains(levels: tuple[PyramidLevel, ...] | list[PyramidLevel]) -> list[list[PyramidLevel]]:
+    """``levels`` grouped by halving chain: resize factors a power of two apart, largest first.
+
+    :func:`level_features` makes each chain's images from one resize of the input, so a chain
+    is the unit to compute on one thread.
+    """
+    chains: dict[float, list[PyramidLevel]] = {}
+    for level in sorted(levels, key=lambda lv: -lv.factor):
+        chains.setdefault(_octave_key(level.factor), []).append(level)
+    return list(chains.values())
+
+
 def level_features(
     image: np.ndarray,
     levels: tuple[PyramidLevel, ...] | list[PyramidLevel],
@@ -167,7 +186,8 @@ def level_features(
 ) -> dict[int, np.ndarray]:
     """Padded HOG features of the requested levels of ``image``'s pyramid.
 
-    Levels with the same resize factor share one resized image.
+    Levels with the same resize factor share one resized image; an image whose factor is half
+    that of one already made is that image halved (featpyramid.m's octaves).
 
     Parameters
     ----------
@@ -183,14 +203,21 @@ def level_features(
     dict
         Level index -> ``(h, w, 32)`` float32 padded features.
     """
-    by_factor: dict[float, list[PyramidLevel]] = {}
-    for level in levels:
-        by_factor.setdefault(level.factor, []).append(level)
+    source = image.astype(np.float32, copy=False)
+    images: dict[float, np.ndarray] = {}
     out: dict[int, np.ndarray] = {}
-    for factor, group in by_factor.items():
-        scaled = resize_image(image, factor)
-        for level in group:
-            out[level.index] = pad_features(
-                fhog(scaled, level.hog_cell, truncation_feature=True), pad
+    for chain in level_chains(levels):
+        by_factor: dict[float, list[PyramidLevel]] = {}
+        for level in chain:
+            by_factor.setdefault(round(level.factor, 9), []).append(level)
+        for key, group in by_factor.items():  # largest factor first
+            parent = images.get(round(2 * key, 9))
+            factor = group[0].factor
+            images[key] = (
+                resize_image(source, factor) if parent is None else resize_image(parent, 0.5)
             )
+            # one pass over the pixels for every cell size of this image
+            maps = fhog_cells(images[key], [lv.hog_cell for lv in group], truncation_feature=True)
+            for level, features in zip(group, maps, strict=True):
+                out[level.index] = pad_features(features, pad)
     return out
