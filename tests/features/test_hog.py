@@ -8,12 +8,14 @@ precision, with the same loops, clamping, tie-breaking and bounds checks.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
 from tracking.features import hog
-from tracking.features.hog import fhog, hog_feature_map
+from tracking.features.hog import fhog, fhog_cells, hog_feature_map
 
 UU = (1.0000, 0.9397, 0.7660, 0.500, 0.1736, -0.1736, -0.5000, -0.7660, -0.9397)
 VV = (0.0000, 0.3420, 0.6428, 0.8660, 0.9848, 0.9848, 0.8660, 0.6428, 0.3420)
@@ -406,3 +408,139 @@ def test_strided_views_give_the_same_features(grayscale):
     np.testing.assert_array_equal(hog_feature_map(view, 4), hog_feature_map(copy, 4))
     floats = view.astype(np.float32)[::-1]
     np.testing.assert_array_equal(fhog(floats, 4), fhog(np.ascontiguousarray(floats), 4))
+
+
+def _image(kind: str, shape: tuple[int, int], seed: int) -> np.ndarray:
+    """A random ``(H, W, 3)`` or ``(H, W)`` image: uint8 or float32 in 0..255, or a BGR view."""
+    rng = np.random.default_rng(seed)
+    if kind == "uint8":
+        return rng.integers(0, 256, size=(*shape, 3), dtype=np.uint8)
+    if kind == "float32":
+        return _smooth_image(rng, (*shape, 3)).astype(np.float32)
+    if kind == "gray_uint8":
+        return rng.integers(0, 256, size=shape, dtype=np.uint8)
+    if kind == "gray_float32":
+        return rng.uniform(0.0, 255.0, size=shape).astype(np.float32)
+    return rng.integers(0, 256, size=(*shape, 3), dtype=np.uint8)[:, ::-1, ::-1]  # "view"
+
+
+def _assert_same_as_fhog(image: np.ndarray, sizes, truncation_feature: bool) -> None:
+    """``fhog_cells`` is ``[fhog(image, s) for s in sizes]``, bit for bit."""
+    got = fhog_cells(image, sizes, truncation_feature=truncation_feature)
+    assert isinstance(got, list) and len(got) == len(sizes)
+    for size, feat in zip(sizes, got, strict=True):
+        expected = fhog(image, size, truncation_feature=truncation_feature)
+        assert feat.dtype == np.float32 and feat.flags.c_contiguous
+        assert feat.shape == expected.shape, size
+        np.testing.assert_array_equal(feat, expected, err_msg=f"cell size {size}")
+
+
+@pytest.mark.parametrize("shape", [(37, 53), (64, 48), (101, 77), (44, 52)])
+@pytest.mark.parametrize("kind", ["uint8", "float32", "gray_uint8", "gray_float32", "view"])
+@pytest.mark.parametrize(
+    "sizes",
+    [
+        (2, 4, 8),  # the DPM pyramid's cell sizes
+        (4, 8),
+        (8,),  # one size
+        (8, 4, 2),  # any order
+        (4, 4),  # repeated
+        (1, 3, 5, 6, 7, 9),  # odd sizes: each crops or clamps the image differently
+        (8, 24, 48),  # too large for the image along one or both axes: empty maps
+    ],
+)
+def test_fhog_cells_equals_fhog_per_size(shape, kind, sizes):
+    # The pixel pass is shared; each size visits its own rows and columns (cropped, or the
+    # last interior one repeated), which must come out as fhog computes them alone.
+    image = _image(kind, shape, seed=sum(shape) + len(sizes))
+    _assert_same_as_fhog(image, sizes, truncation_feature=True)
+    _assert_same_as_fhog(image, sizes, truncation_feature=False)
+
+
+@pytest.fixture(scope="module")
+def pets_frame(shared_data: Path) -> np.ndarray:
+    """Frame 10 of PETS09-S2L1 (768x576), RGB as a view of OpenCV's BGR."""
+    path = shared_data / "mot" / "PETS09-S2L1" / "img1" / "000010.jpg"
+    return cv2.imread(str(path))[..., ::-1]
+
+
+@pytest.mark.parametrize("sizes", [(2, 4, 8), (4, 8), (8,), (4, 4)])
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+def test_fhog_cells_on_a_pets_frame(pets_frame, sizes, dtype):
+    # The DPM pyramid's use: the same (resized, float32) image at cells of 2, 4 and 8.
+    _assert_same_as_fhog(pets_frame.astype(dtype), sizes, truncation_feature=True)
+
+
+def test_fhog_cells_on_resized_pets_frames(pets_frame):
+    # Pyramid levels: sizes where some cell sizes leave an empty map.
+    for width, height in ((333, 251), (40, 30), (21, 17)):
+        scaled = cv2.resize(pets_frame.astype(np.float32), (width, height), cv2.INTER_AREA)
+        _assert_same_as_fhog(scaled, (2, 4, 8), truncation_feature=True)
+
+
+def test_fhog_cells_repeated_sizes_are_separate_arrays():
+    image = _image("uint8", (40, 48), seed=1)
+    first, second = fhog_cells(image, [4, 4])
+    np.testing.assert_array_equal(first, second)
+    assert not np.shares_memory(first, second)
+
+
+@pytest.mark.parametrize(
+    ("shape", "sizes", "expected"),
+    [
+        ((5, 5, 3), (4, 8), [(0, 0), (0, 0)]),  # smaller than 2.5 cells of any size
+        ((0, 0, 3), (2, 8), [(0, 0), (0, 0)]),  # empty image
+        ((20, 100), (8, 16), [(1, 11), (0, 4)]),  # 20 / 16 rounds to 1 cell: that map empty
+        ((2, 2, 3), (1,), [(0, 0)]),  # tinier than the central-difference stencil
+    ],
+)
+def test_fhog_cells_output_shapes(shape, sizes, expected):
+    image = np.random.default_rng(7).uniform(0.0, 255.0, size=shape)
+    got = fhog_cells(image, sizes, truncation_feature=True)
+    assert [feat.shape for feat in got] == [(*cells, 32) for cells in expected]
+    for feat in got:
+        np.testing.assert_array_equal(feat[..., 31], 0.0)
+
+
+def test_fhog_cells_with_no_sizes_is_empty():
+    assert fhog_cells(np.zeros((32, 32, 3)), []) == []
+    assert fhog_cells(np.zeros((32, 32, 3)), ()) == []
+
+
+def test_fhog_cells_accepts_any_sequence_of_ints():
+    image = _image("uint8", (40, 48), seed=2)
+    expected = fhog_cells(image, [4, 8])
+    for sizes in ((4, 8), np.array([4, 8]), range(4, 9, 4), [np.int32(4), np.int64(8)]):
+        for feat, reference in zip(fhog_cells(image, sizes), expected, strict=True):
+            np.testing.assert_array_equal(feat, reference)
+
+
+@pytest.mark.parametrize(
+    ("sizes", "message"),
+    [
+        ((4, 0), "positive int, got 0"),  # zero cell size
+        ([8, 2.5], "positive int, got 2.5"),  # fractional
+        ((True,), "positive int, got True"),  # bool
+        (4, "sequence of positive ints, got 4"),  # one int, not a sequence
+        ("48", "sequence of positive ints, got '48'"),  # a string is not a sequence of ints
+        (None, "sequence of positive ints, got None"),
+    ],
+)
+def test_fhog_cells_bad_cell_sizes_raise(sizes, message):
+    with pytest.raises(ValueError, match=message):
+        fhog_cells(np.zeros((32, 32, 3)), sizes)
+
+
+@pytest.mark.parametrize(
+    ("image", "message"),
+    [
+        (np.zeros((32, 32, 4)), r"shape \(H, W\) or \(H, W, 3\)"),  # RGBA
+        (np.full((32, 32), np.inf), "finite"),
+        (np.zeros((32, 32), dtype=bool), "integer or floating dtype"),
+    ],
+)
+def test_fhog_cells_bad_image_raises(image, message):
+    with pytest.raises(ValueError, match=message):
+        fhog_cells(image, (4, 8))
+    with pytest.raises(ValueError, match=message):
+        fhog_cells(image, [])  # validated even with no sizes, as fhog validates it

@@ -19,7 +19,10 @@ The computation follows voc-release5 step for step, in numba-compiled kernels (f
 per-pixel channel choice, orientation search and bilinear votes took numpy a dozen passes over
 whole-image temporaries; the kernels go through the image a few rows at a time, in the cache,
 and are 3-6x faster). They run single-threaded and release the GIL, so callers can compute
-pyramid levels in threads.
+pyramid levels in threads. :func:`fhog_cells` gives the maps of several cell sizes of one image
+from one pass over its pixels: the gradient, orientation and magnitude of each pixel (steps 2-3,
+most of the work) are computed once and vote into the histograms of every size, which are
+normalised row by row as they complete; :func:`fhog` is its one-size case.
 
 1. ``cells = round(H / sbin), round(W / sbin)`` (C ``round``: halves away from zero); only the
    pixels ``1 .. cells * sbin - 2`` of each axis are visited, with image coordinates clamped to
@@ -40,7 +43,7 @@ for other float images the features agree to ~1e-7.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 
 import numba
 import numpy as np
@@ -201,45 +204,47 @@ def _bilinear_weights(sbin, cell, weight):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _vote(windows, k, wy, orientation, magnitude, cell_x, far_x):  # pragma: no cover - compiled
+def _vote(windows, k, row, wy, orientation, magnitude, cell_x, far_x, n):  # pragma: no cover
     """Add one visited row of pixels to the float64 histograms of its two cell rows, for cell
-    size ``k`` (row ``k`` of the stacked per-size arrays, see :func:`_features`).
+    size ``k`` (index ``k`` of the stacked per-size arrays of :func:`_features`).
 
-    ``windows[k]`` is ``(2, cells_x + 2, 18)`` (or wider): the padded cell row of the pixel row
-    and the next; the row's weight is ``wy`` (:func:`_bilinear_weights`). Pixel ``j`` has the
-    bin ``orientation[min(j, n - 1)]`` and the float32 ``magnitude`` at the same index, ``n``
-    their length: pixels beyond the interior repeat the last one's gradient (features.cc
-    clamps their coordinates). ``cell_x[k]`` and ``far_x[k]`` hold the size's pixels, then
-    padding; ``cell_x[k, -1]`` is their number. Each vote is ``(y weight * x weight) *
-    magnitude``, as features.cc computes it. (One array with constant indices: with the rows
-    as two arrays, the compiler cannot tell that they never overlap, and the histograms took
-    20% longer.)
+    ``windows[k]`` is ``(2, cells_x + 2, 18)`` (or wider), a ring of two padded cell rows, row
+    ``c`` in ``c % 2``: ``row``, the pixel row's cell row, and the next; the pixel row's weight
+    is ``wy`` (:func:`_bilinear_weights`). The size visits ``n`` pixels, their cells and
+    weights the first ``n`` of ``cell_x[k]`` and ``far_x[k]``. Pixel ``j`` has the bin
+    ``orientation[min(j, m - 1)]`` and the float32 ``magnitude`` at the same index, ``m`` their
+    length: pixels beyond the interior repeat the last one's gradient (features.cc clamps
+    their coordinates). Each vote is ``(y weight * x weight) * magnitude``, as features.cc
+    computes it. (One array: with the two rows as two arrays, the compiler cannot tell that
+    they never overlap, and the histograms took 20% longer.)
     """
     vy = 1.0 - wy
+    top, bottom = row % 2, (row + 1) % 2
     last = orientation.shape[0] - 1
-    for j in range(cell_x[k, -1]):
+    for j in range(n):
         i = min(j, last)
         o = orientation[i]
         value = np.float64(magnitude[i])
         cx, wx = cell_x[k, j], far_x[k, j]
         vx = 1.0 - wx
-        windows[k, 0, cx, o] += vy * vx * value
-        windows[k, 0, cx + 1, o] += vy * wx * value
-        windows[k, 1, cx, o] += wy * vx * value
-        windows[k, 1, cx + 1, o] += wy * wx * value
+        windows[k, top, cx, o] += vy * vx * value
+        windows[k, top, cx + 1, o] += vy * wx * value
+        windows[k, bottom, cx, o] += wy * vx * value
+        windows[k, bottom, cx + 1, o] += wy * wx * value
 
 
 @numba.njit(cache=True, nogil=True)
 def _store_cell_row(windows, hists, norms, k, r, cells_x):  # pragma: no cover - compiled
-    """Store image cell row ``r`` of size ``k`` (padded row ``r + 1``, ``windows[k, 0]``) as
-    float32 in ``hists[k, r % 2]``, its cell energies in ``norms[k, 0, r % 2]`` and, with row
-    ``r - 1``'s, the inverse norms of block row ``r - 1`` in ``norms[k, 1, (r - 1) % 2]``.
+    """Store image cell row ``r`` of size ``k`` (padded row ``r + 1``, in
+    ``windows[k, (r + 1) % 2]``) as float32 in ``hists[k, r % 2]``, its cell energies in
+    ``norms[k, 0, r % 2]`` and, with row ``r - 1``'s, the inverse norms of block row ``r - 1``
+    in ``norms[k, 1, (r - 1) % 2]``.
 
     The energy of a cell is ``sum_o (h[o] + h[o + 9])^2`` (of the contrast-insensitive
     histogram), a block's the sum over its 2x2 cells in features.cc's order, both in float32;
     the inverse is ``1 / sqrt(energy + eps)``, the square root taken in double.
     """
-    window, hist, below = windows[k, 0], hists[k, r % 2], norms[k, 0, r % 2]
+    window, hist, below = windows[k, (r + 1) % 2], hists[k, r % 2], norms[k, 0, r % 2]
     for x in range(cells_x):
         energy = np.float32(0.0)  # a local sum: no chain of loads and stores through below
         for o in range(_NUM_ORIENTATIONS):
@@ -305,8 +310,8 @@ def _normalised_row(hists, norms, k, r, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _next_cell_row(windows, hists, norms, k, row, feat):  # pragma: no cover - compiled
-    """Finish size ``k``'s complete padded cell row ``row`` (``windows[k, 0]``) and shift its
-    window down.
+    """Finish size ``k``'s complete padded cell row ``row`` (``windows[k, row % 2]``), then
+    empty it for row ``row + 2``.
 
     ``feat`` is the size's float32 ``(cells_y - 2, cells_x - 2, n)`` map. Padded rows 0 and
     ``cells_y + 1`` are the ring outside the image and are dropped (features.cc's bounds
@@ -314,8 +319,6 @@ def _next_cell_row(windows, hists, norms, k, row, feat):  # pragma: no cover - c
     the map's row ``r - 2`` (histogram row ``r - 1``, normalised by block rows ``r - 2`` and
     ``r - 1``). Normalising as the rows complete needs no image-sized histogram array (whose
     fresh pages cost more than the normalisation itself) and finds the rows in the cache.
-    ``windows[k, 1]`` (row ``row + 1``) moves to ``windows[k, 0]``; row ``row + 2`` starts
-    empty.
     """
     cells_x = feat.shape[1] + 2
     r = row - 1
@@ -323,11 +326,9 @@ def _next_cell_row(windows, hists, norms, k, row, feat):  # pragma: no cover - c
         _store_cell_row(windows, hists, norms, k, r, cells_x)
         if r >= 2:
             _normalised_row(hists, norms, k, r - 1, feat[r - 2])
-    window = windows[k]
-    for x in range(cells_x + 2):
-        for o in range(_NUM_ORIENTATIONS):
-            window[0, x, o] = window[1, x, o]
-            window[1, x, o] = 0.0
+    # An array assignment: numba fills those fastest (a loop took 3 times as long). Emptying the
+    # row rather than shifting the window down saves a copy per cell row.
+    windows[k, row % 2, : cells_x + 2] = 0.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -353,40 +354,38 @@ def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
     votes that features.cc's bounds checks drop); each cell row is normalised as soon as the
     rows below it are complete (:func:`_next_cell_row`).
 
-    The sizes' state is stacked in arrays padded to the largest size, row ``k`` for size
+    The sizes' state is stacked in arrays padded to the largest size, index ``k`` for size
     ``k``, and the kernels take the whole arrays and ``k``: a view (``windows[k]``) or a list
-    element passed to a function costs two atomic reference counts per call, which once per
-    pixel row made small maps 5% slower.
+    element passed to a function costs a pair of atomic reference counts per call (seen in the
+    compiled code), which would be paid per size and pixel row.
     """
     height, width, channels = image.shape[0] + 2 * pad, image.shape[1] + 2 * pad, image.shape[2]
     feats = []
-    # Of the sizes with a non-empty map: sbin, cells_x, visited pixel rows and columns.
-    grids = np.zeros((len(sbins), 4), dtype=np.int64)
+    # Of the sizes with a non-empty map: index into feats, sbin, visited pixel rows and columns.
+    grids = np.empty((len(sbins), 4), dtype=np.int64)
     n_sizes = n_rows = n_cols = cells = 0  # of them all, the largest
-    for sbin in sbins:
+    for index, sbin in enumerate(sbins):
         cells_y, cells_x = _c_round_div(height, sbin), _c_round_div(width, sbin)
         shape = (max(cells_y - 2, 0), max(cells_x - 2, 0), n_features)
-        feat = np.zeros(shape, dtype=np.float32)
-        if min(cells_y, cells_x) >= 3:  # else nothing survives the dropped border ring
-            grids[n_sizes] = sbin, cells_x, sbin * cells_y - 2, sbin * cells_x - 2
-            n_sizes += 1
-            n_rows, n_cols = max(n_rows, grids[n_sizes - 1, 2]), max(n_cols, grids[n_sizes - 1, 3])
-            cells = max(cells, cells_x)
-        feats.append(feat)
+        feats.append(np.zeros(shape, dtype=np.float32))
+        if min(cells_y, cells_x) < 3:  # nothing survives the dropped border ring
+            continue
+        rows, cols = sbin * cells_y - 2, sbin * cells_x - 2
+        grids[n_sizes] = index, sbin, rows, cols
+        n_sizes += 1
+        n_rows, n_cols, cells = max(n_rows, rows), max(n_cols, cols), max(cells, cells_x)
     if n_sizes == 0:
         return feats
-    maps = [feat for feat in feats if feat.size]  # the non-empty ones, in the order of grids
-    cell_y, far_y = np.empty((n_sizes, n_rows + 1), np.int64), np.empty((n_sizes, n_rows))
-    cell_x, far_x = np.empty((n_sizes, n_cols + 1), np.int64), np.empty((n_sizes, n_cols))
+    cell_y, far_y = np.empty((n_sizes, n_rows), np.int64), np.empty((n_sizes, n_rows))
+    cell_x, far_x = np.empty((n_sizes, n_cols), np.int64), np.empty((n_sizes, n_cols))
     for k in range(n_sizes):
-        sbin, _, rows, cols = grids[k]
+        _, sbin, rows, cols = grids[k]
         _bilinear_weights(sbin, cell_y[k, :rows], far_y[k, :rows])
         _bilinear_weights(sbin, cell_x[k, :cols], far_x[k, :cols])
-        cell_y[k, -1], cell_x[k, -1] = rows, cols
     windows = np.zeros((n_sizes, 2, cells + 2, _NUM_ORIENTATIONS), dtype=np.float64)
     hists = np.empty((n_sizes, 2, cells, _NUM_ORIENTATIONS), dtype=np.float32)
     norms = np.empty((n_sizes, 2, 2, cells), dtype=np.float32)  # energies, inverses
-    current = np.zeros(n_sizes, dtype=np.int64)  # the padded cell row in each windows[k, 0]
+    current = np.zeros(n_sizes, dtype=np.int64)  # per size, the cell row of the pixel row
     rows_in = min(n_rows, height - 2)  # visited rows that are interior
     cols_in = min(n_cols, width - 2)
 
@@ -406,19 +405,21 @@ def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
             _orientations(gx, gy, scratch, orientation)
             np.sqrt(magnitude, magnitude)
         for k in range(n_sizes):
-            if i >= cell_y[k, -1]:  # past the rows this size visits
+            if i >= grids[k, 2]:  # past the rows this size visits
                 continue
             # Every cell row is finished in turn, even one that no pixel row votes into (image
             # row 0 with 1-pixel cells), as it is normalised too.
             while cell_y[k, i] != current[k]:  # no later pixel row votes into the current one
-                _next_cell_row(windows, hists, norms, k, current[k], maps[k])
+                _next_cell_row(windows, hists, norms, k, current[k], feats[grids[k, 0]])
                 current[k] += 1
             # The gradient row is longer than this size's visited columns only where the size
             # does not clamp, so _vote's repetition of the last pixel is the size's clamping.
-            _vote(windows, k, far_y[k, i], orientation, magnitude, cell_x, far_x)
+            wy = far_y[k, i]
+            _vote(windows, k, current[k], wy, orientation, magnitude, cell_x, far_x, grids[k, 3])
     for k in range(n_sizes):
-        _next_cell_row(windows, hists, norms, k, current[k], maps[k])
-        _next_cell_row(windows, hists, norms, k, current[k] + 1, maps[k])
+        feat = feats[grids[k, 0]]
+        _next_cell_row(windows, hists, norms, k, current[k], feat)
+        _next_cell_row(windows, hists, norms, k, current[k] + 1, feat)
     return feats
 
 
@@ -492,9 +493,14 @@ def fhog_cells(
     ValueError
         As :func:`fhog`; also when ``cell_sizes`` is not a sequence (a single int).
     """
-    if isinstance(cell_sizes, str | bytes) or not isinstance(cell_sizes, Iterable):
-        raise ValueError(f"cell_sizes must be a sequence of positive ints, got {cell_sizes!r}")
-    sbins = [_check_cell_size(s) for s in cell_sizes]
+    message = f"cell_sizes must be a sequence of positive ints, got {cell_sizes!r}"
+    if isinstance(cell_sizes, str | bytes):
+        raise ValueError(message)
+    try:
+        sizes = list(cell_sizes)
+    except TypeError:  # an int, None, a 0-d array
+        raise ValueError(message) from None
+    sbins = [_check_cell_size(s) for s in sizes]
     return _fhog_cells(_validated(image), sbins, truncation_feature)
 
 
