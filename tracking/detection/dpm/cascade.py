@@ -36,7 +36,7 @@ import numpy as np
 
 from tracking.detection.dpm.model import DpmComponent, DpmModel
 from tracking.detection.dpm.pyramid import PyramidLevel
-from tracking.detection.dpm.scoring import LevelScores, root_grid
+from tracking.detection.dpm.scoring import LevelScores, root_grid, root_rectangle
 
 __all__ = [
     "CascadeThresholds",
@@ -421,19 +421,20 @@ def cascade_level(
         for fitting; empty otherwise). ``None`` when the rectangle is empty.
     """
     root_features = features[level.index]
-    grid = root_grid(model, root_features.shape)
-    rows = rows if rows is not None else (0, grid[0])
-    cols = cols if cols is not None else (0, grid[1])
-    ny, nx = rows[1] - rows[0], cols[1] - cols[0]
-    if ny <= 0 or nx <= 0:
+    rectangle = root_rectangle(model, root_features.shape, rows, cols)
+    if rectangle is None:
         return None
+    rows, cols = rectangle
+    ny, nx = rows[1] - rows[0], cols[1] - cols[0]
     components = model.components
     n_symbols = max(len(c.symbols) for c in components)
     component_scores = np.full((len(components), ny, nx), -np.inf)
     placements = np.full((len(components), n_symbols, ny, nx, 2), -1, dtype=np.int32)
     approximate = projection is not None and projected is not None
     if approximate:
-        full = _approx_root_responses(projected[level.index], projection.roots, grid)
+        full = _approx_root_responses(
+            projected[level.index], projection.roots, root_grid(model, root_features.shape)
+        )
         approx_roots = [r[rows[0] : rows[1], cols[0] : cols[1]] for r in full]
     else:  # zeros where the root fits (the exact stage adds its response), -inf elsewhere
         approx_roots = []
@@ -519,16 +520,4 @@ def cascade_level(
         for p in range(n_parts):
             placements[ci, 1 + p, found, found_cols] = place[:, p]
         records.append((stages, margins))
-    best = component_scores.argmax(axis=0)
-    scores = np.take_along_axis(component_scores, best[None], axis=0)[0]
-    return (
-        LevelScores(
-            level=level,
-            origin=(rows[0], cols[0]),
-            scores=scores,
-            component=best,
-            component_scores=component_scores,
-            placements=placements,
-        ),
-        records,
-    )
+    return LevelScores.of_mixture(level, (rows[0], cols[0]), component_scores, placements), records

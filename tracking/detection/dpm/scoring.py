@@ -34,7 +34,7 @@ from tracking.detection.dpm.model import DpmModel, FilterSymbol
 from tracking.detection.dpm.pyramid import PyramidLevel
 from tracking.detection.dpm.responses import filter_responses
 
-__all__ = ["LevelScores", "root_grid", "score_level"]
+__all__ = ["LevelScores", "root_grid", "root_rectangle", "score_level"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +66,34 @@ class LevelScores:
     component: np.ndarray
     component_scores: np.ndarray
     placements: np.ndarray
+
+    @classmethod
+    def of_mixture(
+        cls,
+        level: PyramidLevel,
+        origin: tuple[int, int],
+        component_scores: np.ndarray,
+        placements: np.ndarray,
+    ) -> LevelScores:
+        """The mixture's scores: the best component at every position."""
+        best = component_scores.argmax(axis=0)
+        scores = np.take_along_axis(component_scores, best[None], axis=0)[0]
+        return cls(level, origin, scores, best, component_scores, placements)
+
+
+def root_rectangle(
+    model: DpmModel,
+    shape: tuple[int, ...],
+    rows: tuple[int, int] | None,
+    cols: tuple[int, int] | None,
+) -> tuple[tuple[int, int], tuple[int, int]] | None:
+    """The requested root positions of a padded level (default all); ``None`` when empty."""
+    grid = root_grid(model, shape)
+    rows = rows if rows is not None else (0, grid[0])
+    cols = cols if cols is not None else (0, grid[1])
+    if rows[1] <= rows[0] or cols[1] <= cols[0]:
+        return None
+    return rows, cols
 
 
 def root_grid(model: DpmModel, shape: tuple[int, ...]) -> tuple[int, int]:
@@ -199,12 +227,11 @@ def score_level(
         ``None`` when the requested rectangle is empty.
     """
     root_features = features[level.index]
-    grid = root_grid(model, root_features.shape)
-    rows = rows if rows is not None else (0, grid[0])
-    cols = cols if cols is not None else (0, grid[1])
-    ny, nx = rows[1] - rows[0], cols[1] - cols[0]
-    if ny <= 0 or nx <= 0:
+    rectangle = root_rectangle(model, root_features.shape, rows, cols)
+    if rectangle is None:
         return None
+    rows, cols = rectangle
+    ny, nx = rows[1] - rows[0], cols[1] - cols[0]
     pad_y, pad_x = pad
     components = model.components
     n_symbols = max(len(c.symbols) for c in components)
@@ -249,13 +276,4 @@ def score_level(
         fits_r = rows[0] + np.arange(ny) <= root_features.shape[0] - h
         fits_c = cols[0] + np.arange(nx) <= root_features.shape[1] - w
         component_scores[ci][~(fits_r[:, None] & fits_c[None, :])] = -np.inf
-    best = component_scores.argmax(axis=0)
-    scores = np.take_along_axis(component_scores, best[None], axis=0)[0]
-    return LevelScores(
-        level=level,
-        origin=(rows[0], cols[0]),
-        scores=scores,
-        component=best,
-        component_scores=component_scores,
-        placements=placements,
-    )
+    return LevelScores.of_mixture(level, (rows[0], cols[0]), component_scores, placements)
