@@ -29,6 +29,7 @@ from tracking.detection.dpm.pyramid import level_features
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.metrics import match_frame
 from tracking.evaluation.otb import load_otb_sequence, read_frame
+from tracking.types import Box
 
 
 @pytest.fixture(scope="module")
@@ -198,3 +199,50 @@ def test_fit_command_writes_thresholds_the_detector_uses(inria_path, shared_data
         inria_path, DpmConfig(threshold=lowest, cascade_thresholds=out)
     )
     assert detector.cascade is not None and math.isclose(detector.cascade.score_threshold, lowest)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--model", "{tmp}/missing.mat", "--sequences", "{otb}/Crossing"], "not found"),
+        (["--model", "{model}", "--sequences", "{tmp}/no-such-folder"], "does not exist"),
+        (["--model", "{model}", "--sequences", "{otb}/Crossing", "--out", "{tmp}/no/dir/x.json"],
+         "No such file"),
+    ],
+)  # fmt: skip
+def test_fit_command_reports_bad_input_and_writes_nothing(
+    inria_path, shared_data, tmp_path, capsys, args, message
+):
+    values = {"tmp": tmp_path, "otb": shared_data / "otb", "model": inria_path}
+    argv = [a.format(**values) for a in args]
+    if "--out" not in argv:
+        argv += ["--out", str(tmp_path / "out.cascade.json"), "--step", "60"]
+    else:
+        argv += ["--step", "60"]
+    assert fit_main(argv) == 2
+    assert message in capsys.readouterr().err
+    assert not list(tmp_path.rglob("*.json"))
+
+
+def test_fit_command_rejects_a_zero_step(inria_path, shared_data):
+    with pytest.raises(SystemExit):
+        fit_main(
+            ["--model", str(inria_path), "--sequences", str(shared_data / "otb"), "--step", "0"]
+        )
+
+
+def test_warm_up_compiles_what_detection_runs(inria_model, pets_frame):
+    # after tracking.warmup, a real detection (cascade, region, HOG map) compiles nothing more
+    from tracking.detection.dpm import cascade
+    from tracking.features import hog
+    from tracking.warmup import warm_up
+
+    warm_up()
+    kernels = [cascade._cascade, cascade._dot, hog._features]
+    before = [len(k.signatures) for k in kernels]
+    detector = DpmDetector(inria_model, DpmConfig())
+    crop = pets_frame[150:420, 180:420]
+    detector.detect(crop)
+    detector.dense_scores(crop, Box(60, 60, 60, 60))
+    hog.hog_feature_map(crop[:64, :64], 4)
+    assert [len(k.signatures) for k in kernels] == before

@@ -7,10 +7,13 @@ import pytest
 
 from tracking.detection.dpm.pyramid import (
     TRUNCATION_CHANNEL,
+    level_chains,
     level_features,
     pad_features,
     pyramid_levels,
+    resize_image,
 )
+from tracking.features.hog import fhog
 
 
 def test_levels_with_the_extra_octave_follow_featpyramid():
@@ -65,3 +68,30 @@ def test_level_features_of_a_tiny_image_are_only_padding():
     feats = level_features(image, [levels[-1]], (15, 5))
     (only,) = feats.values()
     assert only.shape == (2 * 16, 2 * 6, 32)
+
+
+def test_levels_an_octave_apart_form_one_halving_chain():
+    levels = pyramid_levels((576, 768, 3), 8, 10, extra_octave=True)
+    chains = level_chains(levels)
+    assert len(chains) == 10  # one per level of the first octave
+    assert sorted(lv.index for chain in chains for lv in chain) == [lv.index for lv in levels]
+    for chain in chains:
+        factors = [lv.factor for lv in chain]
+        assert factors == sorted(factors, reverse=True)
+        ratios = np.log2(np.array(factors[0]) / np.array(factors))
+        np.testing.assert_allclose(ratios, np.round(ratios), atol=1e-9)
+
+
+def test_an_octave_below_is_the_image_above_halved(pets_frame):
+    # featpyramid.m: the image of level k + interval is that of level k resized by 0.5
+    levels = pyramid_levels(pets_frame.shape, 8, 10, extra_octave=True)
+    upper, lower = levels[23], levels[33]
+    assert lower.factor == pytest.approx(upper.factor / 2)
+    got = level_features(pets_frame, [upper, lower], (15, 5))[lower.index]
+    halved = resize_image(resize_image(pets_frame, upper.factor), 0.5)
+    expected = pad_features(fhog(halved, lower.hog_cell, truncation_feature=True), (15, 5))
+    np.testing.assert_array_equal(got, expected)
+    # computed alone, the level is resized from the frame directly (no parent image)
+    alone = level_features(pets_frame, [lower], (15, 5))[lower.index]
+    direct = resize_image(pets_frame, lower.factor)
+    assert alone.shape == pad_features(fhog(direct, 8, truncation_feature=True), (15, 5)).shape

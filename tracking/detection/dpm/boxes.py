@@ -23,7 +23,14 @@ from tracking.detection.dpm.scoring import LevelScores
 from tracking.detection.nms import NmsCriterion, nms
 from tracking.types import Box
 
-__all__ = ["Candidates", "candidates", "clip_boxes", "postprocess", "predict_boxes"]
+__all__ = [
+    "Candidates",
+    "candidates",
+    "clip_boxes",
+    "postprocess",
+    "predict_boxes",
+    "root_windows",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,6 +70,30 @@ def _empty(n_symbols: int) -> Candidates:
     )
 
 
+def root_windows(
+    model: DpmModel,
+    ls: LevelScores,
+    ys: np.ndarray,
+    xs: np.ndarray,
+    components: np.ndarray,
+    pad: tuple[int, int],
+    corner: tuple[float, float] = (0.0, 0.0),
+) -> np.ndarray:
+    """``(N, 4)`` detection windows of the roots at grid elements ``(ys, xs)`` of ``ls``.
+
+    ``components`` holds each root's component; ``corner`` is the ``(x, y)`` of the image the
+    level was computed on in the frame.
+    """
+    windows_cells = np.array([c.window for c in model.components])  # (C, 2) h, w
+    shifts = np.array([c.shift for c in model.components])
+    cell = ls.level.cell
+    x0 = corner[0] + (ls.origin[1] + xs - shifts[components, 1] - pad[1]) * cell
+    y0 = corner[1] + (ls.origin[0] + ys - shifts[components, 0] - pad[0]) * cell
+    return np.column_stack(
+        [x0, y0, windows_cells[components, 1] * cell, windows_cells[components, 0] * cell]
+    )
+
+
 def candidates(
     model: DpmModel,
     scored: list[tuple[LevelScores, tuple[int, int]]],
@@ -90,20 +121,14 @@ def candidates(
     """
     pad_y, pad_x = pad
     n_symbols = max(len(c.symbols) for c in model.components)
-    windows_cells = np.array([c.window for c in model.components])  # (C, 2) h, w
-    shifts = np.array([c.shift for c in model.components])
     out = []
     for ls, (ox, oy) in scored:
         ys, xs = np.nonzero(ls.scores > threshold)
         if ys.size == 0:
             continue
         comp = ls.component[ys, xs]
+        boxes = root_windows(model, ls, ys, xs, comp, pad, (ox, oy))
         cell = ls.level.cell
-        x0 = ox + (ls.origin[1] + xs - shifts[comp, 1] - pad_x) * cell
-        y0 = oy + (ls.origin[0] + ys - shifts[comp, 0] - pad_y) * cell
-        boxes = np.column_stack(
-            [x0, y0, windows_cells[comp, 1] * cell, windows_cells[comp, 0] * cell]
-        )
         if region is not None:
             cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
             inside = (

@@ -31,8 +31,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.detection.dpm.boxes import root_windows
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
+    PcaProjection,
     cascade_level,
     cascade_path,
     pca_projection,
@@ -42,7 +44,7 @@ from tracking.detection.dpm.model import DpmModel, load_dpm_model
 from tracking.detection.dpm.pyramid import level_features
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.nms import box_iou
-from tracking.evaluation.otb import load_otb_sequence, read_frame
+from tracking.evaluation.otb import OtbSequence, load_otb_sequence, read_frame
 
 __all__ = ["SCORE_GRID", "fit_records", "main", "record_positive", "save_cascade", "thresholds_for"]
 
@@ -58,14 +60,18 @@ Record = tuple[float, np.ndarray, np.ndarray]
 
 
 def record_positive(
-    detector: DpmDetector, image: np.ndarray, box: tuple[float, float, float, float]
+    detector: DpmDetector,
+    image: np.ndarray,
+    box: tuple[float, float, float, float],
+    projection: PcaProjection | None = None,
 ) -> Record | None:
     """Exact score, stage partial scores and margins of the best root on ``box`` in ``image``.
 
+    ``projection``: the model's (:func:`.cascade.pca_projection`; computed if not given).
     ``None`` when no root window overlaps the box by IoU >= 0.5.
     """
     model = detector.model
-    projection = pca_projection(model)
+    projection = projection or pca_projection(model)
     pad = detector.pad
     levels = detector._pyramid(image.shape)
     height = box[3]
@@ -76,17 +82,9 @@ def record_positive(
         scores = score_level(model, features, root, pad, window=detector.config.deformation_window)
         if scores is None:
             continue
-        for ci, component in enumerate(model.components):
+        for ci in range(len(model.components)):
             ys, xs = np.nonzero(np.isfinite(scores.component_scores[ci]))
-            cell = root.cell
-            windows = np.column_stack(
-                [
-                    (xs - component.shift[1] - pad[1]) * cell,
-                    (ys - component.shift[0] - pad[0]) * cell,
-                    np.full(xs.size, component.window[1] * cell),
-                    np.full(xs.size, component.window[0] * cell),
-                ]
-            )
+            windows = root_windows(model, scores, ys, xs, np.full(ys.size, ci), pad)
             overlap = box_iou(windows, np.array([box]))[:, 0]
             ok = np.flatnonzero(overlap >= MIN_IOU)
             if ok.size == 0:
@@ -134,12 +132,16 @@ def _scaled_crop(
     return scaled, ((x - x0) * factor, (y - y0) * factor, w * factor, h * factor)
 
 
-def fit_records(detector: DpmDetector, sequences: Sequence[Path], step: int = 4) -> list[Record]:
+def fit_records(
+    detector: DpmDetector, sequences: Sequence[OtbSequence], step: int = 4
+) -> list[Record]:
     """Records of the positives of every ``step``-th frame of the OTB sequences."""
+    if step < 1:
+        raise ValueError(f"step must be a positive int, got {step}")
+    projection = pca_projection(detector.model)
     records = []
     turn = 0
-    for folder in sequences:
-        sequence = load_otb_sequence(folder)
+    for sequence in sequences:
         for index in range(0, len(sequence), step):
             box = tuple(float(v) for v in sequence.ground_truth[index])
             if not (np.all(np.isfinite(box)) and box[2] > 0 and box[3] > 0):
@@ -147,7 +149,7 @@ def fit_records(detector: DpmDetector, sequences: Sequence[Path], step: int = 4)
             image = read_frame(sequence.frame_paths[index])
             crop, scaled_box = _scaled_crop(image, box, PERSON_HEIGHTS[turn % len(PERSON_HEIGHTS)])
             turn += 1
-            record = record_positive(detector, crop, scaled_box)
+            record = record_positive(detector, crop, scaled_box, projection)
             if record is not None:
                 records.append(record)
         logger.info("%s: %d positives so far", sequence.name, len(records))
@@ -199,17 +201,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--step", type=int, default=4)
     parser.add_argument("--out", help="default: <model>.cascade.json beside the model")
     args = parser.parse_args(argv)
+    if args.step < 1:
+        parser.error("--step must be a positive int")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    model = load_dpm_model(args.model)
-    detector = DpmDetector(model)
-    records = fit_records(detector, [Path(s) for s in args.sequences], args.step)
-    if not records:
-        print("no positive example found", file=sys.stderr)
-        return 1
-    names = ", ".join(Path(s).name for s in args.sequences)
-    source = f"{len(records)} positives from {names}, 1 frame in {args.step}"
-    out = Path(args.out) if args.out else cascade_path(args.model)
-    save_cascade(out, model, records, source)
+    try:
+        model = load_dpm_model(args.model)
+        # every folder is read before the minutes of fitting start
+        sequences = [load_otb_sequence(folder) for folder in args.sequences]
+        records = fit_records(DpmDetector(model), sequences, args.step)
+        if not records:
+            raise ValueError("no positive example found (no root window on a ground-truth box)")
+        names = ", ".join(s.name for s in sequences)
+        source = f"{len(records)} positives from {names}, 1 frame in {args.step}"
+        out = Path(args.out) if args.out else cascade_path(args.model)
+        save_cascade(out, model, records, source)
+    except (ValueError, OSError) as error:  # a bad model file or folder, an unwritable output
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     print(f"{source}; written to {out}")
     return 0
 

@@ -242,16 +242,26 @@ class DpmDetector:
         jobs: list[Callable[[], object]]
         if shared is not None:
             needed = {level.index: level for plan in plans for level in plan.levels}
+            projection = cascade_setup[1] if cascade_setup is not None else None
+
+            def chain_features(chain: list[PyramidLevel]) -> tuple[dict, dict]:
+                maps = level_features(shared, chain, self.pad)
+                # projected on the same thread: the cascade's approximate stages read them
+                projected = (
+                    {k: projection.project(v) for k, v in maps.items()} if projection else {}
+                )
+                return maps, projected
+
             features: dict[int, np.ndarray] = {}
+            projected: dict[int, np.ndarray] = {}
             compute = [
-                (lambda g=chain: level_features(shared, g, self.pad))
-                for chain in level_chains(list(needed.values()))
+                (lambda c=chain: chain_features(c)) for chain in level_chains(list(needed.values()))
             ]
-            for part in self._map(compute):
-                features.update(part)  # type: ignore[arg-type]
+            for maps, approx in self._map(compute):  # type: ignore[misc]
+                features.update(maps)
+                projected.update(approx)
             if cascade_setup is not None:
-                thresholds, projection = cascade_setup
-                projected = {k: projection.project(v) for k, v in features.items()}
+                thresholds = cascade_setup[0]
 
                 def cascade_score(plan: _Plan) -> LevelScores | None:
                     result = cascade_level(
@@ -447,4 +457,13 @@ def _find_cascade(model: DpmModel, config: DpmConfig, threshold: float) -> Casca
         path = KNOWN_CASCADES.get((model.name, len(model.components)))
     if path is None:
         return None
-    return select_thresholds(load_cascade(path), threshold)
+    table = load_cascade(path)
+    stages = 2 + 2 * model.num_parts
+    for row in table:
+        if row.stage.shape != (stages,) or row.deformation.shape != (stages,):
+            raise ValueError(
+                f"{path} holds cascade thresholds of {row.stage.size} stages; model "
+                f"{model.name!r} with {model.num_parts} parts needs {stages} "
+                "(a file of another model?)"
+            )
+    return select_thresholds(table, threshold)

@@ -1,0 +1,48 @@
+"""The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def detection():
+    spec = importlib.util.spec_from_file_location(
+        "detection_benchmark", BENCHMARKS / "detection.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.modules.pop(spec.name, None)
+
+
+@pytest.mark.parametrize(
+    "name, fields",
+    [
+        ("dpm-inria", {"cascade": True}),
+        ("dpm-inria+exact", {"cascade": False}),
+        ("dpm-inria>128", {"cascade": True, "min_height": 128.0}),
+        ("dpm-voc2007@1.3:5", {"cascade": True, "upscale": 1.3, "levels_per_octave": 5}),
+        ("dpm-inria@2:5>96+exact",
+         {"cascade": False, "upscale": 2.0, "levels_per_octave": 5, "min_height": 96.0}),
+    ],
+)  # fmt: skip
+def test_dpm_names_give_config_fields(detection, name, fields):
+    model, parsed = detection.parse_dpm_name(name)
+    assert model.endswith(".mat")
+    assert parsed == fields
+
+
+@pytest.mark.parametrize("name", ["dpm-nomodel", "dpm-inria+fast", "dpm-inria@x", "dpm-"])
+def test_bad_dpm_names_are_refused(detection, name):
+    with pytest.raises(SystemExit, match="bad DPM detector name"):
+        detection.parse_dpm_name(name)
