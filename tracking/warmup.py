@@ -57,6 +57,10 @@ def warm_up() -> float:
             model, features, projected, projection, root, model.max_size,
             CascadeThresholds.exact(1), -np.inf, positions=record,
         )  # fmt: skip
+    # no projection: the dense exact kernel of regions of interest
+    cascade_level(
+        model, features, None, None, root, model.max_size, CascadeThresholds.exact(1), -np.inf
+    )
     return time.perf_counter() - start
 
 

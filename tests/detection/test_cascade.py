@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 
 import cv2
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
     cascade_level,
+    kernel_filters,
     load_cascade,
     pca_projection,
     select_thresholds,
@@ -29,7 +32,6 @@ from tracking.detection.dpm.pyramid import level_features
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.metrics import match_frame
 from tracking.evaluation.otb import load_otb_sequence, read_frame
-from tracking.types import Box
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +145,8 @@ def test_fitted_thresholds_admit_their_positives(inria_model, shared_data):
     thresholds = thresholds_for(records, low)
     assert thresholds is not None
     pruned = DpmDetector(inria_model, DpmConfig(threshold=low))
-    pruned._cascade = (thresholds, pca_projection(inria_model))
+    projection = pca_projection(inria_model)
+    pruned._cascade = (thresholds, projection, kernel_filters(inria_model, pruned.pad, projection))
     for (crop, _), (score, _, _) in zip(positives, records, strict=True):
         found = pruned.detect(crop)
         assert len(found) and found.scores.max() >= score - 1e-4
@@ -231,18 +234,38 @@ def test_fit_command_rejects_a_zero_step(inria_path, shared_data):
         )
 
 
-def test_warm_up_compiles_what_detection_runs(inria_model, pets_frame):
-    # after tracking.warmup, a real detection (cascade, region, HOG map) compiles nothing more
-    from tracking.detection.dpm import cascade
-    from tracking.features import hog
-    from tracking.warmup import warm_up
+_AFTER_WARM_UP = """
+import sys
+import numpy as np
+from tracking.detection.dpm import cascade
+from tracking.detection.dpm.detector import DpmConfig, DpmDetector
+from tracking.detection.dpm.model import load_dpm_model
+from tracking.features import hog
+from tracking.types import Box
+from tracking.warmup import warm_up
 
-    warm_up()
-    kernels = [cascade._cascade, cascade._dot, hog._features]
-    before = [len(k.signatures) for k in kernels]
-    detector = DpmDetector(inria_model, DpmConfig())
-    crop = pets_frame[150:420, 180:420]
-    detector.detect(crop)
-    detector.dense_scores(crop, Box(60, 60, 60, 60))
-    hog.hog_feature_map(crop[:64, :64], 4)
-    assert [len(k.signatures) for k in kernels] == before
+warm_up()
+kernels = [cascade._cascade, cascade._dot, cascade._responses, cascade._exact_component,
+           hog._features]
+before = [len(k.signatures) for k in kernels]
+crop = np.load(sys.argv[2])
+detector = DpmDetector(load_dpm_model(sys.argv[1]), DpmConfig())
+detector.detect(crop)
+detector.dense_scores(crop, Box(60, 60, 60, 60))
+hog.hog_feature_map(crop[:64, :64], 4)
+print([len(k.signatures) for k in kernels], before)
+"""
+
+
+def test_warm_up_compiles_what_detection_runs(inria_path, pets_frame, tmp_path):
+    # after tracking.warmup, a real detection (cascade, region, HOG map) compiles nothing more;
+    # in a fresh interpreter, as other tests may have compiled the kernels already
+    crop = tmp_path / "crop.npy"
+    np.save(crop, pets_frame[150:420, 180:420])
+    done = subprocess.run(
+        [sys.executable, "-c", _AFTER_WARM_UP, str(inria_path), str(crop)],
+        capture_output=True, text=True, timeout=600, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    after, before = done.stdout.strip().split("] [")
+    assert after + "]" == "[" + before, done.stdout

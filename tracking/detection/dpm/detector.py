@@ -35,9 +35,11 @@ from tracking.detection.calibration import (
 from tracking.detection.dpm.boxes import Candidates, candidates, postprocess
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
+    KernelFilters,
     PcaProjection,
     cascade_level,
     cascade_path,
+    kernel_filters,
     load_cascade,
     pca_projection,
     select_thresholds,
@@ -147,19 +149,25 @@ class DpmDetector:
     calibration: LogisticCalibration | None = None
     part_names: tuple[str, ...] = field(init=False)
     _slots: tuple[tuple[int, ...], ...] = field(init=False, repr=False)
-    _cascade: tuple[CascadeThresholds, PcaProjection] | None = field(init=False, repr=False)
+    _cascade: tuple[CascadeThresholds, PcaProjection, tuple[KernelFilters, ...]] | None = field(
+        init=False, repr=False
+    )
     _exact: CascadeThresholds = field(init=False, repr=False)
+    _filters: tuple[KernelFilters, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.part_names, self._slots = model_part_names(self.model)
         if self.calibration is None:
             self.calibration = _find_calibration(self.model, self.config)
         self._exact = CascadeThresholds.exact(self.model.num_parts)
+        self._filters = kernel_filters(self.model, self.pad)
         self._cascade = None
         if self.config.cascade and self.config.deformation_window is not None:
             thresholds = _find_cascade(self.model, self.config, self.threshold)
             if thresholds is not None:
-                self._cascade = thresholds, pca_projection(self.model)
+                projection = pca_projection(self.model)
+                filters = kernel_filters(self.model, self.pad, projection)
+                self._cascade = thresholds, projection, filters
 
     @classmethod
     def from_file(
@@ -221,65 +229,61 @@ class DpmDetector:
         """Score the plans; ``shared``: one image for all plans, features computed once.
 
         ``cascade`` (with ``shared`` and cascade thresholds): score with the star cascade.
+        With ``shared``, one job per halving chain of root levels (:func:`level_chains`)
+        computes the chain's features and scores its levels: a root level's part level is in
+        the same chain (one octave finer: the same image, or the one it was halved from), so
+        the jobs are independent and no thread waits for the others' features.
         """
         cascade_setup = self._cascade if cascade and shared is not None else None
+        projection = cascade_setup[1] if cascade_setup is not None else None
 
-        window = self.config.deformation_window
-
-        def score(plan: _Plan, features: dict[int, np.ndarray]) -> LevelScores | None:
-            if window is None:
+        def score(
+            plan: _Plan, features: dict[int, np.ndarray], projected: dict[int, np.ndarray]
+        ) -> LevelScores | None:
+            if self.config.deformation_window is None:
                 return score_level(
                     self.model, features, plan.root, self.pad, plan.rows, plan.cols, None
                 )
-            # exact scores of every root, in the compiled kernel (faster than dense numpy on
-            # the small grids of a region; the same values)
+            if cascade_setup is not None:
+                thresholds, _, filters = cascade_setup
+                threshold = self.threshold
+            else:  # every root exactly, densely in the compiled kernel
+                thresholds, filters, threshold = self._exact, self._filters, -math.inf
             result = cascade_level(
-                self.model, features, None, None, plan.root, self.pad, self._exact,
-                -math.inf, window, rows=plan.rows, cols=plan.cols,
+                self.model, features, projected, projection, plan.root, self.pad, thresholds,
+                threshold, self.config.deformation_window, rows=plan.rows, cols=plan.cols,
+                filters=filters,
             )  # fmt: skip
             return None if result is None else result[0]
 
-        jobs: list[Callable[[], object]]
-        if shared is not None:
-            needed = {level.index: level for plan in plans for level in plan.levels}
-            projection = cascade_setup[1] if cascade_setup is not None else None
+        def score_all(group: list[_Plan], image: np.ndarray) -> list[LevelScores | None]:
+            levels = {level.index: level for plan in group for level in plan.levels}
+            features = level_features(image, list(levels.values()), self.pad)
+            # the cascade's approximate stages read the features projected
+            projected = (
+                {k: projection.project(v) for k, v in features.items()} if projection else {}
+            )
+            return [score(plan, features, projected) for plan in group]
 
-            def chain_features(chain: list[PyramidLevel]) -> tuple[dict, dict]:
-                maps = level_features(shared, chain, self.pad)
-                # projected on the same thread: the cascade's approximate stages read them
-                projected = (
-                    {k: projection.project(v) for k, v in maps.items()} if projection else {}
-                )
-                return maps, projected
-
-            features: dict[int, np.ndarray] = {}
-            projected: dict[int, np.ndarray] = {}
-            compute = [
-                (lambda c=chain: chain_features(c)) for chain in level_chains(list(needed.values()))
-            ]
-            for maps, approx in self._map(compute):  # type: ignore[misc]
-                features.update(maps)
-                projected.update(approx)
-            if cascade_setup is not None:
-                thresholds = cascade_setup[0]
-
-                def cascade_score(plan: _Plan) -> LevelScores | None:
-                    result = cascade_level(
-                        self.model, features, projected, projection, plan.root, self.pad,
-                        thresholds, self.threshold, window or 0,
-                    )  # fmt: skip
-                    return None if result is None else result[0]
-
-                jobs = [(lambda p=plan: cascade_score(p)) for plan in plans]
-            else:
-                jobs = [(lambda p=plan: score(p, features)) for plan in plans]
+        if shared is None:
+            groups = [[plan] for plan in plans]
         else:
-            jobs = [
-                (lambda p=plan: score(p, level_features(p.image, p.levels, self.pad)))
-                for plan in plans
-            ]
-        results = self._map(jobs)
-        return [(s, plan.corner) for s, plan in zip(results, plans, strict=True) if s is not None]
+            chain_of = {
+                level.index: i
+                for i, chain in enumerate(level_chains([plan.root for plan in plans]))
+                for level in chain
+            }
+            by_chain: dict[int, list[_Plan]] = {}
+            for plan in plans:
+                by_chain.setdefault(chain_of[plan.root.index], []).append(plan)
+            groups = [by_chain[i] for i in sorted(by_chain)]  # largest images first
+        jobs = [
+            (lambda g=group: score_all(g, shared if shared is not None else g[0].image))
+            for group in groups
+        ]
+        results = [s for group_scores in self._map(jobs) for s in group_scores]
+        ordered = [plan for group in groups for plan in group]
+        return [(s, plan.corner) for s, plan in zip(results, ordered, strict=True) if s is not None]
 
     def _map(self, jobs: list[Callable[[], object]]) -> list:
         """Run ``jobs`` in order, on ``config.workers`` threads when there are several."""
