@@ -67,6 +67,15 @@ def dense_scores(
     groups: dict[int, list[int]] = {}
     for ci, comp in enumerate(model.components):
         groups.setdefault(comp.window[0], []).append(ci)
+    # per component with parts: each part's cell size in root cells and its box centre
+    # from its placement, in its own cells (both per part: (P, 1) for (P, 2) placements)
+    part_scale = [
+        np.array([[2.0 ** -p.anchor[2]] for p in comp.parts]) for comp in model.components
+    ]
+    part_half = [
+        np.array([[p.size[1] / 2 - pad_x, p.size[0] / 2 - pad_y] for p in comp.parts])
+        for comp in model.components
+    ]
     heights, grids, origins, strides, offsets = [], [], [], [], []
     for ls, (ox, oy) in scored:
         c = ls.level.cell
@@ -83,6 +92,7 @@ def dense_scores(
                 continue
             grid = np.full((ny, nx), -np.inf)
             parts = np.full((ny, nx, len(part_names), 2), np.nan)
+            window_centres = np.stack(np.broadcast_arrays(xs[None, :], ys[:, None]), axis=-1)
             for ci in members:
                 comp = model.components[ci]
                 # whole cells between this component's window centre and the first member's
@@ -93,17 +103,11 @@ def dense_scores(
                 grid = np.where(better, scores, grid)
                 if not comp.parts:
                     continue
-                place = ls.placements[ci, 1 : 1 + len(comp.parts)].astype(
-                    np.float64
-                )  # (P, ny, nx, 2)
-                scale = np.array([2.0 ** -p.anchor[2] for p in comp.parts])[:, None, None] * c
-                half = np.array([[p.size[1] / 2, p.size[0] / 2] for p in comp.parts])
-                centres_x = ox + (place[..., 0] - pad_x + half[:, 0, None, None]) * scale
-                centres_y = oy + (place[..., 1] - pad_y + half[:, 1, None, None]) * scale
-                dx = np.stack([_shifted(a, sy, sx, np.nan) for a in centres_x]) - xs[None, None]
-                dy = np.stack([_shifted(a, sy, sx, np.nan) for a in centres_y]) - ys[None, :, None]
+                # (ny, nx, P, 2) part box centres in pixels, moved onto the first member's grid
+                place = ls.placements[ci, 1 : 1 + len(comp.parts)].transpose(1, 2, 0, 3)
+                centres = (place + part_half[ci]) * (part_scale[ci] * c) + (ox, oy)
+                moved = _shifted(centres, sy, sx, np.nan) - window_centres[:, :, None, :]
                 slot = np.array(slots[ci])
-                moved = np.stack([dx, dy], axis=-1).transpose(1, 2, 0, 3)  # (ny, nx, P, 2)
                 parts[:, :, slot] = np.where(better[..., None, None], moved, parts[:, :, slot])
             sl = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
             heights.append(window_h * c)
