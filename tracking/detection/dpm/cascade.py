@@ -186,35 +186,43 @@ def _dot(features, row, col, weights, channels):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, fastmath=True)
-def _responses(features, weights, channels, row0, col0, out):  # pragma: no cover - compiled
-    """``out[y, x] = _dot(features, row0 + y, col0 + x, weights, channels)`` for all of ``out``.
+def _dot4(features, row, col, weights, channels):  # pragma: no cover - compiled
+    """The responses at ``(row, col + i)``, ``i < 4``, as :func:`_dot` computes each.
 
-    Four neighbouring columns at a time: each filter tap is loaded once for four positions and
-    the four sums are independent chains, about 3x faster than one :func:`_dot` per position.
+    Each filter tap is loaded once for the four positions and the four sums are independent
+    chains: about 3x faster than four :func:`_dot` calls. Needs ``col + 3`` in the map.
     """
     h, row_length = weights.shape
+    start = col * channels
+    a0 = a1 = a2 = a3 = np.float32(0.0)
+    for dy in range(h):
+        # one 1-D slice per position, indexed from 0: with ``i + channels`` indices the
+        # compiler must allow for negative ones and does not vectorise (15x slower)
+        line = features[row + dy]
+        l0 = line[start : start + row_length]
+        l1 = line[start + channels : start + channels + row_length]
+        l2 = line[start + 2 * channels : start + 2 * channels + row_length]
+        l3 = line[start + 3 * channels : start + 3 * channels + row_length]
+        taps = weights[dy]
+        for i in range(row_length):
+            w = taps[i]
+            a0 += w * l0[i]
+            a1 += w * l1[i]
+            a2 += w * l2[i]
+            a3 += w * l3[i]
+    return a0, a1, a2, a3
+
+
+@numba.njit(cache=True, nogil=True)
+def _responses(features, weights, channels, row0, col0, out):  # pragma: no cover - compiled
+    """``out[y, x] = _dot(features, row0 + y, col0 + x, weights, channels)`` for all of ``out``,
+    four columns at a time (:func:`_dot4`)."""
     rows, cols = out.shape
     for y in range(rows):
         line_out = out[y]
         x = 0
         while x + 4 <= cols:
-            a0 = a1 = a2 = a3 = np.float32(0.0)
-            start = (col0 + x) * channels
-            for dy in range(h):
-                # one 1-D slice per column, indexed from 0: with ``i + channels`` indices the
-                # compiler must allow for negative ones and does not vectorise (15x slower)
-                line = features[row0 + y + dy]
-                l0 = line[start : start + row_length]
-                l1 = line[start + channels : start + channels + row_length]
-                l2 = line[start + 2 * channels : start + 2 * channels + row_length]
-                l3 = line[start + 3 * channels : start + 3 * channels + row_length]
-                taps = weights[dy]
-                for i in range(row_length):
-                    w = taps[i]
-                    a0 += w * l0[i]
-                    a1 += w * l1[i]
-                    a2 += w * l2[i]
-                    a3 += w * l3[i]
+            a0, a1, a2, a3 = _dot4(features, row0 + y, col0 + x, weights, channels)
             line_out[x], line_out[x + 1], line_out[x + 2], line_out[x + 3] = a0, a1, a2, a3
             x += 4
         for rest in range(x, cols):
@@ -311,42 +319,82 @@ def _exact_component(
 
 
 @numba.njit(cache=True, nogil=True)
-def _deformed_part(
-    partial, features, weights, channels, cache, done, anchor_row, anchor_col, deformation,
-    window, prune,
-):  # pragma: no cover - compiled  # fmt: skip
-    """Best ``response(q) - d(anchor - q)`` over placements within ``window`` of the anchor.
+def _placement_order(deformations, window):  # pragma: no cover - compiled
+    """Per part, the ``(2 window + 1)^2`` displacements ``(t, u)`` (anchor minus placement,
+    rows and columns) sorted by deformation cost, cheapest first, and their costs.
 
-    ``features`` and ``weights`` as :func:`_dot` takes them. Placements with
-    ``partial - d < prune`` are skipped; responses come from ``cache`` where ``done`` says
-    they were computed. Returns ``(value, row, col, partial - d at the best placement)``;
-    ``-inf`` when no placement qualifies.
+    Returns int64 ``(P, n)`` ``ts`` and ``us`` and float64 ``(P, n)`` costs. A stable sort of
+    the displacements listed by ascending placement, so equal costs keep that order.
+    """
+    side = 2 * window + 1
+    n_parts = deformations.shape[0]
+    ts = np.empty((n_parts, side * side), dtype=np.int64)
+    us = np.empty((n_parts, side * side), dtype=np.int64)
+    costs = np.empty((n_parts, side * side))
+    raw = np.empty(side * side)
+    for p in range(n_parts):
+        ax, bx, ay, by = (
+            deformations[p, 0],
+            deformations[p, 1],
+            deformations[p, 2],
+            deformations[p, 3],
+        )
+        k = 0
+        for t in range(window, -window - 1, -1):  # placements ascending
+            for u in range(window, -window - 1, -1):
+                raw[k] = (ay * t * t + by * t) + ax * u * u + bx * u
+                k += 1
+        order = np.argsort(raw, kind="mergesort")
+        for k in range(side * side):
+            ts[p, k] = window - order[k] // side
+            us[p, k] = window - order[k] % side
+            costs[p, k] = raw[order[k]]
+    return ts, us, costs
+
+
+@numba.njit(cache=True, nogil=True)
+def _deformed_part(
+    partial, features, weights, channels, cache, done, anchor_row, anchor_col, ts, us, costs,
+    prune,
+):  # pragma: no cover - compiled  # fmt: skip
+    """Best ``response(q) - d(anchor - q)`` over the placements within the window.
+
+    ``features`` and ``weights`` as :func:`_dot` takes them; ``ts``, ``us``, ``costs`` one
+    part's row of :func:`_placement_order`. Placements with ``partial - d < prune`` are
+    skipped: in order of cost, the first such one ends the search. Responses come from
+    ``cache`` where ``done`` says they were computed. Ties go to the first placement in
+    (row, column) order, as the dense transform breaks them. Returns ``(value, row, col,
+    partial - d at the best placement)``; ``-inf`` when no placement qualifies.
     """
     height = features.shape[0] - weights.shape[0]
     width = (features.shape[1] - weights.shape[1]) // channels
-    ax, bx, ay, by = deformation[0], deformation[1], deformation[2], deformation[3]
     best, best_row, best_col, best_margin = -np.inf, -1, -1, -np.inf
-    for t in range(window, -window - 1, -1):  # t = anchor - placement, placements ascending
-        row = anchor_row - t
-        if row < 0 or row > height:
+    for k in range(costs.shape[0]):
+        cost = costs[k]
+        if partial - cost < prune:
+            break
+        row, col = anchor_row - ts[k], anchor_col - us[k]
+        if row < 0 or row > height or col < 0 or col > width:
             continue
-        cost_y = ay * t * t + by * t
-        for u in range(window, -window - 1, -1):
-            col = anchor_col - u
-            if col < 0 or col > width:
-                continue
-            cost = cost_y + ax * u * u + bx * u
-            if partial - cost < prune:
-                continue
-            if done[row, col]:
-                response = cache[row, col]
+        if not done[row, col]:
+            if col + 3 <= width:
+                # the next placements to the right are usually wanted too (by this root or
+                # its neighbours): four at once cost little more than one
+                # (a value once cached is never replaced: every read of it agrees)
+                four = _dot4(features, row, col, weights, channels)
+                for i in range(4):
+                    if not done[row, col + i]:
+                        cache[row, col + i] = four[i]
+                        done[row, col + i] = True
             else:
-                response = _dot(features, row, col, weights, channels)
-                cache[row, col] = response
+                cache[row, col] = _dot(features, row, col, weights, channels)
                 done[row, col] = True
-            value = response - cost
-            if value > best:
-                best, best_row, best_col, best_margin = value, row, col, partial - cost
+        response = cache[row, col]
+        value = response - cost
+        if value > best or (
+            value == best and (row < best_row or (row == best_row and col < best_col))
+        ):
+            best, best_row, best_col, best_margin = value, row, col, partial - cost
     return best, best_row, best_col, best_margin
 
 
@@ -397,6 +445,7 @@ def _cascade(
     approx = np.empty(n_parts)
     place = np.empty((n_parts, 2), dtype=np.int64)
     count = 0
+    ts, us, costs = _placement_order(deformations, window)
     last_row = part_rows - parts.shape[1]
     last_col = part_cols - parts.shape[2] // channels
     for y in range(ny):
@@ -415,7 +464,7 @@ def _cascade(
                     break
                 value, _, _, m = _deformed_part(
                     s, part_features_approx, parts_approx[p], approx_channels, cache[0, p],
-                    done[0, p], ar, ac, deformations[p], window, margin[1 + p],
+                    done[0, p], ar, ac, ts[p], us[p], costs[p], margin[1 + p],
                 )  # fmt: skip
                 s += value
                 here_stages[1 + p], here_margins[1 + p] = s, m
@@ -437,7 +486,7 @@ def _cascade(
                 rest = s - approx[p]
                 value, pr, pc, m = _deformed_part(
                     rest, part_features, parts[p], channels, cache[1, p], done[1, p], ar, ac,
-                    deformations[p], window, margin[k],
+                    ts[p], us[p], costs[p], margin[k],
                 )  # fmt: skip
                 s = rest + value
                 here_stages[k], here_margins[k] = s, m
