@@ -143,18 +143,14 @@ def candidates(
             sel = np.flatnonzero(comp == ci)
             if sel.size == 0:
                 continue
-            for j, symbol in enumerate(component.symbols):
-                place = ls.placements[ci, j, ys[sel], xs[sel]]  # (n, 2): col, row
-                c = cell / 2 ** symbol.anchor[2]
-                h, w = symbol.size
-                filters[sel, j] = np.column_stack(
-                    [
-                        ox + (place[:, 0] - pad_x) * c,
-                        oy + (place[:, 1] - pad_y) * c,
-                        np.full(sel.size, w * c),
-                        np.full(sel.size, h * c),
-                    ]
-                )
+            symbols = component.symbols
+            # every symbol at once: (n, S, 2) placements (col, row), each symbol's cell size
+            place = ls.placements[ci, : len(symbols)][:, ys[sel], xs[sel]].transpose(1, 0, 2)
+            c = np.array([cell / 2 ** sym.anchor[2] for sym in symbols])[:, None]  # (S, 1)
+            sizes = np.array([sym.size[::-1] for sym in symbols]) * c  # (S, 2) w, h in pixels
+            corners = (place - (pad_x, pad_y)) * c + (ox, oy)
+            filters[sel, : len(symbols), :2] = corners
+            filters[sel, : len(symbols), 2:] = sizes
         out.append(Candidates(boxes, filters, ls.scores[ys, xs], comp))
     if not out:
         return _empty(n_symbols)
