@@ -18,8 +18,12 @@ nothing: the cascade is then exact. Fitted thresholds are the lowest partial sco
 positives that scored above the detection threshold ("probably approximately admissible", §4
 of the paper): a true detection below them is lost.
 
-Part responses are computed lazily, at most once per position and part (a cache per level),
-in a numba kernel: this is a per-root, data-dependent loop that numpy cannot vectorise.
+Part responses are computed lazily, once per position and part (a cache per level; a missing
+one with its three right neighbours, which cost little more together), in a numba kernel: this
+is a per-root, data-dependent loop that numpy cannot vectorise. Without a projection (regions
+of interest, dense scores) every root of the rectangle is scored exactly by a second kernel
+that computes the part responses densely on the blocks the roots reach and runs the bounded
+distance transform as two 1-D passes.
 """
 
 from __future__ import annotations

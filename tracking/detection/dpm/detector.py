@@ -154,7 +154,7 @@ class DpmDetector:
     )
     _exact: CascadeThresholds = field(init=False, repr=False)
     _filters: tuple[KernelFilters, ...] = field(init=False, repr=False)
-    _pool: ThreadPoolExecutor | None = field(init=False, repr=False, compare=False, default=None)
+    _pool: ThreadPoolExecutor | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.part_names, self._slots = model_part_names(self.model)
@@ -162,6 +162,10 @@ class DpmDetector:
             self.calibration = _find_calibration(self.model, self.config)
         self._exact = CascadeThresholds.exact(self.model.num_parts)
         self._filters = kernel_filters(self.model, self.pad)
+        # one pool for the detector's life (its threads start on first use and end with it):
+        # starting threads per call cost a region of interest about a tenth of its time
+        workers = self.config.workers
+        self._pool = ThreadPoolExecutor(workers, "dpm-level") if workers > 1 else None
         self._cascade = None
         if self.config.cascade and self.config.deformation_window is not None:
             thresholds = _find_cascade(self.model, self.config, self.threshold)
@@ -288,11 +292,7 @@ class DpmDetector:
 
     def _map(self, jobs: list[Callable[[], object]]) -> list:
         """Run ``jobs`` in order, on ``config.workers`` threads when there are several."""
-        if self.config.workers > 1 and len(jobs) > 1:
-            # one pool for the detector's life: starting threads per call cost a region of
-            # interest about a tenth of its time (the threads end with the detector)
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self.config.workers, "dpm-level")
+        if self._pool is not None and len(jobs) > 1:
             return list(self._pool.map(lambda job: job(), jobs))
         return [job() for job in jobs]
 
