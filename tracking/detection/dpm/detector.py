@@ -334,7 +334,7 @@ class DpmDetector:
         # parts move up to `window` part cells (half as many root cells) beyond the window
         reach = (4 if window is None else window) / 2 + _HOG_BORDER
         comps = self.model.components
-        plans = []
+        crops = []  # per root level: the level, its crop (x0, y0, x1, y1), root positions
         for root in self._root_levels(levels, heights):
             c = root.cell
             margin_x = max(c_.window[1] / 2 + abs(c_.shift[1]) + reach for c_ in comps) * c
@@ -361,11 +361,25 @@ class DpmDetector:
             cols = (max(math.ceil(lo_x + pad_x), 0), min(math.floor(hi_x + pad_x) + 1, grid[1]))
             if rows[1] <= rows[0] or cols[1] <= cols[0]:
                 continue
-            plans.append(
-                _Plan(
-                    root, self._with_parts(root, levels), (x0, y0), frame[y0:y1, x0:x1], rows, cols
-                )
+            crops.append((root, (x0, y0, x1, y1), rows, cols))
+        if not crops:
+            return clipped, []
+        # one float copy of the union of the crops (the pyramid works in float32), each level
+        # a view of it, instead of a copy per level
+        ux0, uy0 = min(c[1][0] for c in crops), min(c[1][1] for c in crops)
+        ux1, uy1 = max(c[1][2] for c in crops), max(c[1][3] for c in crops)
+        union = frame[uy0:uy1, ux0:ux1].astype(np.float32)
+        plans = [
+            _Plan(
+                root,
+                self._with_parts(root, levels),
+                (x0, y0),
+                union[y0 - uy0 : y1 - uy0, x0 - ux0 : x1 - ux0],
+                rows,
+                cols,
             )
+            for root, (x0, y0, x1, y1), rows, cols in crops
+        ]
         return clipped, plans
 
     # ------------------------------------------------------------------ public interface
