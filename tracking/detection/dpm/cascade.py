@@ -671,8 +671,8 @@ def cascade_level(
     rows, cols:
         Half-open ranges of root positions (padded-map indices) to score; default all.
     filters:
-        :func:`kernel_filters` of the model for ``pad`` and ``projection`` (made here if
-        ``None``; callers scoring many levels make them once).
+        :func:`kernel_filters` of the model for ``pad`` and, when the cascade runs, for
+        ``projection`` (made here if ``None``; callers scoring many levels make them once).
 
     Returns
     -------
