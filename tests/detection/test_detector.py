@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -244,3 +246,25 @@ def test_threads_give_the_same_detections(inria_model, pets_frame):
     np.testing.assert_array_equal(one.scores, two.scores)
     np.testing.assert_array_equal(one.parts, two.parts)
     assert len(one) >= 1
+
+
+def test_a_model_with_parts_of_several_sizes_is_scored_without_the_kernels(
+    inria_model, pets, pets_frame
+):
+    # the compiled kernels stack a component's parts in one array; a model whose parts differ
+    # in size (voc-release5 allows it) is scored by the general numpy code, cascade off
+    def shrink_last_part(component):
+        last = component.parts[-1]
+        smaller = dataclasses.replace(last, weights=np.ascontiguousarray(last.weights[:5, :5]))
+        return dataclasses.replace(component, parts=(*component.parts[:-1], smaller))
+
+    model = dataclasses.replace(
+        inria_model, components=tuple(shrink_last_part(c) for c in inria_model.components)
+    )
+    detector = DpmDetector(model)
+    assert detector.cascade is None
+    gt = pets.gt[0][1]
+    region, heights = _person_region(gt)
+    found = detector.detect_region(pets_frame, region, heights)
+    assert match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
+    assert detector.dense_scores(pets_frame, region, heights) is not None

@@ -49,6 +49,7 @@ __all__ = [
     "cascade_level",
     "cascade_path",
     "kernel_filters",
+    "kernels_apply",
     "load_cascade",
     "pca_projection",
     "select_thresholds",
@@ -579,10 +580,26 @@ class KernelFilters:
     approx_parts: np.ndarray
 
 
+def kernels_apply(model: DpmModel) -> bool:
+    """Whether the compiled kernels can score ``model``: each component's parts of one size
+    and on one level (they stack a component's parts in one array). The voc-release5 person
+    models qualify; :func:`.scoring.score_level` scores any model."""
+    return all(
+        len({(p.size, p.anchor[2]) for p in component.parts}) <= 1 for component in model.components
+    )
+
+
 def kernel_filters(
     model: DpmModel, pad: tuple[int, int], projection: PcaProjection | None = None
 ) -> tuple[KernelFilters, ...]:
-    """Every component's :class:`KernelFilters` for maps padded by ``pad``."""
+    """Every component's :class:`KernelFilters` for maps padded by ``pad``.
+
+    Raises ``ValueError`` for a model the kernels cannot score (:func:`kernels_apply`).
+    """
+    if not kernels_apply(model):
+        raise ValueError(
+            "the compiled kernels need each component's parts of one size on one level"
+        )
     out = []
     pad_y, pad_x = pad
     for ci, component in enumerate(model.components):
@@ -591,10 +608,7 @@ def kernel_filters(
         parts = np.zeros((0, 1, model.num_features), dtype=np.float32)
         deformations = np.zeros((0, 4))
         if component.parts:
-            first = component.parts[0]
-            if any(p.anchor[2] != first.anchor[2] or p.size != first.size for p in component.parts):
-                raise ValueError("the cascade needs parts of one size on one level")
-            ds = first.anchor[2]
+            ds = component.parts[0].anchor[2]
             step = 2**ds
             anchors = np.array(
                 [

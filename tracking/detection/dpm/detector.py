@@ -40,6 +40,7 @@ from tracking.detection.dpm.cascade import (
     cascade_level,
     cascade_path,
     kernel_filters,
+    kernels_apply,
     load_cascade,
     pca_projection,
     select_thresholds,
@@ -153,7 +154,7 @@ class DpmDetector:
         init=False, repr=False
     )
     _exact: CascadeThresholds = field(init=False, repr=False)
-    _filters: tuple[KernelFilters, ...] = field(init=False, repr=False)
+    _filters: tuple[KernelFilters, ...] | None = field(init=False, repr=False)
     _pool: ThreadPoolExecutor | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -161,13 +162,15 @@ class DpmDetector:
         if self.calibration is None:
             self.calibration = _find_calibration(self.model, self.config)
         self._exact = CascadeThresholds.exact(self.model.num_parts)
-        self._filters = kernel_filters(self.model, self.pad)
+        # models the compiled kernels cannot score go through the general numpy scoring
+        kernels = kernels_apply(self.model)
+        self._filters = kernel_filters(self.model, self.pad) if kernels else None
         # one pool for the detector's life (its threads start on first use and end with it):
         # starting threads per call cost a region of interest about a tenth of its time
         workers = self.config.workers
         self._pool = ThreadPoolExecutor(workers, "dpm-level") if workers > 1 else None
         self._cascade = None
-        if self.config.cascade and self.config.deformation_window is not None:
+        if self.config.cascade and self.config.deformation_window is not None and kernels:
             thresholds = _find_cascade(self.model, self.config, self.threshold)
             if thresholds is not None:
                 projection = pca_projection(self.model)
@@ -245,10 +248,11 @@ class DpmDetector:
         def score(
             plan: _Plan, features: dict[int, np.ndarray], projected: dict[int, np.ndarray]
         ) -> LevelScores | None:
-            if self.config.deformation_window is None:
+            if self.config.deformation_window is None or self._filters is None:
                 return score_level(
-                    self.model, features, plan.root, self.pad, plan.rows, plan.cols, None
-                )
+                    self.model, features, plan.root, self.pad, plan.rows, plan.cols,
+                    self.config.deformation_window,
+                )  # fmt: skip
             if cascade_setup is not None:
                 thresholds, _, filters = cascade_setup
                 threshold = self.threshold
