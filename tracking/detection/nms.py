@@ -88,7 +88,7 @@ def nms(
     if not 0.0 <= overlap <= 1.0:
         raise ValueError(f"overlap must be in [0, 1], got {overlap}")
     if criterion not in NMS_CRITERIA:
-        raise ValueError(f"criterion must be 'smaller' or 'iou', got {criterion!r}")
+        raise ValueError(f"criterion must be one of {NMS_CRITERIA}, got {criterion!r}")
     order = np.argsort(-scores, kind="stable")
     x1, y1 = boxes[order, 0], boxes[order, 1]
     x2, y2 = x1 + boxes[order, 2], y1 + boxes[order, 3]
