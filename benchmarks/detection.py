@@ -38,6 +38,7 @@ DPM variants are named ``dpm-<model>[@upscale][:levels per octave][>min height][
 ``dpm-inria`` (the voc-release5 defaults with the star cascade), ``dpm-inria+exact`` (every root
 scored exactly), ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave) or
 ``dpm-inria>128`` (only windows at least 128 pixels tall, the height of OpenCV's HOG window).
+``opencv-hog`` runs OpenCV's HOG at 1.5x, ``opencv-hog@<upscale>`` at another scale.
 
 The machine may be shared; timings are medians. ``--workers`` sets the DPM's level threads; with
 more than one the script runs BLAS single-threaded (set before numpy loads) so the two do not
@@ -178,6 +179,17 @@ def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
     return DPM_MODELS[match["model"]], fields
 
 
+def _hog_upscale(name: str) -> float:
+    """The scale of ``opencv-hog@<upscale>``."""
+    try:
+        upscale = float(name.removeprefix("opencv-hog@"))
+    except ValueError:
+        upscale = math.nan
+    if not (math.isfinite(upscale) and upscale > 0):
+        raise SystemExit(f"bad detector name {name!r}: opencv-hog@<upscale>, a positive number")
+    return upscale
+
+
 def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry]:
     """The requested detectors (model files from ``--data``)."""
     entries: dict[str, Entry] = {}
@@ -214,12 +226,13 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
             entries[name] = Entry(
                 name, "embedded default (OpenCV HOG 1.5x, our NMS, SVM >= -0.5)", detect, 1.5
             )
-        elif name == "opencv-hog":
+        elif name == "opencv-hog" or name.startswith("opencv-hog@"):
+            upscale = PEER_UPSCALE if name == "opencv-hog" else _hog_upscale(name)
             entries[name] = Entry(
                 name,
-                f"OpenCV HOG detectMultiScale defaults at {PEER_UPSCALE:g}x (peer)",
-                _opencv_peer(PEER_UPSCALE),
-                PEER_UPSCALE,
+                f"OpenCV HOG detectMultiScale defaults at {upscale:g}x (peer)",
+                _opencv_peer(upscale),
+                upscale,
             )
         elif name == "public":
             entries[name] = Entry(

@@ -1,4 +1,5 @@
-"""The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``)."""
+"""The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``,
+``opencv-hog@<upscale>``)."""
 
 from __future__ import annotations
 
@@ -46,3 +47,14 @@ def test_dpm_names_give_config_fields(detection, name, fields):
 def test_bad_dpm_names_are_refused(detection, name):
     with pytest.raises(SystemExit, match="bad DPM detector name"):
         detection.parse_dpm_name(name)
+
+
+def test_hog_names_give_their_scale(detection):
+    assert detection._hog_upscale("opencv-hog@1") == 1.0
+    assert detection._hog_upscale("opencv-hog@2.5") == 2.5
+
+
+@pytest.mark.parametrize("name", ["opencv-hog@", "opencv-hog@x", "opencv-hog@0", "opencv-hog@inf"])
+def test_bad_hog_names_are_refused(detection, name):
+    with pytest.raises(SystemExit, match="bad detector name"):
+        detection._hog_upscale(name)
