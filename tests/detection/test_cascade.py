@@ -14,7 +14,6 @@ import pytest
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
     cascade_level,
-    kernel_filters,
     load_cascade,
     pca_projection,
     select_thresholds,
@@ -27,6 +26,7 @@ from tracking.detection.dpm.cascade_fit import (
     thresholds_for,
 )
 from tracking.detection.dpm.detector import DpmConfig, DpmDetector
+from tracking.detection.dpm.kernels import kernel_filters
 from tracking.detection.dpm.model import load_dpm_model
 from tracking.detection.dpm.pyramid import level_features
 from tracking.detection.dpm.scoring import score_level
@@ -247,7 +247,7 @@ def test_fit_command_rejects_a_zero_step(inria_path, shared_data):
 _AFTER_WARM_UP = """
 import sys
 import numpy as np
-from tracking.detection.dpm import cascade
+from tracking.detection.dpm import kernels as dpm_kernels
 from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.dpm.model import load_dpm_model
 from tracking.features import hog
@@ -255,8 +255,8 @@ from tracking.types import Box
 from tracking.warmup import warm_up
 
 warm_up()
-kernels = [cascade._cascade, cascade._dot, cascade._responses, cascade._exact_component,
-           hog._features]
+kernels = [dpm_kernels.cascade_roots, dpm_kernels._dot, dpm_kernels._responses,
+           dpm_kernels.exact_component, hog._features]
 before = [len(k.signatures) for k in kernels]
 crop = np.load(sys.argv[2])
 detector = DpmDetector(load_dpm_model(sys.argv[1]), DpmConfig())

@@ -35,18 +35,16 @@ from tracking.detection.calibration import (
 from tracking.detection.dpm.boxes import Candidates, candidates, postprocess
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
-    KernelFilters,
     PcaProjection,
     cascade_level,
     cascade_path,
-    kernel_filters,
-    kernels_apply,
     load_cascade,
     pca_projection,
     select_thresholds,
 )
 from tracking.detection.dpm.config import DpmConfig
 from tracking.detection.dpm.dense import dense_scores
+from tracking.detection.dpm.kernels import KernelFilters, kernel_filters, kernels_apply
 from tracking.detection.dpm.model import DpmModel, load_dpm_model
 from tracking.detection.dpm.parts import model_part_names
 from tracking.detection.dpm.pyramid import (
