@@ -8,7 +8,7 @@ their inputs and reads their outputs.
 * :func:`exact_component` scores every root of a rectangle exactly: it computes the part
   responses densely on the block of placements the roots' anchors reach, four positions per
   pass, and runs the bounded distance transform as a y pass and an x pass (as
-  :func:`.distance_transform.bounded_dt`, first maximum kept).
+  :func:`.distance_transform.bounded_distance_transform`, first maximum kept).
 * :func:`cascade_roots` is the star cascade (:mod:`.cascade`): a per-root, data-dependent loop
   that numpy cannot vectorise. Part responses are computed lazily, once per position and part
   (a cache per level; a missing one with its three right neighbours, which cost little more
