@@ -156,7 +156,8 @@ def test_fitted_thresholds_admit_their_positives(inria_model, shared_data):
     assert thresholds is not None
     pruned = DpmDetector(inria_model, DpmConfig(threshold=low))
     projection = pca_projection(inria_model)
-    pruned._cascade = (thresholds, projection, kernel_filters(inria_model, pruned.pad, projection))
+    pruned._cascade = (thresholds, projection)
+    pruned._filters = kernel_filters(inria_model, pruned.pad, projection)
     for (crop, _), (score, _, _) in zip(positives, records, strict=True):
         found = pruned.detect(crop)
         assert len(found) and found.scores.max() >= score - 1e-4

@@ -148,9 +148,7 @@ class DpmDetector:
     calibration: LogisticCalibration | None = None
     part_names: tuple[str, ...] = field(init=False)
     _slots: tuple[tuple[int, ...], ...] = field(init=False, repr=False)
-    _cascade: tuple[CascadeThresholds, PcaProjection, tuple[KernelFilters, ...]] | None = field(
-        init=False, repr=False
-    )
+    _cascade: tuple[CascadeThresholds, PcaProjection] | None = field(init=False, repr=False)
     _exact: CascadeThresholds = field(init=False, repr=False)
     _filters: tuple[KernelFilters, ...] | None = field(init=False, repr=False)
     _pool: ThreadPoolExecutor | None = field(init=False, repr=False, compare=False)
@@ -162,18 +160,19 @@ class DpmDetector:
         self._exact = CascadeThresholds.exact(self.model.num_parts)
         # models the compiled kernels cannot score go through the general numpy scoring
         kernels = kernels_apply(self.model)
-        self._filters = kernel_filters(self.model, self.pad) if kernels else None
         # one pool for the detector's life (its threads start on first use and end with it):
         # starting threads per call cost a region of interest about a tenth of its time
         workers = self.config.workers
         self._pool = ThreadPoolExecutor(workers, "dpm-level") if workers > 1 else None
         self._cascade = None
+        projection = None
         if self.config.cascade and self.config.deformation_window is not None and kernels:
             thresholds = _find_cascade(self.model, self.config, self.threshold)
             if thresholds is not None:
                 projection = pca_projection(self.model)
-                filters = kernel_filters(self.model, self.pad, projection)
-                self._cascade = thresholds, projection, filters
+                self._cascade = thresholds, projection
+        # one set of filters for both kernels (the exact one ignores the projected parts)
+        self._filters = kernel_filters(self.model, self.pad, projection) if kernels else None
 
     @classmethod
     def from_file(
@@ -252,14 +251,13 @@ class DpmDetector:
                     self.config.deformation_window,
                 )  # fmt: skip
             if cascade_setup is not None:
-                thresholds, _, filters = cascade_setup
-                threshold = self.threshold
+                thresholds, threshold = cascade_setup[0], self.threshold
             else:  # every root exactly, densely in the compiled kernel
-                thresholds, filters, threshold = self._exact, self._filters, -math.inf
+                thresholds, threshold = self._exact, -math.inf
             result = cascade_level(
                 self.model, features, projected, projection, plan.root, self.pad, thresholds,
                 threshold, self.config.deformation_window, rows=plan.rows, cols=plan.cols,
-                filters=filters,
+                filters=self._filters,
             )  # fmt: skip
             return None if result is None else result[0]
 
