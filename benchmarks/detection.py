@@ -163,31 +163,36 @@ def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
 
     ``+exact`` scores every root exactly (no star cascade).
     """
+    form = "dpm-<model>[@upscale][:levels][>min height][+exact]"
     match = _DPM_NAME.fullmatch(name)
     if match is None or match["model"] not in DPM_MODELS:
         raise SystemExit(
-            f"bad DPM detector name {name!r}: dpm-<model>[@upscale][:levels][>min height][+exact]"
-            f" with a model of {sorted(DPM_MODELS)}"
+            f"bad DPM detector name {name!r}: {form} with a model of {sorted(DPM_MODELS)}"
         )
     fields: dict[str, object] = {"cascade": match["exact"] is None}
     if match["upscale"]:
-        fields["upscale"] = float(match["upscale"])
+        fields["upscale"] = _positive(match["upscale"], name, form)
     if match["levels"]:
-        fields["levels_per_octave"] = int(match["levels"])
+        fields["levels_per_octave"] = int(_positive(match["levels"], name, form))
     if match["min_height"]:
-        fields["min_height"] = float(match["min_height"])
+        fields["min_height"] = _positive(match["min_height"], name, form)
     return DPM_MODELS[match["model"]], fields
+
+
+def _positive(text: str, name: str, form: str) -> float:
+    """``text`` (a number in detector ``name``) as a positive float, else SystemExit."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise SystemExit(f"bad detector name {name!r}: {form}, with positive numbers")
+    return value
 
 
 def _hog_upscale(name: str) -> float:
     """The scale of ``opencv-hog@<upscale>``."""
-    try:
-        upscale = float(name.removeprefix("opencv-hog@"))
-    except ValueError:
-        upscale = math.nan
-    if not (math.isfinite(upscale) and upscale > 0):
-        raise SystemExit(f"bad detector name {name!r}: opencv-hog@<upscale>, a positive number")
-    return upscale
+    return _positive(name.removeprefix("opencv-hog@"), name, "opencv-hog@<upscale>")
 
 
 def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry]:
