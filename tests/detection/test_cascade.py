@@ -50,12 +50,11 @@ def test_pca_basis_is_orthonormal_and_keeps_most_filter_energy(inria_model):
 
 def test_without_pruning_the_cascade_equals_exact_scoring(exact, inria_model, pets_frame):
     crop = pets_frame[150:420, 180:420]  # two people
-    levels = exact._pyramid(crop.shape)
     projection = pca_projection(inria_model)
     threshold = -2.0
     compared = 0
-    for root in exact._root_levels(levels, (None, None))[::4]:
-        features = level_features(crop, exact._with_parts(root, levels), exact.pad)
+    for root, needed in exact.search_levels(crop.shape)[::4]:
+        features = level_features(crop, needed, exact.pad)
         projected = {k: projection.project(v) for k, v in features.items()}
         reference = score_level(inria_model, features, root, exact.pad, window=4)
         result = cascade_level(
@@ -85,9 +84,8 @@ def test_exact_kernel_equals_exact_scoring(
     # what regions of interest (a rectangle) and cascade=False (whole levels) use: every root
     # scored densely, no approximate stage
     crop = pets_frame[150:420, 180:420]
-    levels = exact._pyramid(crop.shape)
-    root = exact._root_levels(levels, (None, None))[level]
-    features = level_features(crop, exact._with_parts(root, levels), exact.pad)
+    root, needed = exact.search_levels(crop.shape)[level]
+    features = level_features(crop, needed, exact.pad)
     reference = score_level(inria_model, features, root, exact.pad, rows, cols, window=4)
     result = cascade_level(
         inria_model, features, None, None, root, exact.pad,

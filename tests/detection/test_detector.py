@@ -192,6 +192,22 @@ def test_heights_without_a_level_give_no_scores(detector, pets_frame):
     assert detector.dense_scores(pets_frame, Box(100, 100, 50, 50), heights=(10, 20)) is None
 
 
+def test_search_levels_hold_windows_of_the_heights_with_parts_at_twice_the_resolution(
+    detector, inria_model
+):
+    window_heights = [c.window[0] for c in inria_model.components]
+    every = detector.search_levels((576, 768, 3))
+    chosen = detector.search_levels((576, 768, 3), (100, 200))
+    assert 0 < len(chosen) < len(every)
+    assert min(h * every[0][0].cell for h in window_heights) < 65  # the extra octave: 60 px
+    for root, needed in chosen:
+        assert any(100 <= h * root.cell <= 200 for h in window_heights)
+        assert needed[0] == root and needed[1].cell == pytest.approx(root.cell / 2)
+    assert [r for r, _ in chosen] == [
+        r for r, _ in every if any(100 <= h * r.cell <= 200 for h in window_heights)
+    ]
+
+
 @pytest.mark.parametrize(
     "options",
     [

@@ -73,12 +73,10 @@ def record_positive(
     model = detector.model
     projection = projection or pca_projection(model)
     pad = detector.pad
-    levels = detector._pyramid(image.shape)
     height = box[3]
-    roots = detector._root_levels(levels, (0.6 * height, 2.0 * height))
     best: tuple[float, object, tuple[int, int, int]] | None = None
-    for root in roots:
-        features = level_features(image, detector._with_parts(root, levels), pad)
+    for root, needed in detector.search_levels(image.shape, (0.6 * height, 2.0 * height)):
+        features = level_features(image, needed, pad)
         scores = score_level(model, features, root, pad, window=detector.config.deformation_window)
         if scores is None:
             continue

@@ -203,30 +203,29 @@ class DpmDetector:
         return self.model.max_size
 
     # ------------------------------------------------------------------ levels and scoring
-    def _pyramid(self, shape: tuple[int, ...]) -> tuple[PyramidLevel, ...]:
+    def search_levels(
+        self, shape: tuple[int, ...], heights: tuple[float | None, float | None] = (None, None)
+    ) -> list[tuple[PyramidLevel, tuple[PyramidLevel, ...]]]:
+        """The levels that can hold a root (``gdetect_parse.m``) in an image of ``shape``.
+
+        Only levels where some component's window is ``heights[0] .. heights[1]`` pixels tall
+        (``None``: unbounded), each with the levels its score reads: itself and, for a model
+        with parts, the level one octave finer where the parts sit.
+        """
         model = self.model
-        return pyramid_levels(
+        levels = pyramid_levels(
             shape, model.sbin, self.interval, model.extra_octave, self.config.upscale
         )
-
-    def _root_levels(
-        self, levels: tuple[PyramidLevel, ...], heights: tuple[float | None, float | None]
-    ) -> list[PyramidLevel]:
-        """Levels that can hold a root (``gdetect_parse.m``) with a window height in range."""
         low = heights[0] if heights[0] is not None else 0.0
         high = heights[1] if heights[1] is not None else math.inf
-        window_heights = [c.window[0] for c in self.model.components]
+        window_heights = [c.window[0] for c in model.components]
+        parts = any(c.parts for c in model.components)
         return [
-            level
+            (level, (level, levels[level.index - self.interval]) if parts else (level,))
             for level in levels
             if level.index >= self.interval
             and any(low <= h * level.cell <= high for h in window_heights)
         ]
-
-    def _with_parts(self, root: PyramidLevel, levels: tuple[PyramidLevel, ...]) -> tuple:
-        if any(c.parts for c in self.model.components):
-            return (root, levels[root.index - self.interval])
-        return (root,)
 
     def _run(
         self, plans: list[_Plan], shared: np.ndarray | None = None, cascade: bool = False
@@ -327,15 +326,14 @@ class DpmDetector:
             low, high = self.config.region_heights
             heights = (low * clipped.h, high * clipped.h)
         heights = checked_heights(heights)
-        levels = self._pyramid(frame.shape)
         frame_h, frame_w = frame.shape[:2]
         pad_y, pad_x = self.pad
         window = self.config.deformation_window
         # parts move up to `window` part cells (half as many root cells) beyond the window
         reach = (4 if window is None else window) / 2 + _HOG_BORDER
         comps = self.model.components
-        crops = []  # per root level: the level, its crop (x0, y0, x1, y1), root positions
-        for root in self._root_levels(levels, heights):
+        crops = []  # per root level: the level, the levels it reads, its crop, root positions
+        for root, needed in self.search_levels(frame.shape, heights):
             c = root.cell
             margin_x = max(c_.window[1] / 2 + abs(c_.shift[1]) + reach for c_ in comps) * c
             margin_y = max(c_.window[0] / 2 + abs(c_.shift[0]) + reach for c_ in comps) * c
@@ -361,24 +359,19 @@ class DpmDetector:
             cols = (max(math.ceil(lo_x + pad_x), 0), min(math.floor(hi_x + pad_x) + 1, grid[1]))
             if rows[1] <= rows[0] or cols[1] <= cols[0]:
                 continue
-            crops.append((root, (x0, y0, x1, y1), rows, cols))
+            crops.append((root, needed, (x0, y0, x1, y1), rows, cols))
         if not crops:
             return clipped, []
         # one float copy of the union of the crops (the pyramid works in float32), each level
         # a view of it, instead of a copy per level
-        ux0, uy0 = min(c[1][0] for c in crops), min(c[1][1] for c in crops)
-        ux1, uy1 = max(c[1][2] for c in crops), max(c[1][3] for c in crops)
+        ux0, uy0 = min(c[2][0] for c in crops), min(c[2][1] for c in crops)
+        ux1, uy1 = max(c[2][2] for c in crops), max(c[2][3] for c in crops)
         union = frame[uy0:uy1, ux0:ux1].astype(np.float32)
         plans = [
             _Plan(
-                root,
-                self._with_parts(root, levels),
-                (x0, y0),
-                union[y0 - uy0 : y1 - uy0, x0 - ux0 : x1 - ux0],
-                rows,
-                cols,
+                root, needed, (x0, y0), union[y0 - uy0 : y1 - uy0, x0 - ux0 : x1 - ux0], rows, cols
             )
-            for root, (x0, y0, x1, y1), rows, cols in crops
+            for root, needed, (x0, y0, x1, y1), rows, cols in crops
         ]
         return clipped, plans
 
@@ -386,9 +379,11 @@ class DpmDetector:
     def detect(self, frame: np.ndarray) -> Detections:
         """People in the whole frame (RGB ``(H, W, 3)`` or grayscale, values 0..255)."""
         frame = _checked(frame)
-        levels = self._pyramid(frame.shape)
-        roots = self._root_levels(levels, (self.config.min_height, self.config.max_height))
-        plans = [_Plan(r, self._with_parts(r, levels), (0, 0), frame) for r in roots]
+        heights = (self.config.min_height, self.config.max_height)
+        plans = [
+            _Plan(r, needed, (0, 0), frame)
+            for r, needed in self.search_levels(frame.shape, heights)
+        ]
         scored = self._run(plans, shared=frame, cascade=True)
         found = candidates(
             self.model, scored, self.pad, self.threshold, limit=self.config.max_candidates
