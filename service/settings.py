@@ -108,6 +108,25 @@ class Settings(BaseSettings):
             raise ValueError(f"{variable} names {value}, which is not a file")
         return value
 
+    @field_validator("dpm_model", "color_names")
+    @classmethod
+    def _loadable(cls, value: Path | None, info) -> Path | None:
+        # A file that is not a model stops the service when it starts, rather than failing
+        # every job that needs it (the loads take well under a second). Imported here: the
+        # detection package takes a third of a second to import, for every user of settings.
+        if value is not None:
+            from tracking.detection.dpm.model import load_dpm_model
+            from tracking.features.colornames import load_w2c_table
+
+            try:
+                if info.field_name == "dpm_model":
+                    load_dpm_model(value)
+                else:
+                    load_w2c_table(value)
+            except ValueError as error:
+                raise ValueError(f"VTRACK_{info.field_name.upper()}: {error}") from None
+        return value
+
     @property
     def zenoh(self) -> ZenohOptions:
         return ZenohOptions(

@@ -1,6 +1,7 @@
 """The `vtrack track` command, run as a user runs it: a subprocess on real files."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -101,3 +102,28 @@ def test_box_outside_the_frame_is_reported(scene_video):
 def _write(path, data):
     path.write_bytes(data)
     return path
+
+
+@pytest.mark.parametrize(
+    ("variable", "content", "message"),
+    [
+        ("VTRACK_DPM_MODEL", None, "which is not a file"),
+        ("VTRACK_DPM_MODEL", b"\x00not a model" * 50, "VTRACK_DPM_MODEL: "),
+        ("VTRACK_COLOR_NAMES", b"\x00not a table" * 50, "VTRACK_COLOR_NAMES: "),
+    ],
+)
+def test_serve_refuses_a_model_setting_that_is_not_a_model(tmp_path, variable, content, message):
+    # checked when the service starts, not when the first job needs the file
+    path = tmp_path / "model.mat"
+    if content is not None:
+        path.write_bytes(content)
+    env = {**os.environ, variable: str(path), "VTRACK_DATA_DIR": str(tmp_path / "data")}
+    result = subprocess.run(
+        [sys.executable, "-m", "service.cli", "serve", "--port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=60,  # a service that started would run until killed here
+        env=env,
+    )
+    assert result.returncode == 2
+    assert message in result.stderr and str(path) in result.stderr

@@ -34,7 +34,6 @@ http://people.cs.uchicago.edu/~rbg/latent-release5/ (``model/model_get_block.m``
 from __future__ import annotations
 
 import os
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -400,8 +399,12 @@ def _load_matlab(path: Path) -> object:
         raise ModelFileError(f"DPM model file not found: {path}")
     try:
         contents = scipy.io.loadmat(str(path), struct_as_record=False, squeeze_me=True)
-    except (ValueError, TypeError, OSError, EOFError, zipfile.BadZipFile, NotImplementedError) as e:
-        raise ModelFileError(f"{path} is not a readable MATLAB v5 file: {e}") from e
+    except NotImplementedError as error:  # scipy's word for a v7.3 (HDF5) file
+        raise ModelFileError(
+            f"{path} is a MATLAB v7.3 (HDF5) file, which this loader does not read: save the "
+            "model again in the v7 format (MATLAB: save(file, 'model', '-v7'); Octave: "
+            "save -v7 file model)"
+        ) from error
     except Exception as error:  # scipy raises assorted errors on corrupt streams
         raise ModelFileError(f"{path} is not a readable MATLAB v5 file: {error}") from error
     if "model" not in contents:
