@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.io
 
+from tests.test_matfiles import V73_FILE
 from tracking.detection.dpm.model import ModelFileError, flip_filter, load_dpm_model
 
 
@@ -54,12 +55,6 @@ def _save_model(path: Path, **fields) -> Path:
     return path
 
 
-# The header of a file written by MATLAB's save -v7.3: text, subsystem offset, version 0x0200,
-# endianness; the HDF5 superblock starts at byte 512.
-_V73_TEXT = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 ."
-_V73_HEADER = (_V73_TEXT.ljust(116) + bytes(8) + b"\x00\x02IM").ljust(512, b"\x00")
-
-
 def _write(path: Path, data: bytes) -> Path:
     path.write_bytes(data)
     return path
@@ -79,7 +74,7 @@ def _write(path: Path, data: bytes) -> Path:
         # a model struct without rules, filters, blocks...
         (lambda p: _save_model(p / "m.mat", sbin=8, interval=10), "field"),
         # MATLAB's -v7.3 format (HDF5 behind a 512-byte MATLAB header): say how to re-save it
-        (lambda p: _write(p / "v73.mat", _V73_HEADER + b"\x89HDF\r\n\x1a\n"), "-v7"),
+        (lambda p: _write(p / "v73.mat", V73_FILE), "-v7"),
     ],
 )
 def test_files_that_are_not_models_raise_model_file_error(tmp_path, make, message):

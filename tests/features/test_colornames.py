@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
+from tests.test_matfiles import V73_FILE
 from tracking.features import colornames as cn
 from tracking.features.colornames import (
     COLOR_NAMES,
@@ -236,6 +237,12 @@ def test_from_config_uses_the_embedded_model_without_a_path(w2c_path: Path) -> N
     assert ColorNameTable.from_config(w2c_path).source == f"w2c:{w2c_path}"
 
 
+def _v73_file(tmp_path: Path) -> Path:
+    path = tmp_path / "w2c.mat"
+    path.write_bytes(V73_FILE)
+    return path
+
+
 def _text_file_named_mat(tmp_path: Path) -> Path:
     path = tmp_path / "w2c.mat"
     path.write_text("this is not a MATLAB file\n" * 20)
@@ -274,7 +281,9 @@ def _mat_text_w2c(tmp_path: Path) -> Path:
         # No file at all.
         (lambda tmp: tmp / "missing.mat", "does not exist"),
         # A text file with a .mat name: scipy cannot parse it.
-        (_text_file_named_mat, "could not read .* as a MATLAB .mat file"),
+        (_text_file_named_mat, "not a readable MATLAB v5/v7 file"),
+        # MATLAB's -v7.3 format: say how to save it again.
+        (_v73_file, "save -v7"),
         # A valid .mat file that holds something else.
         (_mat_without_w2c, r"no variable 'w2c'; found \['table'\]"),
         # The right variable with the wrong number of bins.

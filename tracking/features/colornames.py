@@ -31,9 +31,9 @@ from types import MappingProxyType
 from typing import Literal, NamedTuple, get_args
 
 import numpy as np
-import scipy.io
 
 from tracking.features.colorspaces import require_rgb
+from tracking.matfiles import read_mat
 
 __all__ = [
     "COLOR_NAMES",
@@ -510,12 +510,9 @@ def load_w2c_table(path: str | os.PathLike[str]) -> np.ndarray:
     if not path.is_file():
         raise ColorNamesError(f"colour-name table {str(path)!r} does not exist or is not a file")
     try:
-        contents = scipy.io.loadmat(path)
-    except Exception as err:  # scipy raises assorted types (ValueError, IndexError, ...) on junk
-        raise ColorNamesError(
-            f"could not read {str(path)!r} as a MATLAB .mat file holding 'w2c' "
-            f"({type(err).__name__}: {err})"
-        ) from err
+        contents = read_mat(path)
+    except ValueError as err:
+        raise ColorNamesError(f"colour-name table {str(path)!r}: {err}") from err
     if "w2c" not in contents:
         found = sorted(k for k in contents if not k.startswith("__"))
         raise ColorNamesError(

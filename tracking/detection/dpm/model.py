@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+from tracking.matfiles import read_mat
+
 __all__ = [
     "DpmComponent",
     "DpmModel",
@@ -393,20 +395,12 @@ def _component(reader: _Reader, rule: object, index: int) -> DpmComponent:
 
 
 def _load_matlab(path: Path) -> object:
-    import scipy.io  # local: keeps `import tracking.detection` light
-
     if not path.is_file():
         raise ModelFileError(f"DPM model file not found: {path}")
     try:
-        contents = scipy.io.loadmat(str(path), struct_as_record=False, squeeze_me=True)
-    except NotImplementedError as error:  # scipy's word for a v7.3 (HDF5) file
-        raise ModelFileError(
-            f"{path} is a MATLAB v7.3 (HDF5) file, which this loader does not read: save the "
-            "model again in the v7 format (MATLAB: save(file, 'model', '-v7'); Octave: "
-            "save -v7 file model)"
-        ) from error
-    except Exception as error:  # scipy raises assorted errors on corrupt streams
-        raise ModelFileError(f"{path} is not a readable MATLAB v5 file: {error}") from error
+        contents = read_mat(path, struct_as_record=False, squeeze_me=True)
+    except ValueError as error:
+        raise ModelFileError(f"{path}: {error}") from error
     if "model" not in contents:
         names = sorted(k for k in contents if not k.startswith("__"))
         raise ModelFileError(f"{path} holds no variable 'model' (found {names})")
