@@ -105,6 +105,20 @@ def test_exact_kernel_equals_exact_scoring(
     assert np.all(got.placements[~np.broadcast_to(above[:, None], got.placements.shape[:4])] == -1)
 
 
+def test_cascade_refuses_filters_without_the_projected_parts(exact, inria_model, pets_frame):
+    crop = pets_frame[150:420, 180:420]
+    root, needed = exact.search_levels(crop.shape)[6]
+    features = level_features(crop, needed, exact.pad)
+    projection = pca_projection(inria_model)
+    projected = {k: projection.project(v) for k, v in features.items()}
+    plain = kernel_filters(inria_model, exact.pad)  # as for exact scoring: no projection
+    with pytest.raises(ValueError, match="projected parts"):
+        cascade_level(
+            inria_model, features, projected, projection, root, exact.pad,
+            CascadeThresholds.exact(inria_model.num_parts), -2.0, filters=plain,
+        )  # fmt: skip
+
+
 @pytest.mark.slow
 def test_cascade_keeps_the_exact_detections_of_pets_frames(inria_model, exact, pets):
     cascade = DpmDetector(inria_model, DpmConfig())

@@ -262,6 +262,16 @@ def cascade_level(
     approximate = projection is not None and projected is not None
     if filters is None:
         filters = kernel_filters(model, pad, projection if approximate else None)
+    elif approximate:
+        # the compiled cascade reads the projected parts without bounds checks
+        for kernel in filters:
+            n_parts, rows, width = kernel.parts.shape
+            expected = (n_parts, rows, width // root_features.shape[2] * projection.basis.shape[1])
+            if n_parts and kernel.approx_parts.shape != expected:
+                raise ValueError(
+                    "filters without the projected parts: make them with "
+                    "kernel_filters(model, pad, projection) for the cascade"
+                )
     components = model.components
     n_symbols = max(len(c.symbols) for c in components)
     component_scores = np.full((len(components), ny, nx), -np.inf)
