@@ -380,11 +380,14 @@ class DpmDetector:
         """People in the whole frame (RGB ``(H, W, 3)`` or grayscale, values 0..255)."""
         frame = _checked(frame)
         heights = (self.config.min_height, self.config.max_height)
+        # the pyramid works in float32: one copy of the frame for every chain's job (each job
+        # would otherwise convert the whole frame again)
+        image = frame.astype(np.float32, copy=False)
         plans = [
-            _Plan(r, needed, (0, 0), frame)
+            _Plan(r, needed, (0, 0), image)
             for r, needed in self.search_levels(frame.shape, heights)
         ]
-        scored = self._run(plans, shared=frame, cascade=True)
+        scored = self._run(plans, shared=image, cascade=True)
         found = candidates(
             self.model, scored, self.pad, self.threshold, limit=self.config.max_candidates
         )
