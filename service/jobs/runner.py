@@ -13,6 +13,7 @@ import logging
 import os
 import shutil
 import signal
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +41,12 @@ class Orphaned(Exception):
 
 
 def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
-    """Entry point of a worker process: run jobs until ``stop`` is set or the parent dies."""
+    """Entry point of a worker process: run jobs until ``stop`` is set or the parent dies.
+
+    ``stop`` and ``ready`` are shared flags without locks (``multiprocessing.RawValue``): a
+    worker killed while it waited on a ``multiprocessing.Event`` would leave the service
+    hanging forever in ``Event.set`` when it stops (it waits for the dead waiter to wake).
+    """
     # Ctrl-C in a terminal reaches the whole process group: the service decides what happens
     # to running jobs (it requeues them), so the worker ignores it.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -50,15 +56,15 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
     )
     store = JobStore(config.database_path)
     pid = os.getpid()
-    ready.set()
+    ready.value = True
     try:
-        while not stop.is_set():
+        while not stop.value:
             if os.getppid() != parent_pid:
                 log.warning("the service process is gone; this worker stops")
                 return
             job = store.claim(pid)
             if job is None:
-                stop.wait(config.poll_interval)
+                time.sleep(config.poll_interval)
                 continue
             try:
                 run_job(store, job, config, parent_pid)

@@ -12,6 +12,7 @@ On a clean stop, workers are terminated and the jobs they were running go back t
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import multiprocessing
 import os
@@ -73,7 +74,8 @@ class WorkerPool:
         self._job_timeout = job_timeout
         self._check_interval = check_interval
         self._ctx = multiprocessing.get_context("spawn")
-        self._stop_workers = self._ctx.Event()
+        # lock-free shared flags, see worker_main
+        self._stop_workers = self._ctx.RawValue(ctypes.c_bool, False)
         self._stopping = threading.Event()
         self._slots: list[_Slot] = []
         self._lock = threading.Lock()
@@ -95,7 +97,7 @@ class WorkerPool:
         self._stopping.set()
         if self._thread is not None:
             self._thread.join()
-        self._stop_workers.set()
+        self._stop_workers.value = True
         with self._lock:
             slots = list(self._slots)
         busy = {job.worker_pid: job for job in self._store.running()}
@@ -115,9 +117,6 @@ class WorkerPool:
             slot.process.close()
         with self._lock:
             self._slots = []
-        # Drop the shared semaphores now rather than at interpreter exit, when the
-        # multiprocessing resource tracker would report them as leaked.
-        self._stop_workers = None
         log.info("worker processes stopped")
 
     # -- state -----------------------------------------------------------------------------
@@ -137,13 +136,13 @@ class WorkerPool:
     def ready(self) -> int:
         """Workers that have started and opened the store."""
         with self._lock:
-            return sum(s.process.is_alive() and s.ready.is_set() for s in self._slots)
+            return sum(s.process.is_alive() and s.ready.value for s in self._slots)
 
     # -- supervision -----------------------------------------------------------------------
 
     def _spawn(self, index: int) -> _Slot:
         single_threaded_blas()
-        ready = self._ctx.Event()
+        ready = self._ctx.RawValue(ctypes.c_bool, False)
         process = self._ctx.Process(
             target=worker_main,
             args=(self._config, os.getpid(), self._stop_workers, ready),

@@ -68,3 +68,41 @@ def test_a_killed_worker_fails_its_job_and_the_next_job_succeeds(make_server, pe
         status = wait_for_state(client, following, ("succeeded", "failed"))
         assert status["state"] == "succeeded", status
         assert client.get("/readyz").json()["workers_ready"] == 1
+
+
+def _worker_pids(server) -> set[int]:
+    """The service's job worker processes (its spawned children)."""
+    pids = set()
+    for task in os.listdir(f"/proc/{server.process.pid}/task"):
+        with open(f"/proc/{server.process.pid}/task/{task}/children") as children:
+            pids.update(int(pid) for pid in children.read().split())
+    workers = set()
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as cmdline:
+                if b"spawn_main" in cmdline.read():
+                    workers.add(pid)
+        except FileNotFoundError:
+            continue
+    return workers
+
+
+def test_the_service_stops_after_an_idle_worker_was_killed(make_server):
+    # A worker killed while it waits for work (the OOM killer, a kill -9, or a service manager
+    # sending SIGTERM to the whole process group) must not keep the service from stopping.
+    server = make_server(workers=1)
+    (first,) = _worker_pids(server)
+    os.kill(first, signal.SIGKILL)
+    with server.client() as client:
+        wait_for(
+            lambda: (
+                _worker_pids(server) - {first}
+                and client.get("/readyz").json()["workers_ready"] == 1
+            ),
+            30,
+            "the killed worker to be replaced",
+        )
+    server.process.send_signal(signal.SIGTERM)
+    server.process.wait(timeout=30)  # it hung for ever in the stop signal to the workers
+    assert "worker processes stopped" in server.log()
+    assert "Application shutdown complete" in server.log()
