@@ -8,11 +8,17 @@ runs out of the box; it has no parts (``part_names == ()``).
 
 Detection: the frame is enlarged by ``upscale`` (people under ~100 px are below the window's
 size; the issue's reference runs at 1.5x; by default the factor follows the frame's height, see
-:meth:`HogPeopleConfig.upscale_for`), OpenCV slides the window over its scale pyramid and
-returns every window scoring above ``hit_threshold`` with its raw score (grouping disabled), and
-our voc-release5 suppression (:func:`tracking.detection.nms.nms`) keeps the best of overlapping
-windows. Windows are padded: the INRIA training windows put a 96-pixel person in 128 pixels with
-16 pixels above and below (Dalal & Triggs, §3). Each box is shrunk about its centre to
+:meth:`HogPeopleConfig.upscale_for`), the window slides over the scale pyramid of OpenCV's
+``detectMultiScale`` (the same levels, resizing and window positions), every window scoring above
+``hit_threshold`` is kept with its raw score, and our voc-release5 suppression
+(:func:`tracking.detection.nms.nms`) keeps the best of overlapping windows. The pyramid loop is
+ours rather than ``detectMultiScale``'s because OpenCV 4.x's level threads append windows and
+scores to its result under two separate locks: under CPU load a score can land beside another
+level's window, so the same frame gave different detections from run to run (and a whole
+video different tracks).
+
+Windows are padded: the INRIA training windows put a 96-pixel person in 128 pixels with 16
+pixels above and below (Dalal & Triggs, §3). Each box is shrunk about its centre to
 ``box_scale = (0.48, 0.73)`` of the window (width, height): the medians of
 ``ground-truth size / window size`` over 198 windows matched to people in PETS09-S2L1 and
 TUD-Stadtmitte (interquartile ranges 0.43-0.54 and 0.70-0.76; centres agree within 2%).
@@ -25,6 +31,7 @@ fits the requested range -- exactly the scores ``detect`` thresholds.
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import cv2
@@ -87,6 +94,9 @@ class HogPeopleConfig:
     region_heights:
         Default person-height range of :meth:`HogPeopleDetector.detect_region` and
         :meth:`HogPeopleDetector.dense_scores`, as fractions of the region height.
+    workers:
+        Threads scanning pyramid levels side by side; ``None``: OpenCV's thread count
+        (``cv2.getNumThreads()``), as ``detectMultiScale`` uses.
     """
 
     upscale: float | None = None
@@ -98,6 +108,7 @@ class HogPeopleConfig:
     nms_overlap: float = 0.5
     box_scale: tuple[float, float] = (0.48, 0.73)
     region_heights: tuple[float, float] = (0.4, 1.0)
+    workers: int | None = None
 
     def __post_init__(self) -> None:
         if self.upscale is not None and not (math.isfinite(self.upscale) and self.upscale > 0):
@@ -119,6 +130,10 @@ class HogPeopleConfig:
         low, high = self.region_heights
         if not (0 < low <= high):
             raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")
+        if self.workers is not None and (
+            isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1
+        ):
+            raise ValueError(f"workers must be a positive int or None, got {self.workers}")
 
     def upscale_for(self, frame_height: int) -> float:
         """The enlargement of a frame ``frame_height`` pixels high: ``upscale`` if set, else
@@ -147,27 +162,55 @@ class HogPeopleDetector:
     part_names: tuple[str, ...] = ()
     _hog: cv2.HOGDescriptor = field(init=False, repr=False)
     _svm: np.ndarray = field(init=False, repr=False)
+    _pool: ThreadPoolExecutor | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self._svm = cv2.HOGDescriptor_getDefaultPeopleDetector().ravel().astype(np.float64)
         self._hog = cv2.HOGDescriptor()
         self._hog.setSVMDetector(self._svm.astype(np.float32))
+        workers = self.config.workers or cv2.getNumThreads()
+        self._pool = ThreadPoolExecutor(workers, "hog-level") if workers > 1 else None
 
     def _windows(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Windows above the hit threshold (image coordinates) and their raw scores."""
-        if image.shape[0] < _WINDOW[1] or image.shape[1] < _WINDOW[0]:
+        """Windows above the hit threshold (image coordinates) and their raw scores, in the
+        order of the levels (largest first): what ``detectMultiScale`` with grouping disabled
+        returns on one thread, whatever the number of threads here."""
+        scales = _pyramid_scales(image.shape, self.config.scale_step)
+        if not scales:
             return np.zeros((0, 4)), np.zeros(0)
-        stride = (self.config.win_stride, self.config.win_stride)
-        rects, weights = self._hog.detectMultiScale(
-            image,
-            hitThreshold=self.config.hit_threshold,
-            winStride=stride,
-            scale=self.config.scale_step,
-            groupThreshold=0,
+        if self._pool is None:
+            levels = [self._level_windows(image, s) for s in scales]
+        else:
+            levels = list(self._pool.map(lambda s: self._level_windows(image, s), scales))
+        windows = np.concatenate([w for w, _ in levels])
+        scores = np.concatenate([s for _, s in levels])
+        # as detectMultiScale: windows clipped to the image, empty ones dropped
+        height, width = image.shape[:2]
+        x0, y0 = np.maximum(windows[:, 0], 0), np.maximum(windows[:, 1], 0)
+        x1 = np.minimum(windows[:, 0] + windows[:, 2], width)
+        y1 = np.minimum(windows[:, 1] + windows[:, 3], height)
+        keep = (x1 > x0) & (y1 > y0)
+        clipped = np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)[keep]
+        return clipped, scores[keep]
+
+    def _level_windows(self, image: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+        """The windows of one pyramid level (the image shrunk by ``scale``), in image pixels."""
+        height, width = image.shape[:2]
+        size = (round(width / scale), round(height / scale))
+        level = (
+            image
+            if size == (width, height)
+            else cv2.resize(image, size, interpolation=cv2.INTER_LINEAR_EXACT)
         )
-        if len(rects) == 0:
-            return np.zeros((0, 4)), np.zeros(0)
-        return np.asarray(rects, dtype=np.float64).reshape(-1, 4), np.ravel(weights).astype(float)
+        stride = (self.config.win_stride, self.config.win_stride)
+        corners, scores = self._hog.detect(
+            level, hitThreshold=self.config.hit_threshold, winStride=stride, padding=(0, 0)
+        )
+        corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
+        windows = np.empty((len(corners), 4))
+        windows[:, :2] = np.rint(corners * scale)
+        windows[:, 2:] = (round(_WINDOW[0] * scale), round(_WINDOW[1] * scale))
+        return windows, np.asarray(scores, dtype=np.float64).reshape(-1)
 
     def _person_boxes(self, windows: np.ndarray) -> np.ndarray:
         """Shrink windows about their centres to the person (``box_scale``)."""
@@ -307,6 +350,21 @@ class HogPeopleDetector:
         ny = (size[1] - _WINDOW[1]) // stride + 1
         features = np.asarray(descriptors, dtype=np.float64).reshape(ny * nx, -1)
         return (features @ self._svm[:-1] + self._svm[-1]).reshape(ny, nx)
+
+
+def _pyramid_scales(shape: tuple[int, ...], step: float) -> list[float]:
+    """The shrink factors of ``detectMultiScale``'s levels: ``step**l`` while the shrunk
+    image still holds a window (at most 64 levels, OpenCV's ``nlevels``)."""
+    height, width = shape[:2]
+    scales, scale = [], 1.0
+    while (
+        len(scales) < 64
+        and round(width / scale) >= _WINDOW[0]
+        and (round(height / scale) >= _WINDOW[1])
+    ):
+        scales.append(scale)
+        scale *= step
+    return scales
 
 
 def _as_uint8(frame: object) -> np.ndarray:
