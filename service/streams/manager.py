@@ -9,6 +9,7 @@ that died, waiting longer after each quick death, and gives up (state ``failed``
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import multiprocessing
 import os
@@ -264,7 +265,9 @@ class StreamManager:
             log_level=self._log_level,
         )
         single_threaded_blas()
-        stream.stop = self._ctx.Event()
+        # A lock-free flag: a worker killed inside Event.is_set would hold the Event's lock,
+        # and Event.set in _halt would then wait for it for ever.
+        stream.stop = self._ctx.RawValue(ctypes.c_bool, False)
         stream.updates = self._ctx.Queue()
         stream.process = self._ctx.Process(
             target=stream_main,
@@ -284,7 +287,7 @@ class StreamManager:
         process = stream.process
         if process is None:
             return
-        stream.stop.set()
+        stream.stop.value = True
         process.join(STOP_GRACE)
         if process.is_alive():
             log.warning("stream %s: worker did not stop in time; killed", stream.record.id)

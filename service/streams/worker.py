@@ -11,6 +11,7 @@ process over a queue a few times per second.
 from __future__ import annotations
 
 import collections
+import ctypes
 import logging
 import os
 import signal
@@ -138,7 +139,7 @@ class UpstreamBuffer:
 
 
 class StreamWorker:
-    """One camera's live tracking loop; :meth:`run` returns when ``stop`` is set."""
+    """One camera's live tracking loop; :meth:`run` returns once ``stop.value`` is true."""
 
     def __init__(self, context: StreamContext, report) -> None:
         self.context = context
@@ -218,7 +219,7 @@ class StreamWorker:
 
     # -- the loop ----------------------------------------------------------------------------
 
-    def run(self, stop: threading.Event, parent_alive=lambda: True) -> None:
+    def run(self, stop: ctypes.c_bool, parent_alive=lambda: True) -> None:
         self._salvage_recordings()
         self._pipeline = self._new_pipeline()
         session = open_session(self.context.zenoh.member_config())
@@ -235,7 +236,7 @@ class StreamWorker:
             )
             log.info("camera %s: listening on %s", self.spec.camera, self.keys.frames)
             self.report(force=True)
-            while not stop.is_set() and parent_alive():
+            while not stop.value and parent_alive():
                 frame = self._latest.take(timeout=0.1)
                 if frame is not None:
                     self._track(frame, publisher)
