@@ -40,7 +40,12 @@ import numpy as np
 from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.nms import nms
-from tracking.detection.regions import checked_heights, checked_region, clip_region
+from tracking.detection.regions import (
+    checked_heights,
+    checked_region,
+    clip_boxes,
+    clip_region,
+)
 from tracking.types import Box, validate_frame
 
 __all__ = ["HOG_PEOPLE_CALIBRATION", "HogPeopleConfig", "HogPeopleDetector"]
@@ -182,16 +187,8 @@ class HogPeopleDetector:
             levels = [self._level_windows(image, s) for s in scales]
         else:
             levels = list(self._pool.map(lambda s: self._level_windows(image, s), scales))
-        windows = np.concatenate([w for w, _ in levels])
-        scores = np.concatenate([s for _, s in levels])
-        # as detectMultiScale: windows clipped to the image, empty ones dropped
-        height, width = image.shape[:2]
-        x0, y0 = np.maximum(windows[:, 0], 0), np.maximum(windows[:, 1], 0)
-        x1 = np.minimum(windows[:, 0] + windows[:, 2], width)
-        y1 = np.minimum(windows[:, 1] + windows[:, 3], height)
-        keep = (x1 > x0) & (y1 > y0)
-        clipped = np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)[keep]
-        return clipped, scores[keep]
+        windows, kept = clip_boxes(np.concatenate([w for w, _ in levels]), image.shape)
+        return windows, np.concatenate([s for _, s in levels])[kept]
 
     def _level_windows(self, image: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
         """The windows of one pyramid level (the image shrunk by ``scale``), in image pixels."""

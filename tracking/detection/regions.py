@@ -1,12 +1,15 @@
-"""Validation and clipping of regions of interest and height ranges (shared by the detectors)."""
+"""Validation and clipping of regions of interest, height ranges and boxes (shared by the
+detectors)."""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from tracking.types import Box
 
-__all__ = ["checked_heights", "checked_region", "clip_region"]
+__all__ = ["checked_heights", "checked_region", "clip_boxes", "clip_region"]
 
 
 def checked_region(region: object) -> Box:
@@ -47,3 +50,15 @@ def checked_heights(heights: object) -> tuple[float, float]:
     if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
         raise ValueError(f"heights must satisfy 0 < min <= max, got {heights!r}")
     return low, high
+
+
+def clip_boxes(boxes: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes ``(N, 4)`` clipped to an image of ``shape``, those left empty dropped; the boxes
+    and the rows kept (voc-release5 ``clipboxes.m``; OpenCV's ``detectMultiScale`` clips alike)."""
+    height, width = shape[:2]
+    x1 = np.maximum(boxes[:, 0], 0.0)
+    y1 = np.maximum(boxes[:, 1], 0.0)
+    x2 = np.minimum(boxes[:, 0] + boxes[:, 2], width)
+    y2 = np.minimum(boxes[:, 1] + boxes[:, 3], height)
+    keep = np.flatnonzero((x2 > x1) & (y2 > y1))
+    return np.column_stack([x1, y1, x2 - x1, y2 - y1])[keep], keep

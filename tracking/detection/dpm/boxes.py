@@ -21,12 +21,12 @@ import numpy as np
 from tracking.detection.dpm.model import DpmModel
 from tracking.detection.dpm.scoring import LevelScores
 from tracking.detection.nms import NmsCriterion, nms
+from tracking.detection.regions import clip_boxes
 from tracking.types import Box
 
 __all__ = [
     "Candidates",
     "candidates",
-    "clip_boxes",
     "postprocess",
     "predict_boxes",
     "root_windows",
@@ -196,17 +196,6 @@ def predict_boxes(model: DpmModel, c: Candidates) -> np.ndarray:
         nx2, ny2 = x2 + w * d[:, 2], y2 + h * d[:, 3]
         out[sel] = np.column_stack([nx1 - 1, ny1 - 1, nx2 - nx1 + 1, ny2 - ny1 + 1])
     return out
-
-
-def clip_boxes(boxes: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """``clipboxes.m``: clip to the image, drop boxes left empty; boxes and kept rows."""
-    height, width = shape[:2]
-    x1 = np.maximum(boxes[:, 0], 0.0)
-    y1 = np.maximum(boxes[:, 1], 0.0)
-    x2 = np.minimum(boxes[:, 0] + boxes[:, 2], width)
-    y2 = np.minimum(boxes[:, 1] + boxes[:, 3], height)
-    keep = np.flatnonzero((x2 > x1) & (y2 > y1))
-    return np.column_stack([x1, y1, x2 - x1, y2 - y1])[keep], keep
 
 
 def postprocess(
