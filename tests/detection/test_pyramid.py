@@ -6,14 +6,12 @@ import numpy as np
 import pytest
 
 from tracking.detection.dpm.pyramid import (
-    TRUNCATION_CHANNEL,
     level_chains,
     level_features,
-    pad_features,
     pyramid_levels,
     resize_image,
 )
-from tracking.features.hog import fhog
+from tracking.features.hog import NUM_FEATURES, fhog, fhog_cells
 
 
 def test_levels_with_the_extra_octave_follow_featpyramid():
@@ -49,17 +47,20 @@ def test_upscale_divides_every_cell_size():
         assert b.cell == pytest.approx(a.cell / 2)
 
 
-def test_padding_marks_the_truncation_channel():
-    features = np.full((3, 4, 32), 0.5, dtype=np.float32)
-    features[..., TRUNCATION_CHANNEL] = 0
-    padded = pad_features(features, (2, 1))  # pad + 1 cells of zeros on each side
-    assert padded.shape == (3 + 6, 4 + 4, 32)
-    inside = padded[3:6, 2:6]
+def test_padding_marks_the_truncation_channel(pets_frame):
+    # featpyramid.m: pad + 1 cells of zeros on each side, truncation channel 1 there only
+    levels = pyramid_levels(pets_frame.shape, 8, 10, extra_octave=True)
+    level = levels[25]
+    padded = level_features(pets_frame, [level], (2, 1))[level.index]
+    features = fhog(resize_image(pets_frame, level.factor), 8, truncation_feature=True)
+    assert padded.shape == (features.shape[0] + 6, features.shape[1] + 4, 32)
+    inside = padded[3:-3, 2:-2]
     np.testing.assert_array_equal(inside, features)
+    assert np.all(inside[..., NUM_FEATURES] == 0)
     ring = np.ones(padded.shape[:2], bool)
-    ring[3:6, 2:6] = False
-    assert np.all(padded[ring][:, TRUNCATION_CHANNEL] == 1)
-    assert np.all(padded[ring][:, :TRUNCATION_CHANNEL] == 0)
+    ring[3:-3, 2:-2] = False
+    assert np.all(padded[ring][:, NUM_FEATURES] == 1)
+    assert np.all(padded[ring][:, :NUM_FEATURES] == 0)
 
 
 def test_level_features_of_a_tiny_image_are_only_padding():
@@ -89,9 +90,10 @@ def test_an_octave_below_is_the_image_above_halved(pets_frame):
     assert lower.factor == pytest.approx(upper.factor / 2)
     got = level_features(pets_frame, [upper, lower], (15, 5))[lower.index]
     halved = resize_image(resize_image(pets_frame, upper.factor), 0.5)
-    expected = pad_features(fhog(halved, lower.hog_cell, truncation_feature=True), (15, 5))
+    (expected,) = fhog_cells(halved, [lower.hog_cell], truncation_feature=True, margin=(16, 6))
     np.testing.assert_array_equal(got, expected)
     # computed alone, the level is resized from the frame directly (no parent image)
     alone = level_features(pets_frame, [lower], (15, 5))[lower.index]
     direct = resize_image(pets_frame, lower.factor)
-    assert alone.shape == pad_features(fhog(direct, 8, truncation_feature=True), (15, 5)).shape
+    (padded,) = fhog_cells(direct, [8], truncation_feature=True, margin=(16, 6))
+    assert alone.shape == padded.shape

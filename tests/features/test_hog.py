@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from tracking.features import hog
-from tracking.features.hog import fhog, fhog_cells, hog_feature_map
+from tracking.features.hog import NUM_FEATURES, fhog, fhog_cells, hog_feature_map
 
 UU = (1.0000, 0.9397, 0.7660, 0.500, 0.1736, -0.1736, -0.5000, -0.7660, -0.9397)
 VV = (0.0000, 0.3420, 0.6428, 0.8660, 0.9848, 0.9848, 0.8660, 0.6428, 0.3420)
@@ -513,6 +513,45 @@ def test_fhog_cells_accepts_any_sequence_of_ints():
     for sizes in ((4, 8), np.array([4, 8]), range(4, 9, 4), [np.int32(4), np.int64(8)]):
         for feat, reference in zip(fhog_cells(image, sizes), expected, strict=True):
             np.testing.assert_array_equal(feat, reference)
+
+
+def _in_margin(feat: np.ndarray, rows: int, cols: int, truncation_feature: bool) -> np.ndarray:
+    """``feat`` inside a margin of zeros, its truncation channel 1 there (featpyramid.m)."""
+    out = np.pad(feat, ((rows, rows), (cols, cols), (0, 0)))
+    if truncation_feature:
+        ring = np.ones(out.shape[:2], dtype=bool)
+        ring[rows : rows + feat.shape[0], cols : cols + feat.shape[1]] = False
+        out[ring, NUM_FEATURES] = 1.0
+    return out
+
+
+@pytest.mark.parametrize("margin", [(16, 6), (0, 3), (2, 0), [1, 1], (np.int64(4), 5)])
+@pytest.mark.parametrize("truncation_feature", [True, False])
+def test_fhog_cells_margin_is_zero_padding_marked_as_outside(margin, truncation_feature):
+    # The maps are written in place inside the margin: the same values as padding afterwards.
+    rows, cols = (int(m) for m in margin)
+    image = _image("uint8", (61, 45), seed=3)
+    sizes = (2, 4, 8, 24)  # 24: empty map, margin only
+    got = fhog_cells(image, sizes, truncation_feature=truncation_feature, margin=margin)
+    for size, feat in zip(sizes, got, strict=True):
+        alone = fhog(image, size, truncation_feature=truncation_feature)
+        expected = _in_margin(alone, rows, cols, truncation_feature)
+        assert feat.dtype == np.float32 and feat.flags.c_contiguous
+        np.testing.assert_array_equal(feat, expected, err_msg=f"cell size {size}")
+
+
+def test_fhog_cells_margin_on_a_pets_frame(pets_frame):
+    image = pets_frame.astype(np.float32)
+    got = fhog_cells(image, (2, 4, 8), truncation_feature=True, margin=(16, 6))
+    for size, feat in zip((2, 4, 8), got, strict=True):
+        expected = _in_margin(fhog(image, size, truncation_feature=True), 16, 6, True)
+        np.testing.assert_array_equal(feat, expected, err_msg=f"cell size {size}")
+
+
+@pytest.mark.parametrize("margin", [(-1, 2), (1,), 3, (1.5, 2), (True, 1), None, (1, 2, 3)])
+def test_fhog_cells_bad_margin_raises(margin):
+    with pytest.raises(ValueError, match="margin must be two non-negative ints"):
+        fhog_cells(np.zeros((32, 32, 3)), (4, 8), margin=margin)
 
 
 @pytest.mark.parametrize(

@@ -8,8 +8,9 @@ The 31 features of a cell are, in order (§6.2 and voc-release5 ``features/featu
   (``o * 20°`` modulo 180°);
 * ``27..30`` texture (gradient energy) features: ``0.2357`` times the sum of the 18
   contrast-sensitive values under each of the four block normalisations;
-* ``31`` (only with ``truncation_feature=True``) the voc-release5 "truncation" channel, always 0
-  here; the DPM feature pyramid sets it to 1 in its padding cells.
+* ``31`` (only with ``truncation_feature=True``) the voc-release5 "truncation" channel: 0 in
+  the image's cells, 1 in the cells of a margin (:func:`fhog_cells`' ``margin``, the DPM
+  feature pyramid's padding).
 
 Each cell histogram is normalised by the energy of each of the four 2x2 cell blocks that contain
 it, clipped at 0.2 and the four results summed with weight 0.5 (the analytic projection of the
@@ -79,6 +80,19 @@ def _check_cell_size(cell_size: object) -> int:
     if cell_size < 1:
         raise ValueError(f"cell_size must be a positive int, got {cell_size}")
     return int(cell_size)
+
+
+def _check_margin(margin: object) -> tuple[int, int]:
+    """``(rows, columns)`` of a margin as non-negative ints, or ValueError."""
+    message = f"margin must be two non-negative ints (rows, columns), got {margin!r}"
+    try:
+        rows, cols = margin  # type: ignore[misc]
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+    for value in (rows, cols):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+            raise ValueError(message)
+    return int(rows), int(cols)
 
 
 def _validated(image: np.ndarray) -> np.ndarray:
@@ -309,33 +323,39 @@ def _normalised_row(hists, norms, k, r, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _next_cell_row(windows, hists, norms, k, row, feat):  # pragma: no cover - compiled
+def _next_cell_row(windows, hists, norms, k, row, feat, margin_y, margin_x):  # pragma: no cover
     """Finish size ``k``'s complete padded cell row ``row`` (``windows[k, row % 2]``), then
     empty it for row ``row + 2``.
 
-    ``feat`` is the size's float32 ``(cells_y - 2, cells_x - 2, n)`` map. Padded rows 0 and
-    ``cells_y + 1`` are the ring outside the image and are dropped (features.cc's bounds
-    checks); image cell row ``r = row - 1`` is stored (:func:`_store_cell_row`) and completes
-    the map's row ``r - 2`` (histogram row ``r - 1``, normalised by block rows ``r - 2`` and
-    ``r - 1``). Normalising as the rows complete needs no image-sized histogram array (whose
-    fresh pages cost more than the normalisation itself) and finds the rows in the cache.
+    ``feat`` is the size's float32 map, ``(cells_y - 2, cells_x - 2, n)`` inside a margin of
+    ``margin_y`` rows and ``margin_x`` columns. Padded rows 0 and ``cells_y + 1`` are the ring
+    outside the image and are dropped (features.cc's bounds checks); image cell row
+    ``r = row - 1`` is stored (:func:`_store_cell_row`) and completes the map's row ``r - 2``
+    (histogram row ``r - 1``, normalised by block rows ``r - 2`` and ``r - 1``). Normalising
+    as the rows complete needs no image-sized histogram array (whose fresh pages cost more
+    than the normalisation itself) and finds the rows in the cache.
     """
-    cells_x = feat.shape[1] + 2
+    rows, cols = feat.shape[0] - 2 * margin_y, feat.shape[1] - 2 * margin_x
+    cells_x = cols + 2
     r = row - 1
-    if 0 <= r < feat.shape[0] + 2:
+    if 0 <= r < rows + 2:
         _store_cell_row(windows, hists, norms, k, r, cells_x)
         if r >= 2:
-            _normalised_row(hists, norms, k, r - 1, feat[r - 2])
+            # a row of a C-ordered array, which the compiler knows to be contiguous (a view
+            # inside the margin is not known to be, and took the features 60% longer)
+            out = feat[margin_y + r - 2, margin_x : margin_x + cols]
+            _normalised_row(hists, norms, k, r - 1, out)
     # An array assignment: numba fills those fastest (a loop took 3 times as long). Emptying the
     # row rather than shifting the window down saves a copy per cell row.
     windows[k, row % 2, : cells_x + 2] = 0.0
 
 
 @numba.njit(cache=True, nogil=True)
-def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
+def _features(image, sbins, pad, n_features, margin_y, margin_x):  # pragma: no cover - compiled
     """The float32 ``(max(cells_y - 2, 0), max(cells_x - 2, 0), n_features)`` maps of ``image``
     edge-padded by ``pad`` pixels on every side, one per cell size in the int64 ``sbins``, all
-    from one pass over the pixels. The 32nd (truncation) channel, if any, stays 0.
+    from one pass over the pixels, each inside a margin of ``margin_y`` and ``margin_x`` cells
+    of zeros. The 32nd (truncation) channel, if any, stays 0.
 
     ``image`` is as :func:`_pixels` gives it. For each cell size, features.cc visits
     ``y = 1 .. cells_y * sbin - 2`` (likewise x) and reads the image at ``min(y, H - 2)``: the
@@ -366,8 +386,10 @@ def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
     n_sizes = n_rows = n_cols = cells = 0  # of them all, the largest
     for index, sbin in enumerate(sbins):
         cells_y, cells_x = _c_round_div(height, sbin), _c_round_div(width, sbin)
-        shape = (max(cells_y - 2, 0), max(cells_x - 2, 0), n_features)
-        feats.append(np.zeros(shape, dtype=np.float32))
+        shape = (max(cells_y - 2, 0) + 2 * margin_y, max(cells_x - 2, 0) + 2 * margin_x)
+        # written in place inside the margin: a padded copy made afterwards cost the DPM
+        # pyramid more than a third of the features' own time
+        feats.append(np.zeros((*shape, n_features), dtype=np.float32))
         if min(cells_y, cells_x) < 3:  # nothing survives the dropped border ring
             continue
         rows, cols = sbin * cells_y - 2, sbin * cells_x - 2
@@ -410,7 +432,8 @@ def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
             # Every cell row is finished in turn, even one that no pixel row votes into (image
             # row 0 with 1-pixel cells), as it is normalised too.
             while cell_y[k, i] != current[k]:  # no later pixel row votes into the current one
-                _next_cell_row(windows, hists, norms, k, current[k], feats[grids[k, 0]])
+                feat = feats[grids[k, 0]]
+                _next_cell_row(windows, hists, norms, k, current[k], feat, margin_y, margin_x)
                 current[k] += 1
             # The gradient row is longer than this size's visited columns only where the size
             # does not clamp, so _vote's repetition of the last pixel is the size's clamping.
@@ -418,8 +441,8 @@ def _features(image, sbins, pad, n_features):  # pragma: no cover - compiled
             _vote(windows, k, current[k], wy, orientation, magnitude, cell_x, far_x, grids[k, 3])
     for k in range(n_sizes):
         feat = feats[grids[k, 0]]
-        _next_cell_row(windows, hists, norms, k, current[k], feat)
-        _next_cell_row(windows, hists, norms, k, current[k] + 1, feat)
+        _next_cell_row(windows, hists, norms, k, current[k], feat, margin_y, margin_x)
+        _next_cell_row(windows, hists, norms, k, current[k] + 1, feat, margin_y, margin_x)
     return feats
 
 
@@ -464,7 +487,11 @@ def fhog(image: np.ndarray, cell_size: int = 8, *, truncation_feature: bool = Fa
 
 
 def fhog_cells(
-    image: np.ndarray, cell_sizes: Sequence[int], *, truncation_feature: bool = False
+    image: np.ndarray,
+    cell_sizes: Sequence[int],
+    *,
+    truncation_feature: bool = False,
+    margin: tuple[int, int] = (0, 0),
 ) -> list[np.ndarray]:
     """:func:`fhog` of one image for several cell sizes, with one pass over the pixels.
 
@@ -481,17 +508,23 @@ def fhog_cells(
         Cell sides in pixels, positive ints, in any order; empty gives an empty list.
     truncation_feature:
         As for :func:`fhog`.
+    margin:
+        ``(rows, columns)`` of cells of zeros around each map, written in place (the DPM
+        feature pyramid's padding, voc-release5 ``featpyramid.m``); with
+        ``truncation_feature``, the truncation channel is 1 in the margin, as it marks cells
+        outside the image.
 
     Returns
     -------
     list of np.ndarray
         One float32 map per cell size, in the order of ``cell_sizes``, shaped as :func:`fhog`
-        shapes it (empty along an axis of fewer than 2.5 cells).
+        shapes it (empty along an axis of fewer than 2.5 cells) plus twice the margin.
 
     Raises
     ------
     ValueError
-        As :func:`fhog`; also when ``cell_sizes`` is not a sequence (a single int).
+        As :func:`fhog`; also when ``cell_sizes`` is not a sequence (a single int) or
+        ``margin`` is not two non-negative ints.
     """
     message = f"cell_sizes must be a sequence of positive ints, got {cell_sizes!r}"
     if isinstance(cell_sizes, str | bytes):
@@ -501,16 +534,29 @@ def fhog_cells(
     except TypeError:  # an int, None, a 0-d array
         raise ValueError(message) from None
     sbins = [_check_cell_size(s) for s in sizes]
-    return _fhog_cells(_validated(image), sbins, truncation_feature)
+    rows, cols = _check_margin(margin)
+    maps = _fhog_cells(_validated(image), sbins, truncation_feature, margin=(rows, cols))
+    if truncation_feature:  # the margin's cells are outside the image
+        for feat in maps:
+            height, width = feat.shape[:2]
+            feat[:rows, :, NUM_FEATURES] = 1.0
+            feat[height - rows :, :, NUM_FEATURES] = 1.0
+            feat[:, :cols, NUM_FEATURES] = 1.0
+            feat[:, width - cols :, NUM_FEATURES] = 1.0
+    return maps
 
 
 def _fhog_cells(
-    image: np.ndarray, sbins: list[int], truncation_feature: bool, pad: int = 0
+    image: np.ndarray,
+    sbins: list[int],
+    truncation_feature: bool,
+    pad: int = 0,
+    margin: tuple[int, int] = (0, 0),
 ) -> list[np.ndarray]:
     """:func:`fhog_cells` of a validated image edge-padded by ``pad`` pixels on every side."""
     if len(sbins) > 1 and len(set(sbins)) < len(sbins):  # each size once; repeats get copies
         distinct = list(dict.fromkeys(sbins))
-        maps = _fhog_cells(image, distinct, truncation_feature, pad)
+        maps = _fhog_cells(image, distinct, truncation_feature, pad, margin)
         computed = dict(zip(distinct, maps, strict=True))
         out, seen = [], set()
         for sbin in sbins:  # the first of a repeated size gets the map, later ones copies
@@ -520,7 +566,8 @@ def _fhog_cells(
     if not sbins:
         return []
     n_features = NUM_FEATURES + int(truncation_feature)
-    return _features(_pixels(image), np.array(sbins, dtype=np.int64), pad, n_features)
+    sizes = np.array(sbins, dtype=np.int64)
+    return _features(_pixels(image), sizes, pad, n_features, margin[0], margin[1])
 
 
 def hog_feature_map(image: np.ndarray, cell_size: int = 4) -> np.ndarray:

@@ -35,9 +35,7 @@ import numpy as np
 
 from tracking.features.hog import fhog_cells
 
-__all__ = ["PyramidLevel", "level_chains", "level_features", "pad_features", "pyramid_levels"]
-
-TRUNCATION_CHANNEL = 31  # model.features.truncation_dim (1-based 32)
+__all__ = ["PyramidLevel", "level_chains", "level_features", "pyramid_levels"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,33 +122,6 @@ def pyramid_levels(
     return tuple(levels)
 
 
-def pad_features(features: np.ndarray, pad: tuple[int, int]) -> np.ndarray:
-    """Pad a HOG map as featpyramid.m: ``pad + 1`` cells of zeros, truncation channel 1.
-
-    Parameters
-    ----------
-    features:
-        ``(h, w, 32)`` float32 from :func:`~tracking.features.hog.fhog` with
-        ``truncation_feature=True``.
-    pad:
-        ``(pad_y, pad_x)`` in cells (``model.maxsize``).
-
-    Returns
-    -------
-    np.ndarray
-        ``(h + 2 pad_y + 2, w + 2 pad_x + 2, 32)`` float32.
-    """
-    py, px = pad[0] + 1, pad[1] + 1
-    h, w, c = features.shape
-    out = np.zeros((h + 2 * py, w + 2 * px, c), dtype=np.float32)
-    out[py : py + h, px : px + w] = features
-    out[:py, :, TRUNCATION_CHANNEL] = 1.0
-    out[py + h :, :, TRUNCATION_CHANNEL] = 1.0
-    out[:, :px, TRUNCATION_CHANNEL] = 1.0
-    out[:, px + w :, TRUNCATION_CHANNEL] = 1.0
-    return out
-
-
 def resize_image(image: np.ndarray, factor: float) -> np.ndarray:
     """``image`` (uint8 or float) scaled by ``factor`` as float32, ``round(size * factor)``."""
     source = image.astype(np.float32, copy=False)
@@ -196,12 +167,13 @@ def level_features(
     levels:
         The levels to compute (from :func:`pyramid_levels`).
     pad:
-        ``(pad_y, pad_x)``, see :func:`pad_features`.
+        ``(pad_y, pad_x)`` in cells (``model.maxsize``): each map has ``pad + 1`` cells of
+        zeros on every side, with the truncation channel 1 there (featpyramid.m).
 
     Returns
     -------
     dict
-        Level index -> ``(h, w, 32)`` float32 padded features.
+        Level index -> ``(h + 2 pad_y + 2, w + 2 pad_x + 2, 32)`` float32 padded features.
     """
     source = image.astype(np.float32, copy=False)
     images: dict[float, np.ndarray] = {}
@@ -217,7 +189,12 @@ def level_features(
                 resize_image(source, factor) if parent is None else resize_image(parent, 0.5)
             )
             # one pass over the pixels for every cell size of this image
-            maps = fhog_cells(images[key], [lv.hog_cell for lv in group], truncation_feature=True)
+            maps = fhog_cells(
+                images[key],
+                [lv.hog_cell for lv in group],
+                truncation_feature=True,
+                margin=(pad[0] + 1, pad[1] + 1),
+            )
             for level, features in zip(group, maps, strict=True):
-                out[level.index] = pad_features(features, pad)
+                out[level.index] = features
     return out

@@ -214,7 +214,7 @@ def score_level(
     level:
         The root level (``level.index >= level.interval`` when the model has parts).
     pad:
-        ``(pad_y, pad_x)`` the maps were padded with (:func:`.pyramid.pad_features`).
+        ``(pad_y, pad_x)`` the maps were padded with (:func:`.pyramid.level_features`).
     rows, cols:
         Half-open ranges of root positions (padded-map indices); default all.
     window:
