@@ -43,9 +43,7 @@ class Orphaned(Exception):
 def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
     """Entry point of a worker process: run jobs until ``stop`` is set or the parent dies.
 
-    ``stop`` and ``ready`` are shared flags without locks (``multiprocessing.RawValue``): a
-    worker killed while it waited on a ``multiprocessing.Event`` would leave the service
-    hanging forever in ``Event.set`` when it stops (it waits for the dead waiter to wake).
+    ``stop`` and ``ready`` are lock-free shared flags (:func:`service.jobs.workers.shared_flag`).
     """
     # Ctrl-C in a terminal reaches the whole process group: the service decides what happens
     # to running jobs (it requeues them), so the worker ignores it.

@@ -51,6 +51,16 @@ def single_threaded_blas() -> None:
         os.environ.setdefault(name, "1")
 
 
+def shared_flag(ctx: Any) -> Any:
+    """A boolean shared with processes of ``ctx``, read and written as ``.value``, without a lock.
+
+    Not a ``multiprocessing.Event``: a process killed while inside ``Event.wait`` or
+    ``Event.is_set`` leaves the Event's lock held or a dead waiter behind, and the service's
+    ``Event.set`` then waits for ever when it stops its workers.
+    """
+    return ctx.RawValue(ctypes.c_bool, False)
+
+
 @dataclass(slots=True)
 class _Slot:
     process: Any
@@ -74,8 +84,7 @@ class WorkerPool:
         self._job_timeout = job_timeout
         self._check_interval = check_interval
         self._ctx = multiprocessing.get_context("spawn")
-        # lock-free shared flags, see worker_main
-        self._stop_workers = self._ctx.RawValue(ctypes.c_bool, False)
+        self._stop_workers = shared_flag(self._ctx)
         self._stopping = threading.Event()
         self._slots: list[_Slot] = []
         self._lock = threading.Lock()
@@ -142,7 +151,7 @@ class WorkerPool:
 
     def _spawn(self, index: int) -> _Slot:
         single_threaded_blas()
-        ready = self._ctx.RawValue(ctypes.c_bool, False)
+        ready = shared_flag(self._ctx)
         process = self._ctx.Process(
             target=worker_main,
             args=(self._config, os.getpid(), self._stop_workers, ready),

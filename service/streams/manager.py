@@ -9,7 +9,6 @@ that died, waiting longer after each quick death, and gives up (state ``failed``
 
 from __future__ import annotations
 
-import ctypes
 import logging
 import multiprocessing
 import os
@@ -33,7 +32,7 @@ from api_schemas.streams import (
     StreamTracksMessage,
 )
 from service.analysis import PipelineResources, check_options
-from service.jobs.workers import describe_exit, single_threaded_blas
+from service.jobs.workers import describe_exit, shared_flag, single_threaded_blas
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
@@ -265,9 +264,7 @@ class StreamManager:
             log_level=self._log_level,
         )
         single_threaded_blas()
-        # A lock-free flag: a worker killed inside Event.is_set would hold the Event's lock,
-        # and Event.set in _halt would then wait for it for ever.
-        stream.stop = self._ctx.RawValue(ctypes.c_bool, False)
+        stream.stop = shared_flag(self._ctx)
         stream.updates = self._ctx.Queue()
         stream.process = self._ctx.Process(
             target=stream_main,

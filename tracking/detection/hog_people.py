@@ -357,7 +357,7 @@ def _pyramid_scales(shape: tuple[int, ...], step: float) -> list[float]:
     while (
         len(scales) < 64
         and round(width / scale) >= _WINDOW[0]
-        and (round(height / scale) >= _WINDOW[1])
+        and round(height / scale) >= _WINDOW[1]
     ):
         scales.append(scale)
         scale *= step
