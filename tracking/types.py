@@ -77,6 +77,11 @@ class Tracker(Protocol):
         ...
 
 
+def is_int(value: object) -> bool:
+    """Whether ``value`` is a Python or numpy integer; ``bool`` is not (``True`` is no count)."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
 def validate_frame(frame: object) -> np.ndarray:
     """Check that ``frame`` is a non-empty image: ``(H, W)`` or ``(H, W, 3)``.
 

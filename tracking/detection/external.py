@@ -27,7 +27,7 @@ from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.regions import checked_region
 from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows
-from tracking.types import Box
+from tracking.types import Box, is_int
 
 __all__ = ["MotDetections", "SubmittedDetections", "detections_from_arrays"]
 
@@ -126,7 +126,7 @@ class _Cursor:
     index: int = 0
 
     def seek(self, index: int) -> None:
-        if isinstance(index, bool) or not isinstance(index, int | np.integer) or index < 0:
+        if not is_int(index) or index < 0:
             raise ValueError(f"frame index must be a non-negative int, got {index!r}")
         self.index = int(index)
 
@@ -243,7 +243,7 @@ class SubmittedDetections:
             On malformed arrays (see :func:`detections_from_arrays`), a negative or past frame
             index, or more than ``max_pending`` frames waiting.
         """
-        if isinstance(frame_index, bool) or not isinstance(frame_index, int | np.integer):
+        if not is_int(frame_index):
             raise ValueError(f"frame_index must be an int, got {frame_index!r}")
         if frame_index < self._cursor.index:
             raise ValueError(

@@ -49,6 +49,8 @@ from collections.abc import Sequence
 import numba
 import numpy as np
 
+from tracking.types import is_int
+
 __all__ = ["NUM_FEATURES", "fhog", "fhog_cells", "hog_feature_map"]
 
 # Unit vectors of the 9 directions o * 20° (features.cc: uu = cos, vv = sin, 4 decimals).
@@ -75,7 +77,7 @@ def _c_round_div(n: int, d: int) -> int:
 
 def _check_cell_size(cell_size: object) -> int:
     """The cell size as a positive int, or ValueError."""
-    if isinstance(cell_size, bool) or not isinstance(cell_size, int | np.integer):
+    if not is_int(cell_size):
         raise ValueError(f"cell_size must be a positive int, got {cell_size!r}")
     if cell_size < 1:
         raise ValueError(f"cell_size must be a positive int, got {cell_size}")
@@ -90,7 +92,7 @@ def _check_margin(margin: object) -> tuple[int, int]:
     except (TypeError, ValueError):
         raise ValueError(message) from None
     for value in (rows, cols):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+        if not is_int(value) or value < 0:
             raise ValueError(message)
     return int(rows), int(cols)
 

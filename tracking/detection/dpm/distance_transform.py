@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracking.types import is_int
+
 __all__ = ["bounded_distance_transform", "distance_transform", "distance_transform_1d"]
 
 _BIG = 1e30  # stands in for +inf in the envelope arithmetic (minimisation form)
@@ -243,7 +245,7 @@ def bounded_distance_transform(
         f = f[None]
     if f.ndim != 3:
         raise ValueError(f"values must have shape (H, W) or (K, H, W), got {np.shape(values)}")
-    if isinstance(window, bool) or not isinstance(window, int | np.integer) or window < 0:
+    if not is_int(window) or window < 0:
         raise ValueError(f"window must be a non-negative int, got {window!r}")
     count, height, width = f.shape
     w = _weights(deformation, count)
