@@ -83,17 +83,24 @@ def test_levels_an_octave_apart_form_one_halving_chain():
         np.testing.assert_allclose(ratios, np.round(ratios), atol=1e-9)
 
 
-def test_an_octave_below_is_the_image_above_halved(pets_frame):
-    # featpyramid.m: the image of level k + interval is that of level k resized by 0.5
+def test_every_octave_below_is_the_image_above_halved(pets_frame):
+    # featpyramid.m: the image of level k + interval is that of level k resized by 0.5, in
+    # every chain (an earlier key lookup missed the parent of some chains by a rounding digit)
     levels = pyramid_levels(pets_frame.shape, 8, 10, extra_octave=True)
-    upper, lower = levels[23], levels[33]
-    assert lower.factor == pytest.approx(upper.factor / 2)
-    got = level_features(pets_frame, [upper, lower], (15, 5))[lower.index]
-    halved = resize_image(resize_image(pets_frame, upper.factor), 0.5)
-    (expected,) = fhog_cells(halved, [lower.hog_cell], truncation_feature=True, margin=(16, 6))
-    np.testing.assert_array_equal(got, expected)
-    # computed alone, the level is resized from the frame directly (no parent image)
+    got = level_features(pets_frame, levels, (15, 5))
+    images: dict[int, np.ndarray] = {}
+    for level in levels[20:]:  # the 8-pixel-cell levels; finer ones share these images
+        above = images.get(level.index - 10)
+        images[level.index] = (
+            resize_image(pets_frame, level.factor) if above is None else resize_image(above, 0.5)
+        )
+        if above is not None:
+            assert level.factor == pytest.approx(levels[level.index - 10].factor / 2)
+        (expected,) = fhog_cells(images[level.index], [8], truncation_feature=True, margin=(16, 6))
+        np.testing.assert_array_equal(got[level.index], expected, err_msg=f"level {level.index}")
+    # computed alone, a level is resized from the frame directly (no parent image)
+    lower = levels[32]
     alone = level_features(pets_frame, [lower], (15, 5))[lower.index]
     direct = resize_image(pets_frame, lower.factor)
     (padded,) = fhog_cells(direct, [8], truncation_feature=True, margin=(16, 6))
-    assert alone.shape == padded.shape
+    np.testing.assert_array_equal(alone, padded)

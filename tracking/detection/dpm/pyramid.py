@@ -176,21 +176,24 @@ def level_features(
         Level index -> ``(h + 2 pad_y + 2, w + 2 pad_x + 2, 32)`` float32 padded features.
     """
     source = image.astype(np.float32, copy=False)
-    images: dict[float, np.ndarray] = {}
     out: dict[int, np.ndarray] = {}
     for chain in level_chains(levels):
         by_factor: dict[float, list[PyramidLevel]] = {}
         for level in chain:
             by_factor.setdefault(round(level.factor, 9), []).append(level)
-        for key, group in by_factor.items():  # largest factor first
-            parent = images.get(round(2 * key, 9))
+        parent: tuple[float, np.ndarray] | None = None
+        for group in by_factor.values():  # largest factor first
             factor = group[0].factor
-            images[key] = (
-                resize_image(source, factor) if parent is None else resize_image(parent, 0.5)
-            )
+            # compare the factors themselves: rounded keys can differ in their last digit
+            # (round(2 * round(f, 9), 9) != round(2 * f, 9)) and miss the parent image
+            if parent is not None and math.isclose(parent[0], 2 * factor, rel_tol=1e-9):
+                scaled = resize_image(parent[1], 0.5)
+            else:
+                scaled = resize_image(source, factor)
+            parent = (factor, scaled)
             # one pass over the pixels for every cell size of this image
             maps = fhog_cells(
-                images[key],
+                scaled,
                 [lv.hog_cell for lv in group],
                 truncation_feature=True,
                 margin=(pad[0] + 1, pad[1] + 1),
