@@ -71,10 +71,14 @@ def test_level_features_of_a_tiny_image_are_only_padding():
     assert only.shape == (2 * 16, 2 * 6, 32)
 
 
-def test_levels_an_octave_apart_form_one_halving_chain():
-    levels = pyramid_levels((576, 768, 3), 8, 10, extra_octave=True)
+@pytest.mark.parametrize(
+    ("upscale", "interval", "extra"),
+    [(1.0, 10, True), (1.0, 10, False), (1.3, 5, True), (0.7, 7, True), (2.0**0.35, 10, True)],
+)
+def test_levels_an_octave_apart_form_one_halving_chain(upscale, interval, extra):
+    levels = pyramid_levels((576, 768, 3), 8, interval, extra_octave=extra, upscale=upscale)
     chains = level_chains(levels)
-    assert len(chains) == 10  # one per level of the first octave
+    assert len(chains) == interval  # one per level of the first octave
     assert sorted(lv.index for chain in chains for lv in chain) == [lv.index for lv in levels]
     for chain in chains:
         factors = [lv.factor for lv in chain]

@@ -133,20 +133,19 @@ def resize_image(image: np.ndarray, factor: float) -> np.ndarray:
     return cv2.resize(source, size, interpolation=interpolation)
 
 
-def _octave_key(factor: float) -> float:
-    """The same value for factors a power of two apart (their images form one halving chain)."""
-    return round(factor / 2.0 ** math.floor(math.log2(factor)), 9)
-
-
 def level_chains(levels: tuple[PyramidLevel, ...] | list[PyramidLevel]) -> list[list[PyramidLevel]]:
     """``levels`` grouped by halving chain: resize factors a power of two apart, largest first.
 
-    :func:`level_features` makes each chain's images from one resize of the input, so a chain
-    is the unit to compute on one thread.
+    Level ``k``'s factor is ``upscale * 2^(-i / interval)`` with ``i = k``, ``k - interval`` or
+    ``k - 2 interval`` (:func:`pyramid_levels`), so two levels' factors are a power of two
+    apart exactly when their indices agree modulo ``interval`` (an integer test: a key rounded
+    from the factor can split a chain at a rounding boundary). :func:`level_features` makes
+    each chain's images from one resize of the input, so a chain is the unit to compute on one
+    thread.
     """
-    chains: dict[float, list[PyramidLevel]] = {}
+    chains: dict[int, list[PyramidLevel]] = {}
     for level in sorted(levels, key=lambda lv: -lv.factor):
-        chains.setdefault(_octave_key(level.factor), []).append(level)
+        chains.setdefault(level.index % level.interval, []).append(level)
     return list(chains.values())
 
 
@@ -179,13 +178,12 @@ def level_features(
     out: dict[int, np.ndarray] = {}
     for chain in level_chains(levels):
         by_factor: dict[float, list[PyramidLevel]] = {}
-        for level in chain:
-            by_factor.setdefault(round(level.factor, 9), []).append(level)
+        for level in chain:  # equal factors are equal floats: the same expression of k
+            by_factor.setdefault(level.factor, []).append(level)
         parent: tuple[float, np.ndarray] | None = None
         for group in by_factor.values():  # largest factor first
             factor = group[0].factor
-            # compare the factors themselves: rounded keys can differ in their last digit
-            # (round(2 * round(f, 9), 9) != round(2 * f, 9)) and miss the parent image
+            # the image above is the parent unless levels between them were not asked for
             if parent is not None and math.isclose(parent[0], 2 * factor, rel_tol=1e-9):
                 scaled = resize_image(parent[1], 0.5)
             else:
