@@ -215,6 +215,8 @@ def test_search_levels_hold_windows_of_the_heights_with_parts_at_twice_the_resol
         {"min_height": -1.0},
         {"min_height": 100.0, "max_height": 50.0},
         {"deformation_window": -1},
+        {"deformation_window": 2.5},
+        {"levels_per_octave": True},
         {"nms_overlap": 1.5},
         {"nms_criterion": "area"},
         {"workers": 0},

@@ -64,6 +64,7 @@ def test_outside_regions_and_small_frames(detector, pets_frame):
         {"upscale": -1.0},
         {"scale_step": 1.0},
         {"win_stride": 0},
+        {"win_stride": 2.5},  # OpenCV would fail deep in detectMultiScale
         {"box_scale": (0.5, 1.5)},
         {"workers": 0},
     ],

@@ -46,7 +46,7 @@ from tracking.detection.regions import (
     clip_boxes,
     clip_region,
 )
-from tracking.types import Box, validate_frame
+from tracking.types import Box, is_int, validate_frame
 
 __all__ = ["HOG_PEOPLE_CALIBRATION", "HogPeopleConfig", "HogPeopleDetector"]
 
@@ -124,7 +124,7 @@ class HogPeopleConfig:
             raise ValueError(f"auto_range must be 0 < low <= high, got {self.auto_range}")
         if not math.isfinite(self.hit_threshold):
             raise ValueError(f"hit_threshold must be finite, got {self.hit_threshold}")
-        if isinstance(self.win_stride, bool) or self.win_stride < 1:
+        if not is_int(self.win_stride) or self.win_stride < 1:
             raise ValueError(f"win_stride must be a positive int, got {self.win_stride}")
         if not (math.isfinite(self.scale_step) and self.scale_step > 1.0):
             raise ValueError(f"scale_step must be > 1, got {self.scale_step}")
@@ -135,9 +135,7 @@ class HogPeopleConfig:
         low, high = self.region_heights
         if not (0 < low <= high):
             raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")
-        if self.workers is not None and (
-            isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1
-        ):
+        if self.workers is not None and (not is_int(self.workers) or self.workers < 1):
             raise ValueError(f"workers must be a positive int or None, got {self.workers}")
 
     def upscale_for(self, frame_height: int) -> float:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tracking.detection.nms import NMS_CRITERIA, NmsCriterion
+from tracking.types import is_int
 
 __all__ = ["DPM_TRACKING_CONFIG", "DpmConfig"]
 
@@ -100,12 +101,12 @@ class DpmConfig:
                 f"min_height must not exceed max_height, got {self.min_height} > {self.max_height}"
             )
         levels = self.levels_per_octave
-        if levels is not None and (isinstance(levels, bool) or not isinstance(levels, int)):
+        if levels is not None and not is_int(levels):
             raise ValueError(f"levels_per_octave must be a positive int or None, got {levels}")
         if levels is not None and levels < 1:
             raise ValueError(f"levels_per_octave must be positive, got {levels}")
         window = self.deformation_window
-        if window is not None and (isinstance(window, bool) or not isinstance(window, int)):
+        if window is not None and not is_int(window):
             raise ValueError(f"deformation_window must be a non-negative int or None, got {window}")
         if window is not None and window < 0:
             raise ValueError(f"deformation_window must be non-negative, got {window}")
@@ -115,7 +116,7 @@ class DpmConfig:
             raise ValueError(
                 f"nms_criterion must be one of {NMS_CRITERIA}, got {self.nms_criterion!r}"
             )
-        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+        if not is_int(self.workers) or self.workers < 1:
             raise ValueError(f"workers must be a positive int, got {self.workers}")
         if self.max_candidates < 1:
             raise ValueError(f"max_candidates must be positive, got {self.max_candidates}")
