@@ -11,9 +11,9 @@ their inputs and reads their outputs.
   :func:`.distance_transform.bounded_distance_transform`, first maximum kept).
 * :func:`cascade_roots` is the star cascade (:mod:`.cascade`): a per-root, data-dependent loop
   that numpy cannot vectorise. Part responses are computed lazily, once per position and part
-  (a cache per level; a missing one with its three right neighbours, which cost little more
-  together), and a part's placements are visited cheapest first, so the deformation margin
-  ends the search.
+  (a cache per level; a missing one with the rest of its aligned block of four columns, which
+  cost little more together), and a part's placements are visited cheapest first, so the
+  deformation margin ends the search.
 
 The kernels run single-threaded and release the GIL: the detector scores levels in threads.
 """
@@ -253,15 +253,15 @@ def _deformed_part(
         if row < 0 or row > height or col < 0 or col > width:
             continue
         if not done[row, col]:
-            if col + 3 <= width:
-                # the next placements to the right are usually wanted too (by this root or
-                # its neighbours): four at once cost little more than one
-                # (a value once cached is never replaced: every read of it agrees)
-                four = _dot4(features, row, col, weights, channels)
+            # The four placements of the aligned block: its neighbours are usually wanted
+            # too (by this root or the next ones), four cost little more than one, and
+            # aligned blocks never overlap, so no response is computed twice.
+            base = col - col % 4
+            if base + 3 <= width:
+                four = _dot4(features, row, base, weights, channels)
                 for i in range(4):
-                    if not done[row, col + i]:
-                        cache[row, col + i] = four[i]
-                        done[row, col + i] = True
+                    cache[row, base + i] = four[i]
+                    done[row, base + i] = True
             else:
                 cache[row, col] = _dot(features, row, col, weights, channels)
                 done[row, col] = True
