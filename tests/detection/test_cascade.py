@@ -11,6 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
+from tracking.detection.dpm import cascade as cascade_module
+from tracking.detection.dpm import kernels as dpm_kernels_module
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
     cascade_level,
@@ -72,6 +74,53 @@ def test_without_pruning_the_cascade_equals_exact_scoring(exact, inria_model, pe
         np.testing.assert_array_equal(got.placements[where], reference.placements[where])
         compared += int(above.sum())
     assert compared > 20
+
+
+def test_cascade_caches_each_part_response_once_in_aligned_blocks(
+    inria_model, pets_frame, monkeypatch
+):
+    # A missing part response is computed with the rest of its aligned block of four columns:
+    # blocks are cached whole or not at all (so none is computed twice), and every cached
+    # value is the filter response at its placement. The kernel's cache arrays are observed
+    # by wrapping the real kernel.
+    calls = []
+
+    def observed(*args):
+        calls.append(args)
+        return dpm_kernels_module.cascade_roots(*args)
+
+    monkeypatch.setattr(cascade_module, "cascade_roots", observed)
+    detector = DpmDetector(inria_model, DpmConfig(threshold=-1.126))
+    assert detector.cascade is not None
+    crop = pets_frame[150:420, 180:420]  # two people
+    projection = pca_projection(inria_model)
+    for root, needed in detector.search_levels(crop.shape)[::6]:
+        features = level_features(crop, needed, detector.pad)
+        projected = {k: projection.project(v) for k, v in features.items()}
+        cascade_level(
+            inria_model, features, projected, projection, root, detector.pad,
+            detector.cascade, -1.126,
+        )  # fmt: skip
+    assert calls
+    rng = np.random.default_rng(0)
+    checked = 0
+    for args in calls:
+        maps, filters, channels, cache, done = args[5:7], args[7:9], args[9:11], *args[18:20]
+        for stage in range(2):
+            flat_map, n = maps[stage], channels[stage]
+            h, row_length = filters[stage].shape[1:]
+            width = (flat_map.shape[1] - row_length) // n  # last placement column
+            whole = (width + 1) // 4 * 4  # columns of the blocks computed whole
+            blocks = done[stage, :, :, :whole].reshape(*done.shape[1:3], -1, 4)
+            assert np.all(blocks.all(axis=-1) | ~blocks.any(axis=-1))
+            parts, rows, cols = np.nonzero(done[stage])
+            for i in rng.choice(len(parts), size=min(len(parts), 20), replace=False):
+                p, r, c = parts[i], rows[i], cols[i]
+                window = flat_map[r : r + h, c * n : c * n + row_length]
+                expected = float(np.sum(window.astype(np.float64) * filters[stage][p]))
+                assert cache[stage, p, r, c] == pytest.approx(expected, abs=1e-4)
+                checked += 1
+    assert checked > 100
 
 
 @pytest.mark.parametrize(
