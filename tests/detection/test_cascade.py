@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tracking.detection.dpm import cascade as cascade_module
-from tracking.detection.dpm import kernels as dpm_kernels_module
+from tracking.detection.dpm import kernels as dpm_kernels
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
     cascade_level,
@@ -87,7 +87,7 @@ def test_cascade_caches_each_part_response_once_in_aligned_blocks(
 
     def observed(*args):
         calls.append(args)
-        return dpm_kernels_module.cascade_roots(*args)
+        return dpm_kernels.cascade_roots(*args)
 
     monkeypatch.setattr(cascade_module, "cascade_roots", observed)
     detector = DpmDetector(inria_model, DpmConfig(threshold=-1.126))
