@@ -25,6 +25,7 @@ from service.routers import health, jobs, metrics, streams
 from service.settings import Settings
 from service.streams.manager import StreamManager
 from service.streams.store import StreamStore
+from tracking.output_paths import output_folder
 
 log = logging.getLogger("service")
 
@@ -53,8 +54,8 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     logging.basicConfig(
         level=settings.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
-    settings.uploads_dir.mkdir(parents=True, exist_ok=True)
-    settings.results_dir.mkdir(parents=True, exist_ok=True)
+    output_folder(settings.uploads_dir)  # an OSError that names the folder and the reason
+    output_folder(settings.results_dir)
     store = JobStore(settings.database_path)
     requeued, failed = store.requeue_orphans(settings.max_attempts)
     if requeued or failed:

@@ -14,6 +14,7 @@ from tqdm import tqdm
 from service.frames import FrameSourceError, open_frames
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
+from tracking.output_paths import output_file, output_folder
 from tracking.types import Box, TrackerOutput
 
 
@@ -59,7 +60,11 @@ def _track(args: argparse.Namespace) -> int:
     if args.w2c:
         config = dataclasses.replace(config, color_names_path=str(args.w2c))
     tracker = CorrelationTracker(config)
-    out_file = open(args.out, "w") if args.out else sys.stdout  # noqa: SIM115
+    try:
+        out_file = open(output_file(args.out), "w") if args.out else sys.stdout  # noqa: SIM115
+    except OSError as error:
+        print(f"vtrack: {error}", file=sys.stderr)
+        return 2
     try:
         if args.format == "csv":
             print("frame,x,y,w,h,peak,psr", file=out_file)
@@ -123,8 +128,9 @@ def _analyze(args: argparse.Namespace) -> int:
         return 2
     resources = PipelineResources(dpm_model=args.dpm_model, color_names=args.w2c)
     try:
+        output_folder(args.out_dir)
         source = open_frames(args.source)
-    except FrameSourceError as error:
+    except (OSError, FrameSourceError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     bar = tqdm(total=source.frame_count or None, unit="frame", disable=args.quiet)
@@ -144,14 +150,14 @@ def _analyze(args: argparse.Namespace) -> int:
             progress=progress,
             progress_interval=0.2,
         )
-    except (FrameSourceError, OptionsError, ValueError) as error:
+        files = publish(result, args.out_dir)
+        scratch.rmdir()
+    except (FrameSourceError, OptionsError, ValueError, OSError) as error:  # OSError: disk full
         bar.close()
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     bar.update(result.video.frames_read - bar.n)
     bar.close()
-    files = publish(result, args.out_dir)
-    scratch.rmdir()
     for warning in result.warnings:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     rate = result.frames_processed / max(result.seconds, 1e-9)
@@ -190,6 +196,11 @@ def _serve(args: argparse.Namespace) -> int:
     except ValidationError as error:
         for item in error.errors():
             print(f"vtrack: {item['msg'].removeprefix('Value error, ')}", file=sys.stderr)
+        return 2
+    try:
+        output_folder(settings.data_dir)
+    except OSError as error:
+        print(f"vtrack: the data folder (--data-dir, VTRACK_DATA_DIR): {error}", file=sys.stderr)
         return 2
     url = f"http://{settings.host}:{settings.port}"
     print(

@@ -14,6 +14,7 @@ import zenoh
 
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable
+from tracking.output_paths import output_file
 
 
 def _settings(command: str):
@@ -114,6 +115,12 @@ def _publish(args: argparse.Namespace) -> int:
 def _subscribe(args: argparse.Namespace) -> int:
     from service.streams.tools import current_tracks, follow_tracks, reach_tracker
 
+    try:
+        if args.output:
+            output_file(args.output)
+    except OSError as error:
+        print(f"vtrack subscribe: {error}", file=sys.stderr)
+        return 2
     opened = _session(args, "subscribe")
     if opened is None:
         return 1

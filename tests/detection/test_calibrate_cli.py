@@ -47,9 +47,15 @@ def test_calibrate_the_embedded_detector(small_sequence, tmp_path, capsys):
         (["--detector", "default", "--sequences", "{seq}"], "needs --out"),
         (["--detector", "default", "--sequences", "{tmp}/nothing", "--out", "x"], "not a MOT"),
         (["--detector", "dpm", "--model", "{tmp}/m.mat", "--sequences", "{seq}"], "not found"),
+        (["--detector", "default", "--sequences", "{seq}", "--out", "{tmp}/typo/c.json"],
+         "typo does not exist"),
     ],
-)
-def test_bad_arguments_exit_with_a_message(argv, message, small_sequence, tmp_path, capsys):
+)  # fmt: skip
+def test_bad_arguments_exit_with_a_message_before_detecting(
+    argv, message, small_sequence, tmp_path, capsys, caplog
+):
     args = [a.format(seq=small_sequence, tmp=tmp_path) for a in argv]
-    assert main(args) == 2
+    with caplog.at_level("INFO", logger="tracking.detection.calibrate"):
+        assert main(args) == 2
     assert message in capsys.readouterr().err
+    assert "done" not in caplog.text  # no sequence was run through the detector

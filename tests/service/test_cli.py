@@ -127,3 +127,27 @@ def test_serve_refuses_a_model_setting_that_is_not_a_model(tmp_path, variable, c
     )
     assert result.returncode == 2
     assert message in result.stderr and str(path) in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["track", "{video}", "--box", "1,1,5,5", "--out", "{tmp}/typo/out.csv"], "does not exist"),
+        (["track", "{video}", "--box", "1,1,5,5", "--out", "{tmp}"], "is a folder"),
+        (["analyze", "{video}", "--out-dir", "{file}"], "exists and is not a folder"),
+        (["analyze", "{video}", "--out-dir", "{file}/results"], "cannot create the folder"),
+        (["serve", "--port", "0", "--data-dir", "{file}"], "the data folder"),
+        (["subscribe", "--camera", "c", "--output", "{tmp}/typo/t.jsonl"], "does not exist"),
+    ],
+)  # fmt: skip
+def test_an_output_that_cannot_be_written_stops_the_command_before_it_starts(
+    scene_video, tmp_path, args, message
+):
+    # before: a traceback, after the whole video for track and analyze
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    values = {"video": scene_video[0], "tmp": tmp_path, "file": blocker}
+    result = vtrack(*(a.format(**values) for a in args))
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr and "Traceback" not in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"]  # nothing written

@@ -30,6 +30,7 @@ from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.hog_people import HogPeopleConfig, HogPeopleDetector
 from tracking.detection.metrics import match_frame
 from tracking.detection.sequences import MotSequence
+from tracking.output_paths import output_file
 
 __all__ = ["calibrate", "main"]
 
@@ -106,7 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.upscale is not None:
                 options["upscale"] = args.upscale
             detector: object = DpmDetector(probe.model, DpmConfig(**options))
-            out = args.out or calibration_path(args.model)
+            out = output_file(args.out or calibration_path(args.model))
             what = f"DPM {args.model.name}, threshold {threshold:g}"
         else:
             options = {
@@ -119,7 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             detector = HogPeopleDetector(HogPeopleConfig(**options))
             if args.out is None:
                 raise ValueError("--detector default needs --out PATH")
-            out = args.out
+            out = output_file(args.out)
             what = f"OpenCV HOG people, hit threshold {options['hit_threshold']:g}"
         names = ", ".join(s.name for s in sequences)
         frames = "every frame" if args.step == 1 else f"1 frame in {args.step}"

@@ -45,6 +45,7 @@ from tracking.detection.dpm.pyramid import level_features
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.nms import box_iou
 from tracking.evaluation.otb import OtbSequence, load_otb_sequence, read_frame
+from tracking.output_paths import output_file
 
 __all__ = ["SCORE_GRID", "fit_records", "main", "record_positive", "save_cascade", "thresholds_for"]
 
@@ -204,14 +205,14 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
         model = load_dpm_model(args.model)
-        # every folder is read before the minutes of fitting start
+        # every folder is read, and the output checked, before the minutes of fitting start
         sequences = [load_otb_sequence(folder) for folder in args.sequences]
+        out = output_file(args.out or cascade_path(args.model))
         records = fit_records(DpmDetector(model), sequences, args.step)
         if not records:
             raise ValueError("no positive example found (no root window on a ground-truth box)")
         names = ", ".join(s.name for s in sequences)
         source = f"{len(records)} positives from {names}, 1 frame in {args.step}"
-        out = Path(args.out) if args.out else cascade_path(args.model)
         save_cascade(out, model, records, source)
     except (ValueError, OSError) as error:  # a bad model file or folder, an unwritable output
         print(f"error: {error}", file=sys.stderr)

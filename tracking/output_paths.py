@@ -1,0 +1,65 @@
+"""Checking where a command will write before it starts the work whose results go there.
+
+A calibration fit, an analysis or a tracking run takes minutes; finding only at the end that
+its output folder cannot be made or written loses them. The command-line tools check first,
+and the ``OSError`` these raise says what is wrong in words a user can act on.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+__all__ = ["output_file", "output_folder"]
+
+
+def output_folder(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a folder this process can write into, created with its parents if missing.
+
+    Raises
+    ------
+    OSError
+        The folder cannot be created (a missing or read-only parent, a file in the way) or
+        written into; the message names the folder and the reason.
+    """
+    folder = Path(path)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise NotADirectoryError(f"{folder} exists and is not a folder") from None
+    except OSError as error:
+        raise type(error)(f"cannot create the folder {folder}: {error.strerror}") from None
+    try:
+        # a real write rather than os.access, which root passes everywhere and which misses
+        # some refusals (read-only mounts, pseudo file systems)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as error:
+        raise type(error)(f"cannot write into the folder {folder}: {error.strerror}") from None
+    return folder
+
+
+def output_file(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a file this process can create or append to, in a folder that exists (a
+    mistyped folder is an error, not a new folder). An existing file is left as it is; a file
+    the check creates is removed again.
+
+    Raises
+    ------
+    OSError
+        The path is a folder, its folder does not exist, or the file cannot be opened for
+        writing; the message names the file and the reason.
+    """
+    file = Path(path)
+    if file.is_dir():
+        raise IsADirectoryError(f"{file} is a folder: give a file name")
+    if not file.parent.is_dir():
+        raise FileNotFoundError(f"cannot write {file}: the folder {file.parent} does not exist")
+    existed = file.exists()
+    try:
+        open(file, "a").close()  # opened only to see that it can be
+    except OSError as error:
+        raise type(error)(f"cannot write {file}: {error.strerror}") from None
+    if not existed:
+        file.unlink()
+    return file
