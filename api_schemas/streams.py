@@ -28,6 +28,9 @@ from api_schemas.tracks import FrameTracksMessage
 CAMERA_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$"
 """Camera names: one key-expression chunk (no ``/``, ``*``, ``$``, ``?`` or ``#``)."""
 
+PREFIX_PATTERN = r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$"
+"""Key prefixes: one or more such chunks separated by ``/``."""
+
 
 class PixelFormat(StrEnum):
     """Layout of a raw frame payload: 8 bits per channel, rows packed without padding."""

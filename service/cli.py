@@ -59,10 +59,10 @@ def _track(args: argparse.Namespace) -> int:
     config = PRESETS[args.preset]
     if args.w2c:
         config = dataclasses.replace(config, color_names_path=str(args.w2c))
-    tracker = CorrelationTracker(config)
     try:
+        tracker = CorrelationTracker(config)  # loads the Color Names table, if one is given
         out_file = open(output_file(args.out), "w") if args.out else sys.stdout  # noqa: SIM115
-    except OSError as error:
+    except (ValueError, OSError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     try:
@@ -100,6 +100,15 @@ def _formats(text: str) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+# The command-line option behind each JobOptions field that `analyze` fills in.
+_ANALYZE_OPTIONS = {
+    ("frame_step",): "--frame-step",
+    ("first_box",): "--box",
+    ("detector", "upscale"): "--upscale",
+    ("tracker", "full_detection_interval"): "--detection-interval",
+}
+
+
 def _analyze(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
@@ -124,7 +133,10 @@ def _analyze(args: argparse.Namespace) -> int:
     try:
         options = JobOptions.model_validate(raw)
     except ValidationError as error:
-        print(f"vtrack: {error.errors()[0]['msg']}", file=sys.stderr)
+        first = error.errors()[0]
+        where = [flag for key, flag in _ANALYZE_OPTIONS.items() if first["loc"][: len(key)] == key]
+        message = first["msg"].removeprefix("Value error, ")
+        print(f"vtrack: {': '.join([*where, message])}", file=sys.stderr)
         return 2
     resources = PipelineResources(dpm_model=args.dpm_model, color_names=args.w2c)
     try:
@@ -175,10 +187,9 @@ def _serve(args: argparse.Namespace) -> int:
     import logging
 
     import uvicorn
-    from pydantic import ValidationError
 
     from service.app import create_app
-    from service.settings import Settings
+    from service.settings import InvalidSettings, load_settings
 
     overrides = {
         name: value
@@ -192,10 +203,10 @@ def _serve(args: argparse.Namespace) -> int:
         if value is not None
     }
     try:
-        settings = Settings(**overrides)
-    except ValidationError as error:
-        for item in error.errors():
-            print(f"vtrack: {item['msg'].removeprefix('Value error, ')}", file=sys.stderr)
+        settings = load_settings(overrides)
+    except InvalidSettings as error:
+        for problem in error.problems:
+            print(f"vtrack: {problem}", file=sys.stderr)
         return 2
     try:
         output_folder(settings.data_dir)

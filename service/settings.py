@@ -3,14 +3,25 @@
 from __future__ import annotations
 
 import os
+import re
+from collections.abc import Collection
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import Field, SecretStr, field_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, SecretStr, ValidationError, field_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict, SettingsError
 
-from api_schemas.streams import StreamSpec
-from service.streams.session import DEFAULT_LISTEN, ZenohOptions
+from api_schemas.streams import PREFIX_PATTERN, StreamSpec
+from service.streams.session import (
+    DEFAULT_LISTEN,
+    ZenohOptions,
+    ZenohUnavailable,
+    load_config_file,
+    zenoh_endpoint,
+)
+
+LOG_LEVELS = ("critical", "error", "warning", "info", "debug")
+"""The levels both Python's logging and uvicorn know."""
 
 
 def _default_workers() -> int:
@@ -61,7 +72,10 @@ class Settings(BaseSettings):
     poll_interval: float = Field(
         default=0.2, gt=0, le=5, description="Seconds an idle worker waits between job checks."
     )
-    log_level: str = Field(default="info", description="Logging level of the service.")
+    log_level: str = Field(
+        default="info",
+        description="Logging level of the service: critical, error, warning, info or debug.",
+    )
     zenoh_enabled: bool = Field(
         default=True, description="Open a Zenoh session and serve live streams (/v1/streams)."
     )
@@ -85,7 +99,7 @@ class Settings(BaseSettings):
     )
     zenoh_prefix: str = Field(
         default="vtrack",
-        pattern=r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$",
+        pattern=PREFIX_PATTERN,
         description="First chunk(s) of every key expression: <prefix>/cameras/<camera>/frames.",
     )
     streams: list[StreamSpec] = Field(
@@ -102,10 +116,9 @@ class Settings(BaseSettings):
 
     @field_validator("dpm_model", "color_names", "zenoh_config")
     @classmethod
-    def _existing_file(cls, value: Path | None, info) -> Path | None:
+    def _existing_file(cls, value: Path | None) -> Path | None:
         if value is not None and not value.is_file():
-            variable = f"VTRACK_{info.field_name.upper()}"
-            raise ValueError(f"{variable} names {value}, which is not a file")
+            raise ValueError(f"{value} is not a file")
         return value
 
     @field_validator("dpm_model", "color_names")
@@ -118,14 +131,35 @@ class Settings(BaseSettings):
             from tracking.detection.dpm.model import load_dpm_model
             from tracking.features.colornames import load_w2c_table
 
-            try:
-                if info.field_name == "dpm_model":
-                    load_dpm_model(value)
-                else:
-                    load_w2c_table(value)
-            except ValueError as error:
-                raise ValueError(f"VTRACK_{info.field_name.upper()}: {error}") from None
+            # their ValueError says what is wrong with the file; load_settings names the setting
+            if info.field_name == "dpm_model":
+                load_dpm_model(value)
+            else:
+                load_w2c_table(value)
         return value
+
+    @field_validator("zenoh_config")
+    @classmethod
+    def _zenoh_readable(cls, value: Path | None) -> Path | None:
+        if value is not None:
+            try:
+                load_config_file(value)
+            except ZenohUnavailable as error:
+                raise ValueError(str(error)) from None
+        return value
+
+    @field_validator("log_level")
+    @classmethod
+    def _known_level(cls, value: str) -> str:
+        level = value.strip().lower()
+        if level not in LOG_LEVELS:
+            raise ValueError(f"must be one of {', '.join(LOG_LEVELS)}, got {value!r}")
+        return level
+
+    @field_validator("zenoh_listen", "zenoh_connect")
+    @classmethod
+    def _endpoints(cls, value: list[str]) -> list[str]:
+        return [zenoh_endpoint(endpoint) for endpoint in value]
 
     @property
     def zenoh(self) -> ZenohOptions:
@@ -151,3 +185,45 @@ class Settings(BaseSettings):
     @property
     def results_dir(self) -> Path:
         return self.data_dir / "results"
+
+
+class InvalidSettings(ValueError):
+    """Settings that cannot be used; ``problems`` holds one line per setting, each naming it as
+    the user gave it."""
+
+    def __init__(self, problems: list[str]) -> None:
+        super().__init__("; ".join(problems))
+        self.problems = problems
+
+
+def load_settings(options: dict[str, Any] | None = None) -> Settings:
+    """The settings from the environment with command-line ``options`` (field name -> value)
+    over them.
+
+    Raises
+    ------
+    InvalidSettings
+        A value of the wrong type or range, a model file that is not one, a list variable
+        that is not JSON...: each problem names its option (``--port``) or variable
+        (``VTRACK_PORT``).
+    """
+    options = options or {}
+    try:
+        return Settings(**options)
+    except ValidationError as error:
+        raise InvalidSettings([_problem(item, options) for item in error.errors()]) from None
+    except SettingsError as error:  # a list or object variable that is not JSON
+        found = re.search(r'field "(\w+)"', str(error))
+        name = f"VTRACK_{found.group(1).upper()}" if found else "a VTRACK_* variable"
+        example = '["tcp/zenoh:7447"] or [{"camera": "gate"}]'
+        problem = f"{name} is not valid JSON ({error.__cause__}); lists are JSON, e.g. {example}"
+        raise InvalidSettings([problem]) from None
+
+
+def _problem(item: Any, options: Collection[str]) -> str:
+    loc = item["loc"]
+    field = str(loc[0]) if loc else ""
+    name = f"--{field.replace('_', '-')}" if field in options else f"VTRACK_{field.upper()}"
+    # the place inside a list or object setting: VTRACK_STREAMS[0].camera
+    name += "".join(f"[{part}]" if isinstance(part, int) else f".{part}" for part in loc[1:])
+    return f"{name}: {item['msg'].removeprefix('Value error, ')}"

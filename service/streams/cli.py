@@ -5,29 +5,31 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
+import re
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import zenoh
 
+from api_schemas.streams import CAMERA_PATTERN, PREFIX_PATTERN
 from service.streams.keys import StreamKeys
-from service.streams.session import ZenohOptions, ZenohUnavailable
+from service.streams.session import ZenohOptions, ZenohUnavailable, zenoh_endpoint
 from tracking.output_paths import output_file
 
 
 def _settings(command: str):
     """The service's settings (VTRACK_*), as the tools share them; exits 2 when invalid."""
-    from pydantic import ValidationError
-
-    from service.settings import Settings
+    from service.settings import InvalidSettings, load_settings
 
     try:
-        return Settings()
-    except ValidationError as error:
-        for item in error.errors():
-            print(f"vtrack {command}: {item['msg'].removeprefix('Value error, ')}", file=sys.stderr)
+        return load_settings()
+    except InvalidSettings as error:
+        for problem in error.problems:
+            print(f"vtrack {command}: {problem}", file=sys.stderr)
         raise SystemExit(2) from None
 
 
@@ -183,15 +185,64 @@ def _subscribe(args: argparse.Namespace) -> int:
     return 0
 
 
+def _number(
+    convert: Callable[[str], float], low: float, high: float = math.inf, *, above: bool = False
+):
+    """An argparse type: ``convert(text)`` from ``low`` (excluded when ``above``) to ``high``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = convert(text)
+        except ValueError:
+            kind = "a whole number" if convert is int else "a number"
+            raise argparse.ArgumentTypeError(f"expected {kind}, got {text!r}") from None
+        if not ((value > low if above else value >= low) and value <= high):
+            bound = f"greater than {low:g}" if above else f"at least {low:g}"
+            bound += f" and at most {high:g}" if high < math.inf else ""
+            raise argparse.ArgumentTypeError(f"must be {bound}, got {text}")
+        return value
+
+    return parse
+
+
+def _matching(pattern: str, what: str) -> Callable[[str], str]:
+    """An argparse type: ``text`` if it matches ``pattern`` (the API's own rule for ``what``)."""
+
+    def parse(text: str) -> str:
+        if not re.match(pattern, text):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a valid {what} ({pattern})")
+        return text
+
+    return parse
+
+
+def _endpoint(text: str) -> str:
+    try:
+        return zenoh_endpoint(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def add_commands(commands: argparse._SubParsersAction) -> None:
     """The ``publish`` and ``subscribe`` subcommands of ``vtrack``."""
+    positive = _number(float, 0, above=True)
 
     def zenoh_arguments(parser: argparse.ArgumentParser) -> None:
-        parser.add_argument("--camera", required=True, help="camera name (the key's chunk)")
-        parser.add_argument("--prefix", help="key prefix (VTRACK_ZENOH_PREFIX, default vtrack)")
+        parser.add_argument(
+            "--camera",
+            required=True,
+            type=_matching(CAMERA_PATTERN, "camera name"),
+            help="camera name (the key's chunk)",
+        )
+        parser.add_argument(
+            "--prefix",
+            type=_matching(PREFIX_PATTERN, "key prefix"),
+            help="key prefix (VTRACK_ZENOH_PREFIX, default vtrack)",
+        )
         parser.add_argument(
             "--connect",
             action="append",
+            type=_endpoint,
             metavar="ENDPOINT",
             help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; default: "
             "the service's VTRACK_ZENOH_LISTEN and VTRACK_ZENOH_CONNECT)",
@@ -206,17 +257,19 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     publish.add_argument("source", help="video file, image folder, or webcam:N")
     zenoh_arguments(publish)
-    publish.add_argument("--fps", type=float, help="frames per second (default: the video's)")
+    publish.add_argument("--fps", type=positive, help="frames per second (default: the video's)")
     publish.add_argument("--loop", action="store_true", help="start over at the end")
-    publish.add_argument("--limit", type=int, help="stop after this many frames")
+    publish.add_argument("--limit", type=_number(int, 1), help="stop after this many frames")
     publish.add_argument(
         "--wait",
-        type=float,
+        type=_number(float, 0),
         default=5.0,
         help="seconds to wait for a tracker to subscribe before the first frame (default 5)",
     )
     publish.add_argument("--raw", action="store_true", help="raw rgb8 pixels instead of JPEG")
-    publish.add_argument("--quality", type=int, default=90, help="JPEG quality (default 90)")
+    publish.add_argument(
+        "--quality", type=_number(int, 1, 100), default=90, help="JPEG quality (default 90)"
+    )
     publish.add_argument(
         "--detections",
         type=Path,
@@ -224,7 +277,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     publish.add_argument(
         "--detections-scale",
-        type=float,
+        type=positive,
         default=1.0,
         help="multiply the detections' boxes by this (e.g. 0.625: PETS 768x576 boxes on the "
         "480x360 video)",
@@ -240,8 +293,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     zenoh_arguments(subscribe)
     subscribe.add_argument("--output", type=Path, help="append JSON lines to this file")
     subscribe.add_argument("--json", action="store_true", help="print JSON lines")
-    subscribe.add_argument("--count", type=int, help="stop after this many messages")
-    subscribe.add_argument("--duration", type=float, help="stop after this many seconds")
+    subscribe.add_argument("--count", type=_number(int, 1), help="stop after this many messages")
+    subscribe.add_argument("--duration", type=positive, help="stop after this many seconds")
     subscribe.add_argument(
         "--current", action="store_true", help="ask for the current tracks once and exit"
     )

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -43,37 +45,49 @@ class ZenohOptions:
     config_file: Path | None = field(default=None)
 
     def hub_config(self) -> zenoh.Config:
-        """The service process's session: listens for the others."""
-        config = self._base()
-        if self.mode == "peer" and self.listen:
-            config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
-        if self.connect:
-            config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
+        """The service process's session: listens for the others (``ZenohUnavailable`` for a
+        configuration Zenoh refuses)."""
+        with _reported():
+            config = self._base()
+            if self.mode == "peer" and self.listen:
+                config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
+            if self.connect:
+                config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
         return config
 
     def member_config(self) -> zenoh.Config:
         """A stream worker's or a CLI tool's session: connects to the hub and the router."""
-        config = self._base()
-        endpoints = [*self.connect]
-        if self.mode == "peer":
-            endpoints = [*(_reachable(e) for e in self.listen), *endpoints]
-            config.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
-        if endpoints:
-            config.insert_json5("connect/endpoints", json.dumps(endpoints))
+        with _reported():
+            config = self._base()
+            endpoints = [*self.connect]
+            if self.mode == "peer":
+                endpoints = [*(_reachable(e) for e in self.listen), *endpoints]
+                config.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
+            if endpoints:
+                config.insert_json5("connect/endpoints", json.dumps(endpoints))
         return config
 
     def _base(self) -> zenoh.Config:
-        config = (
-            zenoh.Config.from_file(str(self.config_file))
-            if self.config_file is not None
-            else zenoh.Config()
-        )
+        config = load_config_file(self.config_file) if self.config_file else zenoh.Config()
         config.insert_json5("mode", json.dumps(self.mode))
         # Multicast scouting would make every instance on the LAN talk to every camera: off,
         # unless a configuration file turns it on.
         if self.config_file is None:
             config.insert_json5("scouting/multicast/enabled", "false")
         return config
+
+
+_ENDPOINT = re.compile(r"^[a-z][a-z0-9\-]*/\S+$")
+
+
+def zenoh_endpoint(text: str) -> str:
+    """``text`` if it has the form of a Zenoh endpoint, ``<protocol>/<address>``, else
+    ValueError (Zenoh's own error comes only when a session opens, in Rust's words)."""
+    if not _ENDPOINT.match(text):
+        raise ValueError(
+            f"{text!r} is not a Zenoh endpoint: write <protocol>/<address>, e.g. tcp/127.0.0.1:7447"
+        )
+    return text
 
 
 def _reachable(endpoint: str) -> str:
@@ -83,13 +97,27 @@ def _reachable(endpoint: str) -> str:
     return endpoint
 
 
+def load_config_file(path: Path) -> zenoh.Config:
+    """A Zenoh JSON5 or YAML configuration file (``ZenohUnavailable`` when Zenoh refuses it)."""
+    with _reported(f"{path}: "):
+        return zenoh.Config.from_file(str(path))
+
+
 def open_session(config: zenoh.Config) -> zenoh.Session:
     """Open a session; Zenoh's error (a busy port, no router) comes back as ``ZenohUnavailable``."""
-    try:
+    with _reported():
         return zenoh.open(config)
+
+
+@contextmanager
+def _reported(context: str = "") -> Iterator[None]:
+    """Zenoh's errors as ``ZenohUnavailable``, in words for users."""
+    try:
+        yield
     except zenoh.ZError as error:
         # Zenoh's messages end with source locations ("at /root/.cargo/..."): not for users.
-        raise ZenohUnavailable(re.sub(r"\s+at /[^\s\]]+", "", str(error)).strip()) from None
+        message = re.sub(r"\s+at /[^\s\]]+", "", str(error)).strip()
+        raise ZenohUnavailable(context + message) from None
 
 
 class ZenohUnavailable(RuntimeError):

@@ -71,7 +71,9 @@ def test_analyze_follows_one_box_every_other_frame(pets_short, tmp_path):
     ("args", "message"),
     [
         (["--format", "json,avi"], "comma-separated list"),  # unknown format
-        (["--frame-step", "0"], "greater than or equal to 1"),  # invalid option
+        (["--frame-step", "0"], "--frame-step: Input should be greater than or equal to 1"),
+        (["--upscale", "-1"], "--upscale: Input should be greater than 0"),
+        (["--box", "1,1,-5,3"], "--box: Input should be greater than 0"),
         (["--box", "900,10,20,20"], "outside"),  # first box outside the frame
     ],
 )

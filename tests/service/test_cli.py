@@ -99,6 +99,13 @@ def test_box_outside_the_frame_is_reported(scene_video):
     assert "outside" in result.stderr
 
 
+def test_a_colour_table_that_is_not_one_is_reported(scene_video, tmp_path):
+    table = _write(tmp_path / "w2c.mat", b"\x00not a table" * 50)
+    result = vtrack("track", scene_video[0], "--box", "1,1,5,5", "--w2c", table)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"colour-name table '{table}'" in result.stderr
+
+
 def _write(path, data):
     path.write_bytes(data)
     return path
@@ -107,8 +114,8 @@ def _write(path, data):
 @pytest.mark.parametrize(
     ("variable", "content", "message"),
     [
-        ("VTRACK_DPM_MODEL", None, "which is not a file"),
-        ("VTRACK_DPM_MODEL", b"\x00not a model" * 50, "VTRACK_DPM_MODEL: "),
+        ("VTRACK_DPM_MODEL", None, "is not a file"),
+        ("VTRACK_DPM_MODEL", b"\x00not a model" * 50, "not a readable MATLAB"),
         ("VTRACK_COLOR_NAMES", b"\x00not a table" * 50, "VTRACK_COLOR_NAMES: "),
     ],
 )
@@ -127,6 +134,34 @@ def test_serve_refuses_a_model_setting_that_is_not_a_model(tmp_path, variable, c
     )
     assert result.returncode == 2
     assert message in result.stderr and str(path) in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("env", "args", "message"),
+    [
+        ({"VTRACK_WORKERS": "abc"}, [], "VTRACK_WORKERS: Input should be a valid integer"),
+        ({}, ["--workers", "0"], "--workers: Input should be greater than or equal to 1"),
+        ({}, ["--port", "99999"], "--port: Input should be less than or equal to 65535"),
+        ({"VTRACK_LOG_LEVEL": "loud"}, [], "VTRACK_LOG_LEVEL: must be one of critical"),
+        ({}, ["--log-level", "loud"], "--log-level: must be one of critical"),
+        ({"VTRACK_ZENOH_CONNECT": "tcp/a:7447"}, [], "VTRACK_ZENOH_CONNECT is not valid JSON"),
+        ({"VTRACK_ZENOH_CONNECT": '["a:7447"]'}, [], "'a:7447' is not a Zenoh endpoint"),
+        ({"VTRACK_ZENOH_CONFIG": "{tmp}/zenoh.yaml"}, [], "VTRACK_ZENOH_CONFIG: {tmp}/zenoh.yaml"),
+        ({"VTRACK_STREAMS": '[{{"camera": "a/b"}}]'}, [], "VTRACK_STREAMS[0].camera: String"),
+    ],
+)
+def test_serve_names_the_setting_that_is_wrong(tmp_path, env, args, message):
+    (tmp_path / "zenoh.yaml").write_text("mode: [unclosed\n")
+    env = {key: value.format(tmp=tmp_path) for key, value in env.items()}
+    result = subprocess.run(
+        [sys.executable, "-m", "service.cli", "serve", "--data-dir", tmp_path / "d", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,  # a service that started would run until killed here
+        env={**os.environ, **env},
+    )
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert message.format(tmp=tmp_path) in result.stderr
 
 
 @pytest.mark.parametrize(
