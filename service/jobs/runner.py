@@ -12,7 +12,6 @@ from __future__ import annotations
 import logging
 import os
 import shutil
-import signal
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from api_schemas.jobs import JobOptions, JobState
 from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
 from service.frames import FrameSourceError
 from service.jobs.store import JobRecord, JobStore
+from service.worker_processes import ignore_stop_signals
 
 log = logging.getLogger(__name__)
 
@@ -45,9 +45,7 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
 
     ``stop`` and ``ready`` are lock-free shared flags (:func:`service.jobs.workers.shared_flag`).
     """
-    # Ctrl-C in a terminal reaches the whole process group: the service decides what happens
-    # to running jobs (it requeues them), so the worker ignores it.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    ignore_stop_signals()
     logging.basicConfig(
         level=config.log_level.upper(),
         format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",

@@ -7,16 +7,15 @@ The supervisor (a thread of the service process) checks every ``check_interval``
 - a job that has run longer than ``job_timeout`` is failed with the reason, and its worker is
   killed (and so replaced).
 
-On a clean stop, workers are terminated and the jobs they were running go back to the queue.
+On a clean stop, idle workers leave at a flag, busy ones are killed, and the jobs they were
+running go back to the queue.
 """
 
 from __future__ import annotations
 
-import ctypes
 import logging
 import multiprocessing
 import os
-import signal
 import threading
 import time
 from dataclasses import dataclass
@@ -24,41 +23,9 @@ from typing import Any
 
 from service.jobs.runner import WorkerConfig, worker_main
 from service.jobs.store import JobStore
+from service.worker_processes import describe_exit, shared_flag, single_threaded_blas
 
 log = logging.getLogger(__name__)
-
-
-def describe_exit(exitcode: int | None) -> str:
-    """'exit code 3', 'killed by SIGKILL'..."""
-    if exitcode is None:
-        return "still running"
-    if exitcode < 0:
-        try:
-            return f"killed by {signal.Signals(-exitcode).name}"
-        except ValueError:
-            return f"killed by signal {-exitcode}"
-    return f"exit code {exitcode}"
-
-
-def single_threaded_blas() -> None:
-    """Make processes spawned from now on start with one BLAS thread (unless the user set it).
-
-    A spawned worker imports numpy afresh and reads these variables then. Workers already run
-    side by side on the cores, and the DPM engine scores pyramid levels on threads of its own:
-    BLAS threads on top oversubscribe the cores and made the DPM several times slower.
-    """
-    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(name, "1")
-
-
-def shared_flag(ctx: Any) -> Any:
-    """A boolean shared with processes of ``ctx``, read and written as ``.value``, without a lock.
-
-    Not a ``multiprocessing.Event``: a process killed while inside ``Event.wait`` or
-    ``Event.is_set`` leaves the Event's lock held or a dead waiter behind, and the service's
-    ``Event.set`` then waits for ever when it stops its workers.
-    """
-    return ctx.RawValue(ctypes.c_bool, False)
 
 
 @dataclass(slots=True)
@@ -112,7 +79,7 @@ class WorkerPool:
         busy = {job.worker_pid: job for job in self._store.running()}
         for slot in slots:
             if slot.process.is_alive() and slot.process.pid in busy:
-                slot.process.terminate()
+                slot.process.kill()  # workers ignore SIGTERM (ignore_stop_signals)
         deadline = time.monotonic() + grace
         for slot in slots:
             slot.process.join(max(deadline - time.monotonic(), 0.1))

@@ -32,12 +32,12 @@ from api_schemas.streams import (
     StreamTracksMessage,
 )
 from service.analysis import PipelineResources, check_options
-from service.jobs.workers import describe_exit, shared_flag, single_threaded_blas
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
 from service.streams.tools import trackers_of
 from service.streams.worker import StreamContext, stream_main
+from service.worker_processes import describe_exit, shared_flag, single_threaded_blas
 
 log = logging.getLogger(__name__)
 

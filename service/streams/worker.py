@@ -14,7 +14,6 @@ import collections
 import ctypes
 import logging
 import os
-import signal
 import statistics
 import threading
 import time
@@ -42,6 +41,7 @@ from service.streams.payloads import (
     to_detections,
 )
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from service.worker_processes import ignore_stop_signals
 from tracking.detection.base import Detections
 from tracking.pipeline import FramePipeline
 
@@ -461,7 +461,7 @@ def _recording_name(folder: Path, camera: str) -> Path:
 
 def stream_main(context: StreamContext, parent_pid: int, stop, updates) -> None:
     """Entry point of a stream worker process."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    ignore_stop_signals()
     logging.basicConfig(
         level=context.log_level.upper(),
         format=f"%(asctime)s %(levelname)s stream[{context.spec.camera}] %(name)s: %(message)s",

@@ -8,7 +8,15 @@ import signal
 import pytest
 
 from service.jobs.store import JobStore
-from tests.service.conftest import FAST_OPTIONS, submit, wait_for, wait_for_frames, wait_for_state
+from tests.service.conftest import (
+    FAST_OPTIONS,
+    PETS_VIDEO,
+    cut_video,
+    submit,
+    wait_for,
+    wait_for_frames,
+    wait_for_state,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -52,6 +60,32 @@ def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_serv
         document = client.get(f"/v1/jobs/{job_id}/result").json()
         assert document["frames_processed"] == 24
     assert not list((first.data_dir / "results" / job_id).glob(".attempt-*"))
+
+
+def test_a_stop_signal_to_the_whole_group_requeues_the_running_job(
+    make_server, shared_data, tmp_path
+):
+    # systemctl stop (KillMode=control-group) and Ctrl-C signal every process of the service:
+    # the workers leave the stop to the service, which requeues their jobs
+    video = cut_video(shared_data / PETS_VIDEO, tmp_path / "pets_120.avi", 120)  # ~10 s of work
+    first = make_server(workers=1)
+    with first.client() as client:
+        job_id = submit(client, video, FAST_OPTIONS).json()["id"]
+        before = wait_for_frames(client, job_id, 3)["progress"]["frames_done"]
+        worker = _worker_pid(first.data_dir, job_id)
+        os.kill(worker, signal.SIGTERM)
+        os.kill(worker, signal.SIGINT)
+        wait_for_frames(client, job_id, before + 2)  # the same worker tracks on
+        assert _alive(worker) and _worker_pid(first.data_dir, job_id) == worker
+    first.stop()
+    assert "queued again: the service stopped while it ran" in first.log()
+    assert "died" not in first.log()
+
+    second = make_server(data_dir=first.data_dir, workers=1)
+    with second.client() as client:
+        status = wait_for_state(client, job_id, ("succeeded", "failed"))
+        assert status["state"] == "succeeded", status
+        assert status["attempts"] == 2
 
 
 def test_a_killed_worker_fails_its_job_and_the_next_job_succeeds(make_server, pets_cut, pets_short):

@@ -678,3 +678,28 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
             60,
             "the new worker to track",
         )
+
+
+def test_a_stream_worker_leaves_stop_signals_to_the_service(server, session, pets_frames):
+    # a SIGTERM or Ctrl-C sent to the service's whole process group must not kill the stream
+    # mid-recording: the service stops its streams itself, gracefully
+    import os
+    import signal
+
+    camera = "stoic"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera, record=True)
+        worker = status(client, camera)["worker_pid"]
+        os.kill(worker, signal.SIGTERM)
+        os.kill(worker, signal.SIGINT)
+        publish_frames(session, keys, iter(pets_frames[:5]), 10.0, block=True)
+        after = wait_for(
+            lambda: (s := status(client, camera))["counters"]["frames_processed"] >= 1 and s,
+            60,
+            "the signalled worker to track",
+        )
+        assert after["worker_pid"] == worker and after["worker_starts"] == 1, after
+        stopped = client.delete(f"/v1/streams/{camera}").json()
+        assert stopped["state"] == "stopped" and len(stopped["recordings"]) == 1, stopped
+        assert client.delete(f"/v1/streams/{camera}").status_code == 204
