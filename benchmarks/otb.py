@@ -1,7 +1,8 @@
 """OTB benchmark: our correlation trackers beside OpenCV's KCF and CSRT, on OTB-format sequences.
 
     python benchmarks/otb.py [--data DIR] [--trackers a,b,c] [--sequences x,y] [--json]
-                             [--plots DIR] [--no-peers] [--w2c FILE] [--list]
+                             [--plots DIR] [--no-peers] [--w2c FILE] [--starts F,F]
+                             [--scale S] [--list]
 
 Every tracker starts from the first ground-truth box of each sequence and runs on every later
 frame (the one-pass evaluation of Wu et al. 2013 used by the thesis, §5.1). Only the tracker's
@@ -10,7 +11,8 @@ and decoding frames is not. Our trackers run in this process on RGB frames; Open
 separate environment (``benchmarks/_peer_env.py``) through ``benchmarks/peers/opencv_trackers.py``
 on the same frames. The figures per tracker and sequence are DP at 20 px, OP at 0.5, success AUC,
 mean CLE and fps (``tracking.evaluation.metrics``); the means over sequences are compared with
-CSRT (speed and AUC) and with OpenCV's KCF with Color Names (AUC).
+CSRT (speed and AUC) and with OpenCV's KCF with Color Names (AUC). ``--scale`` shrinks every
+frame and box (OpenCV ``INTER_AREA``) for every tracker: the same sequences with small targets.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import cv2
 import numpy as np
 from tqdm import tqdm
 
@@ -107,22 +110,43 @@ def build_variants(w2c_path: Path | None) -> dict[str, Callable[[], Tracker]]:
 # Running trackers
 
 
+def read_scaled(path: Path, scale: float) -> np.ndarray:
+    """An RGB frame shrunk (or enlarged) by ``scale``, as ``--scale`` shows it to every tracker
+    (the peer script resizes the same way)."""
+    frame = read_frame(path)
+    if scale == 1.0:
+        return frame
+    return cv2.resize(frame, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+
+
+def scaled(sequence: OtbSequence, scale: float) -> OtbSequence:
+    """``sequence`` with its ground-truth boxes scaled by ``scale`` (frames: ``read_scaled``)."""
+    if scale == 1.0:
+        return sequence
+    return OtbSequence(sequence.name, sequence.frame_paths, sequence.ground_truth * scale)
+
+
 def run_variant(
-    name: str, factory: Callable[[], Tracker], sequence: OtbSequence, progress: tqdm
+    name: str,
+    factory: Callable[[], Tracker],
+    sequence: OtbSequence,
+    progress: tqdm,
+    scale: float = 1.0,
 ) -> SequenceResult:
-    """Run a fresh tracker from ``factory`` over ``sequence``, timing only its own calls."""
+    """Run a fresh tracker from ``factory`` over ``sequence`` (frames scaled by ``scale``, as
+    its boxes already are), timing only its own calls."""
     tracker = factory()
     boxes = np.empty((len(sequence), 4), dtype=np.float64)
     seconds = np.empty(len(sequence), dtype=np.float64)
     first_box = sequence.box(0)
-    frame = read_frame(sequence.frame_paths[0])
+    frame = read_scaled(sequence.frame_paths[0], scale)
     start = time.perf_counter()
     tracker.initialize(frame, first_box)
     seconds[0] = time.perf_counter() - start
     boxes[0] = first_box.as_array()
     progress.update(1)
     for index in range(1, len(sequence)):
-        frame = read_frame(sequence.frame_paths[index])
+        frame = read_scaled(sequence.frame_paths[index], scale)
         start = time.perf_counter()
         output = tracker.update(frame)
         seconds[index] = time.perf_counter() - start
@@ -141,6 +165,7 @@ class Outcome:
     failed_updates: dict[str, dict[str, int]] = dataclasses.field(default_factory=dict)
     details: dict[str, dict[str, object]] = dataclasses.field(default_factory=dict)
     notes: list[str] = dataclasses.field(default_factory=list)
+    scale: float = 1.0
 
     def add(self, result: SequenceResult) -> None:
         self.results.setdefault(result.tracker, {})[result.name] = result
@@ -169,7 +194,7 @@ def run_variants(
             for sequence in outcome.sequences:
                 bar.set_postfix_str(sequence.name)
                 try:
-                    outcome.add(run_variant(name, factory, sequence, bar))
+                    outcome.add(run_variant(name, factory, sequence, bar, outcome.scale))
                 except Exception as exc:  # one broken variant must not stop the benchmark
                     outcome.fail(name, sequence.name, f"{type(exc).__name__}: {exc}")
 
@@ -200,7 +225,7 @@ def run_peers(
     runs = [(kind, start) for kind in kinds for start in starts]
     for kind, start in runs:
         command = [str(python), str(PEER_SCRIPT), kind, *map(str, folders)]
-        command += ["--start-fraction", repr(start)]
+        command += ["--start-fraction", repr(start), "--scale", repr(outcome.scale)]
         if threads is not None:
             command += ["--threads", str(threads)]
         completed = subprocess.run(command, stdout=subprocess.PIPE, text=True, check=False)
@@ -269,6 +294,7 @@ def score(outcome: Outcome) -> dict[str, object]:
             )
         entry["ratios"] = ratios
     return {
+        "scale": outcome.scale,
         "sequences": {s.name: len(s) for s in outcome.sequences},
         "trackers": trackers,
         "errors": outcome.errors,
@@ -441,6 +467,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         help="comma-separated start fractions; 0 alone (default) is the one-pass evaluation, "
         "e.g. 0,0.333,0.667 adds the temporal-robustness runs from a third and two thirds in",
     )
+    parser.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="shrink every frame and box by this factor for every tracker, e.g. 0.33: the same "
+        "sequences with small targets (default 1)",
+    )
     parser.add_argument("--list", action="store_true", help="list the tracker names and exit")
     return parser.parse_args(argv)
 
@@ -500,10 +533,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not starts or not all(0.0 <= f < 1.0 for f in starts):
         print(f"error: start fractions must be in [0, 1), got {args.starts!r}", file=sys.stderr)
         return 2
+    if not (math.isfinite(args.scale) and args.scale > 0):
+        print(f"error: --scale must be a positive number, got {args.scale}", file=sys.stderr)
+        return 2
     folders = [s.frame_paths[0].parent.parent for s in sequences]
-    sequences = [segment(s, f) for s in sequences for f in starts]
+    sequences = [scaled(segment(s, f), args.scale) for s in sequences for f in starts]
 
-    outcome = Outcome(sequences=sequences, notes=notes)
+    outcome = Outcome(sequences=sequences, notes=notes, scale=args.scale)
     if peers and args.no_peers:
         peers = []
     if peers:

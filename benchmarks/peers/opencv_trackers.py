@@ -112,26 +112,32 @@ def read_sequence(folder: Path, start_fraction: float = 0.0) -> tuple[str, list[
     return name, frames[start : len(lines)], first
 
 
-def read_bgr(path: Path) -> cv2.typing.MatLike:
+def read_bgr(path: Path, scale: float = 1.0) -> cv2.typing.MatLike:
+    """A frame, resized by ``scale`` as the benchmark's ``--scale`` resizes it for our trackers."""
     image = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if image is None:
         raise ValueError(f"cannot read image {path}")
+    if scale != 1.0:
+        image = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     return image
 
 
-def run_sequence(kind: str, folder: Path, start_fraction: float = 0.0) -> dict[str, object]:
+def run_sequence(
+    kind: str, folder: Path, start_fraction: float = 0.0, scale: float = 1.0
+) -> dict[str, object]:
     name, frames, (x1, y1, w, h) = read_sequence(folder, start_fraction)
-    # 1-based (x, y) -> 0-based; OpenCV wants integers
-    box = (round(x1 - 1.0), round(y1 - 1.0), max(1, round(w)), max(1, round(h)))
+    # 1-based (x, y) -> 0-based, scaled; OpenCV wants integers
+    x, y, w, h = ((x1 - 1.0) * scale, (y1 - 1.0) * scale, w * scale, h * scale)
+    box = (round(x), round(y), max(1, round(w)), max(1, round(h)))
     tracker, _ = create_tracker(kind)
     boxes = [list(box)]
-    image = read_bgr(frames[0])
+    image = read_bgr(frames[0], scale)
     start = time.perf_counter()
     tracker.init(image, box)
     seconds = [time.perf_counter() - start]
     failed = []
     for index, path in enumerate(frames[1:], start=1):
-        image = read_bgr(path)
+        image = read_bgr(path, scale)
         start = time.perf_counter()
         ok, found = tracker.update(image)
         seconds.append(time.perf_counter() - start)
@@ -156,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
         default=0.0,
         help="start each sequence at frame int(F * N) with that frame's box (default 0)",
     )
+    parser.add_argument(
+        "--scale", type=float, default=1.0, help="resize frames and boxes by this (default 1)"
+    )
     args = parser.parse_args(argv)
     if args.threads is not None:
         cv2.setNumThreads(args.threads)
@@ -163,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     for folder in args.sequences:
         try:
-            result = run_sequence(args.kind, folder, args.start_fraction)
+            result = run_sequence(args.kind, folder, args.start_fraction, args.scale)
         except (OSError, ValueError, cv2.error) as exc:
             result = {"name": folder.name, "error": f"{type(exc).__name__}: {exc}"}
             print(f"{args.kind} {folder.name}: {result['error']}", file=sys.stderr)

@@ -87,6 +87,34 @@ def test_scale_mode_follows_a_growing_target():
     assert success_auc(adaptive, truth) > success_auc(fixed, truth) + 0.05
 
 
+@pytest.mark.parametrize("size", [(6, 5), (8, 6), (12, 9), (16, 12)])
+def test_the_default_preset_follows_small_targets(size):
+    # On 4-pixel cells a 12 x 9 px target's padded patch was a grid of 8 x 6 cells, too few to
+    # tell the target from its surroundings: it was lost within frames (max error 112 px)
+    images, truth = moving_target_scene(frames=40, size=size)
+    boxes = run(CorrelationTracker(PRESETS["hog_cn_scale"]), images, truth[0])
+    errors = center_location_error(boxes, truth)
+    assert errors.max() < 3.0, f"{size}: max centre error {errors.max():.1f} px"
+
+
+@pytest.mark.parametrize(
+    ("box", "grid"),
+    [
+        (Box(100, 80, 12, 9), (16, 21)),  # short side 22.5 px -> 64 px: 16 cells
+        (Box(100, 80, 17, 50), (34, 12)),  # enlarged only to the area cap (6400 px), not 64 px
+        (Box(50, 40, 40, 40), (20, 20)),  # 100 x 100 px: shrunk to the cap, as before
+    ],
+)
+def test_small_patches_are_enlarged_up_to_the_area_cap(box, grid):
+    image = np.zeros((240, 320, 3), np.uint8)
+    tracker = CorrelationTracker(PRESETS["hog_cn_scale"])  # 4 px cells, 2.5 x padding
+    tracker.initialize(image, box)
+    response = tracker.respond(image)
+    assert response.response.shape == grid
+    rows, cols = grid
+    assert rows * cols * 16 <= 6400 * 1.05  # the cap holds (up to rounding to whole cells)
+
+
 def test_tracker_meets_the_protocol():
     assert isinstance(CorrelationTracker(), Tracker)
 
@@ -162,6 +190,7 @@ def test_frame_of_another_shape_mid_sequence_still_tracks_or_raises_clearly():
         {"kernel": "laplacian"},  # unknown kernel
         {"learner": "mosse", "compressed_dim": 2},  # reduction needs a kernel learner
         {"cell_size": 0},
+        {"min_patch_side": -1},
     ],
 )
 def test_bad_configuration_is_refused(fields):

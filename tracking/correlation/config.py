@@ -100,6 +100,10 @@ class CorrelationConfig:
     max_patch_area:
         Patches larger than this many pixels are resampled down to it before feature
         extraction, bounding the cost for large targets; ``None`` never resamples (the thesis).
+    min_patch_side:
+        Patches whose short side is below this many pixels are resampled up to it (but not
+        past ``max_patch_area``), so that small targets still get a grid of enough cells;
+        0 never enlarges (the thesis).
     color_names_path:
         The van de Weijer ``w2c.mat`` table for Color Names; ``None`` uses the embedded
         parametric colour-naming model.
@@ -123,6 +127,7 @@ class CorrelationConfig:
     projection_learning_rate: float | None = None
     cell_size: int = 1
     max_patch_area: int | None = None
+    min_patch_side: int = 0
     color_names_path: str | None = None
     subpixel: bool = True
     scale: ScaleConfig | None = None
@@ -152,6 +157,8 @@ class CorrelationConfig:
                     "compressed_dim needs a kernel learner ('csk' or 'rcsk'): MOSSE keeps one "
                     "filter per feature channel, which a changing projection would invalidate"
                 )
+        if self.min_patch_side < 0:
+            raise ValueError(f"min_patch_side must be >= 0, got {self.min_patch_side}")
         if self.max_patch_area is not None and self.max_patch_area < 64:
             raise ValueError(f"max_patch_area must be >= 64 pixels, got {self.max_patch_area}")
 

@@ -212,14 +212,18 @@ class CorrelationTracker:
         return self._features(extract_patch(frame, center, size, g.model_pixels))
 
     def _plan_geometry(self, box: Box) -> _Geometry:
-        """Patch size ``(M, N) = (1 + eta) s`` (§2.4.1), resampled down if above the area cap,
-        and rounded to whole feature cells."""
+        """Patch size ``(M, N) = (1 + eta) s`` (§2.4.1), resampled down if above the area cap
+        or up if its short side is below ``min_patch_side`` (never past the cap), and rounded
+        to whole feature cells."""
         c = self.config
         patch_w = max(box.w * (1.0 + c.padding), 2.0 * c.cell_size)
         patch_h = max(box.h * (1.0 + c.padding), 2.0 * c.cell_size)
-        resample = 1.0
-        if c.max_patch_area is not None and patch_w * patch_h > c.max_patch_area:
-            resample = math.sqrt(c.max_patch_area / (patch_w * patch_h))
+        area = patch_w * patch_h
+        fit = math.inf if c.max_patch_area is None else math.sqrt(c.max_patch_area / area)
+        # Below the cap, a small target is enlarged until the patch's short side reaches
+        # min_patch_side (or its area the cap): on a grid of a few cells the filter cannot tell
+        # the target from its surroundings (a 12 x 9 px target on 4 px cells is lost in frames)
+        resample = min(fit, max(c.min_patch_side / min(patch_w, patch_h), 1.0))
         cols = max(round(patch_w * resample / c.cell_size), 2)
         rows = max(round(patch_h * resample / c.cell_size), 2)
         # Keep the resampling isotropic: the patch in the image is exactly the model grid scaled.
