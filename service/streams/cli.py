@@ -117,12 +117,12 @@ def _publish(args: argparse.Namespace) -> int:
 def _subscribe(args: argparse.Namespace) -> int:
     from service.streams.tools import current_tracks, follow_tracks, reach_tracker
 
-    try:
-        if args.output:
+    if args.output:
+        try:
             output_file(args.output)
-    except OSError as error:
-        print(f"vtrack subscribe: {error}", file=sys.stderr)
-        return 2
+        except OSError as error:
+            print(f"vtrack subscribe: {error}", file=sys.stderr)
+            return 2
     opened = _session(args, "subscribe")
     if opened is None:
         return 1
