@@ -140,8 +140,8 @@ def _analyze(args: argparse.Namespace) -> int:
         return 2
     resources = PipelineResources(dpm_model=args.dpm_model, color_names=args.w2c)
     try:
-        output_folder(args.out_dir)
         source = open_frames(args.source)
+        output_folder(args.out_dir)  # before the work, not after it
     except (OSError, FrameSourceError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
