@@ -7,6 +7,7 @@ requeued and the worker processes start in the lifespan, and stop with it.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -14,8 +15,10 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from starlette.concurrency import run_in_threadpool
 
 from service.deps import TOKEN_MISSING, token_accepted
+from service.jobs.housekeeping import sweep
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
 from service.jobs.submit import resources
@@ -38,14 +41,14 @@ Or track cameras live: frames published on Zenoh in, tracks published back as th
 """
 
 
-def _sweep_uploads(settings: Settings, store: JobStore) -> None:
-    """Delete upload files that no job owns (an upload interrupted by a crash)."""
-    if not settings.uploads_dir.is_dir():
-        return
-    for path in settings.uploads_dir.iterdir():
-        job_id = path.name.split(".", 1)[0]
-        if store.get(job_id) is None:
-            path.unlink(missing_ok=True)
+async def _keep_house(settings: Settings, store: JobStore) -> None:
+    """Sweep every ``housekeeping_interval`` seconds until cancelled (service.jobs.housekeeping)."""
+    while True:
+        await asyncio.sleep(settings.housekeeping_interval)
+        try:
+            await run_in_threadpool(sweep, settings, store)
+        except Exception:  # a full disk or a locked file must not end the sweeps
+            log.exception("housekeeping failed; trying again later")
 
 
 @asynccontextmanager
@@ -64,7 +67,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
             len(requeued),
             len(failed),
         )
-    _sweep_uploads(settings, store)
+    sweep(settings, store, orphans=True)
     config = WorkerConfig(
         database_path=settings.database_path,
         poll_interval=settings.poll_interval,
@@ -92,9 +95,11 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.streams = streams
     app.state.registry = make_registry(store, pool, streams)
     log.info("data in %s; %d workers", settings.data_dir.resolve(), settings.workers)
+    housekeeping = asyncio.create_task(_keep_house(settings, store))
     try:
         yield
     finally:
+        housekeeping.cancel()
         streams.shutdown()
         pool.stop()
         store.close()

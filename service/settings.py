@@ -56,6 +56,18 @@ class Settings(BaseSettings):
         ge=1,
         description="Times a job is started (again after a service restart) before it is failed.",
     )
+    retention_hours: float | None = Field(
+        default=None,
+        gt=0,
+        description="Finished jobs (succeeded, failed, cancelled) are deleted with their results "
+        "this many hours after they finished; unset: kept until DELETE /v1/jobs/{id}.",
+    )
+    housekeeping_interval: float = Field(
+        default=60.0,
+        gt=0,
+        le=3600,
+        description="Seconds between sweeps that remove finished jobs' uploads and expired jobs.",
+    )
     api_token: SecretStr | None = Field(
         default=None,
         description="When set, every endpoint but /healthz and /readyz needs "

@@ -152,6 +152,17 @@ class JobStore:
     def running(self) -> list[JobRecord]:
         return self.list(limit=1_000_000, state=JobState.running)
 
+    def finished_before(self, cutoff: float) -> list[JobRecord]:
+        """Jobs that finished (succeeded, failed, cancelled) before ``cutoff`` (epoch seconds)."""
+        ended = [state.value for state in JobState if state.finished]
+        marks = ", ".join("?" * len(ended))
+        with self._lock:
+            rows = self._db.execute(
+                f"SELECT * FROM jobs WHERE state IN ({marks}) AND finished_at < ?",
+                (*ended, cutoff),
+            ).fetchall()
+        return [JobRecord.from_row(row) for row in rows]
+
     def counts_by_state(self) -> dict[JobState, int]:
         with self._lock:
             rows = self._db.execute("SELECT state, COUNT(*) FROM jobs GROUP BY state").fetchall()

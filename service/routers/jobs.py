@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import shutil
 import time
 from typing import Annotated
 
@@ -13,6 +12,7 @@ from fastapi.responses import FileResponse, StreamingResponse
 from api_schemas.common import ErrorResponse
 from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFormat
 from service.deps import AuthDep, SettingsDep, StoreDep
+from service.jobs.housekeeping import remove_job
 from service.jobs.store import JobRecord, JobStore
 from service.jobs.submit import submit
 from service.jobs.views import events_url, job_status, progress_event, status_url
@@ -189,10 +189,7 @@ async def job_events(job_id: str, request: Request, store: StoreDep) -> Streamin
 def delete_job(job_id: str, store: StoreDep, settings: SettingsDep) -> Response:
     record = _job(store, job_id)
     if record.state.finished:
-        store.delete(job_id)
-        record.video_path.unlink(missing_ok=True)
-        if record.result_dir.resolve().is_relative_to(settings.results_dir.resolve()):
-            shutil.rmtree(record.result_dir, ignore_errors=True)
+        remove_job(settings, store, record)
         return Response(status_code=status.HTTP_204_NO_CONTENT)
     new_state = store.request_cancel(job_id)
     updated = _job(store, job_id)

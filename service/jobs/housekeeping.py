@@ -1,0 +1,60 @@
+"""What finished jobs no longer need goes away, so a long-running service does not fill its disk.
+
+- A finished job (succeeded, failed or cancelled) never reads its video again: its upload is
+  removed; its results stay.
+- With ``VTRACK_RETENTION_HOURS``, a job that finished longer ago than that is deleted with its
+  results, as ``DELETE /v1/jobs/{id}`` deletes it.
+- When the service starts, uploads that no job owns (an upload cut by a crash) are removed too.
+  Only then: while the service runs, an upload exists a moment before its job does.
+
+The service sweeps when it starts and then every ``VTRACK_HOUSEKEEPING_INTERVAL`` seconds.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import time
+from dataclasses import dataclass
+
+from service.jobs.store import JobRecord, JobStore
+from service.settings import Settings
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class Swept:
+    """What one sweep removed."""
+
+    uploads: int = 0
+    jobs: int = 0
+
+
+def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
+    """Delete a finished job with its upload and results."""
+    store.delete(record.id)
+    record.video_path.unlink(missing_ok=True)
+    # a result folder outside this service's (a moved data folder) is not ours to remove
+    if record.result_dir.resolve().is_relative_to(settings.results_dir.resolve()):
+        shutil.rmtree(record.result_dir, ignore_errors=True)
+
+
+def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swept:
+    """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
+    that no job owns (only safe before uploads are accepted)."""
+    jobs = 0
+    if settings.retention_hours is not None:
+        for record in store.finished_before(time.time() - settings.retention_hours * 3600):
+            remove_job(settings, store, record)
+            jobs += 1
+    uploads = 0
+    if settings.uploads_dir.is_dir():
+        for path in settings.uploads_dir.iterdir():
+            record = store.get(path.name.split(".", 1)[0])
+            if (record is None and orphans) or (record is not None and record.state.finished):
+                path.unlink(missing_ok=True)
+                uploads += 1
+    if uploads or jobs:
+        log.info("housekeeping: %d uploads and %d expired jobs removed", uploads, jobs)
+    return Swept(uploads, jobs)

@@ -1,0 +1,52 @@
+"""A long-running service does not fill its disk: finished jobs' uploads go, and with a retention
+the jobs themselves (a real server, real files)."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.service.conftest import FAST_OPTIONS, submit, wait_for, wait_for_state
+
+pytestmark = pytest.mark.slow
+
+
+def _files(folder) -> list[str]:
+    return sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+
+
+def test_a_finished_jobs_upload_is_removed_and_its_results_stay(make_server, pets_short):
+    server = make_server(workers=1, housekeeping_interval=0.3)
+    uploads = server.data_dir / "uploads"
+    with server.client() as client:
+        job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        assert wait_for_state(client, job_id, ("succeeded", "failed"))["state"] == "succeeded"
+        wait_for(lambda: not _files(uploads), 10, "the finished job's upload to be removed")
+        assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
+        assert client.delete(f"/v1/jobs/{job_id}").status_code == 204  # no upload to remove
+
+
+def test_jobs_past_the_retention_are_deleted_with_their_results(make_server, pets_short):
+    # 0.0005 h = 1.8 s after they finished
+    server = make_server(workers=1, housekeeping_interval=0.3, retention_hours=0.0005)
+    with server.client() as client:
+        job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        assert wait_for_state(client, job_id, ("succeeded", "failed"))["state"] == "succeeded"
+        assert client.get(f"/v1/jobs/{job_id}/result").status_code == 200  # kept a while
+        wait_for(
+            lambda: client.get(f"/v1/jobs/{job_id}").status_code == 404, 20, "the job to expire"
+        )
+    assert not _files(server.data_dir / "results") and not _files(server.data_dir / "uploads")
+
+
+def test_at_start_uploads_no_job_owns_are_removed(make_server, pets_short):
+    first = make_server(workers=1)
+    with first.client() as client:
+        job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        wait_for_state(client, job_id, ("succeeded", "failed"))
+    first.stop()
+    uploads = first.data_dir / "uploads"
+    (uploads / "0123abcd.receiving").write_bytes(b"half an upload, cut by a crash")
+    second = make_server(data_dir=first.data_dir, workers=1)
+    assert not _files(uploads)  # swept before the service answers
+    with second.client() as client:
+        assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
