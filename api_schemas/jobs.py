@@ -206,9 +206,13 @@ class JobCreated(BaseModel):
 
 
 class JobList(BaseModel):
-    """Jobs, newest first."""
+    """Jobs, newest first, one page at a time."""
 
     jobs: list[JobStatus]
+    next: str | None = Field(
+        default=None,
+        description="The next page (older jobs, same filter and limit); null on the last page.",
+    )
 
 
 class ProgressEvent(BaseModel):

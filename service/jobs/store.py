@@ -138,14 +138,31 @@ class JobStore:
             row = self._db.execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
         return JobRecord.from_row(row) if row else None
 
-    def list(self, limit: int = 100, state: JobState | None = None) -> list[JobRecord]:
-        query = "SELECT * FROM jobs"
-        args: tuple[Any, ...] = ()
+    def list(
+        self, limit: int = 100, state: JobState | None = None, before: str | None = None
+    ) -> list[JobRecord]:
+        """Newest first; with ``before``, only jobs older than that job (a page after it).
+
+        Raises
+        ------
+        KeyError
+            ``before`` names no job.
+        """
+        where, args = [], []
         if state is not None:
-            query += " WHERE state = ?"
-            args = (state.value,)
-        query += " ORDER BY created_at DESC, rowid DESC LIMIT ?"
+            where.append("state = ?")
+            args.append(state.value)
         with self._lock:
+            if before is not None:
+                row = self._db.execute(
+                    "SELECT created_at, rowid FROM jobs WHERE id = ?", (before,)
+                ).fetchone()
+                if row is None:
+                    raise KeyError(before)
+                where.append("(created_at < ? OR (created_at = ? AND rowid < ?))")
+                args += [row[0], row[0], row[1]]
+            query = "SELECT * FROM jobs" + (" WHERE " + " AND ".join(where) if where else "")
+            query += " ORDER BY created_at DESC, rowid DESC LIMIT ?"
             rows = self._db.execute(query, (*args, limit)).fetchall()
         return [JobRecord.from_row(row) for row in rows]
 

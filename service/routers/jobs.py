@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import time
 from typing import Annotated
+from urllib.parse import urlencode
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.responses import FileResponse, StreamingResponse
@@ -15,7 +16,7 @@ from service.deps import AuthDep, SettingsDep, StoreDep
 from service.jobs.housekeeping import remove_job
 from service.jobs.store import JobRecord, JobStore
 from service.jobs.submit import submit
-from service.jobs.views import events_url, job_status, progress_event, status_url
+from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
 from service.outputs.base import MEDIA_TYPES
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
@@ -85,13 +86,29 @@ async def create_job(
     )
 
 
-@router.get("", summary="Jobs, newest first")
+@router.get("", summary="Jobs, newest first, a page at a time", responses=_ERRORS)
 def list_jobs(
     store: StoreDep,
     state: Annotated[JobState | None, Query(description="Only jobs in this state.")] = None,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+    limit: Annotated[int, Query(ge=1, le=1000, description="Jobs per page.")] = 100,
+    before: Annotated[
+        str | None, Query(description="Only jobs older than this one: the `next` link's cursor.")
+    ] = None,
 ) -> JobList:
-    return JobList(jobs=[job_status(r) for r in store.list(limit=limit, state=state)])
+    try:
+        records = store.list(limit=limit + 1, state=state, before=before)
+    except KeyError:
+        raise HTTPException(
+            status.HTTP_404_NOT_FOUND,
+            f"no job {before!r} to page from: it was deleted since the previous page; start "
+            "again from the newest (GET /v1/jobs)",
+        ) from None
+    page = records[:limit]
+    following = None
+    if len(records) > limit:
+        query = {"limit": limit, "before": page[-1].id} | ({"state": state.value} if state else {})
+        following = f"{API_PREFIX}?{urlencode(query)}"
+    return JobList(jobs=[job_status(r) for r in page], next=following)
 
 
 @router.get("/{job_id}", summary="A job's state and progress", responses=_ERRORS)

@@ -221,6 +221,27 @@ def test_three_uploads_at_once(client, pets_short):
     } >= set(ids)
 
 
+def test_jobs_are_listed_a_page_at_a_time(client, pets_short):
+    ids = [submit(client, pets_short, FAST_OPTIONS).json()["id"] for _ in range(3)]
+    for job_id in ids:  # beside the other tests' jobs
+        assert wait_for_state(client, job_id, ("succeeded", "failed"))["state"] == "succeeded"
+    listed = client.get("/v1/jobs", params={"limit": 1000}).json()
+    everything = [job["id"] for job in listed["jobs"]]
+    paged, url, pages = [], "/v1/jobs?limit=2", 0
+    while url is not None:
+        page = client.get(url).json()
+        assert 1 <= len(page["jobs"]) <= 2
+        paged += [job["id"] for job in page["jobs"]]
+        url, pages = page["next"], pages + 1
+    assert paged == everything and pages == (len(everything) + 1) // 2  # newest first, once each
+    first = client.get("/v1/jobs", params={"limit": 1, "state": "succeeded"}).json()
+    second = client.get(first["next"]).json()  # the filter carries over
+    assert "state=succeeded" in first["next"] and second["jobs"][0]["state"] == "succeeded"
+    assert second["jobs"][0]["id"] != first["jobs"][0]["id"]
+    gone = client.get("/v1/jobs", params={"before": "no-such-job"})
+    assert gone.status_code == 404 and "start again from the newest" in gone.json()["detail"]
+
+
 def test_unfinished_job_has_no_result_yet_and_can_be_cancelled_then_deleted(client, pets_cut):
     job_id = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
     early = client.get(f"/v1/jobs/{job_id}/result", params={"format": "json"})
