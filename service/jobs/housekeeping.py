@@ -4,8 +4,9 @@
   removed; its results stay.
 - With ``VTRACK_RETENTION_HOURS``, a job that finished longer ago than that is deleted with its
   results, as ``DELETE /v1/jobs/{id}`` deletes it.
-- When the service starts, uploads that no job owns (an upload cut by a crash) are removed too.
-  Only then: while the service runs, an upload exists a moment before its job does.
+- When the service starts, uploads and result folders that no job owns (an upload cut by a
+  crash, a deletion cut between the job and its files) are removed too. Only then: while the
+  service runs, an upload exists a moment before its job does.
 
 The service sweeps when it starts and then every ``VTRACK_HOUSEKEEPING_INTERVAL`` seconds.
 """
@@ -42,7 +43,7 @@ def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
 
 def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swept:
     """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
-    that no job owns (only safe before uploads are accepted)."""
+    and result folders that no job owns (only safe before uploads are accepted)."""
     jobs = 0
     if settings.retention_hours is not None:
         for record in store.finished_before(time.time() - settings.retention_hours * 3600):
@@ -55,6 +56,10 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
             if (record is None and orphans) or (record is not None and record.state.finished):
                 path.unlink(missing_ok=True)
                 uploads += 1
+    if orphans and settings.results_dir.is_dir():
+        for folder in settings.results_dir.iterdir():
+            if folder.is_dir() and store.get(folder.name) is None:
+                shutil.rmtree(folder, ignore_errors=True)
     if uploads or jobs:
         log.info("housekeeping: %d uploads and %d expired jobs removed", uploads, jobs)
     return Swept(uploads, jobs)

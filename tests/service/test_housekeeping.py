@@ -38,7 +38,7 @@ def test_jobs_past_the_retention_are_deleted_with_their_results(make_server, pet
     assert not _files(server.data_dir / "results") and not _files(server.data_dir / "uploads")
 
 
-def test_at_start_uploads_no_job_owns_are_removed(make_server, pets_short):
+def test_at_start_files_no_job_owns_are_removed(make_server, pets_short):
     first = make_server(workers=1)
     with first.client() as client:
         job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
@@ -46,7 +46,10 @@ def test_at_start_uploads_no_job_owns_are_removed(make_server, pets_short):
     first.stop()
     uploads = first.data_dir / "uploads"
     (uploads / "0123abcd.receiving").write_bytes(b"half an upload, cut by a crash")
+    results = first.data_dir / "results"
+    (results / "0123abcd").mkdir()  # a deletion cut between the job and its files
+    (results / "0123abcd" / "trajectories.json").write_text("{}")
     second = make_server(data_dir=first.data_dir, workers=1)
-    assert not _files(uploads)  # swept before the service answers
+    assert not _files(uploads) and _files(results) == [job_id]  # swept before it answers
     with second.client() as client:
         assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
