@@ -7,7 +7,6 @@ requeued and the worker processes start in the lifespan, and stop with it.
 
 from __future__ import annotations
 
-import asyncio
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -15,10 +14,9 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from starlette.concurrency import run_in_threadpool
 
 from service.deps import TOKEN_MISSING, token_accepted
-from service.jobs.housekeeping import sweep
+from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
 from service.jobs.submit import resources
@@ -39,16 +37,6 @@ text and an annotated MP4. Jobs run in worker processes and survive a restart of
 Or track cameras live: frames published on Zenoh in, tracks published back as they are computed
 (`/v1/streams`).
 """
-
-
-async def _keep_house(settings: Settings, store: JobStore) -> None:
-    """Sweep every ``housekeeping_interval`` seconds until cancelled (service.jobs.housekeeping)."""
-    while True:
-        await asyncio.sleep(settings.housekeeping_interval)
-        try:
-            await run_in_threadpool(sweep, settings, store)
-        except Exception:  # a full disk or a locked file must not end the sweeps
-            log.exception("housekeeping failed; trying again later")
 
 
 @asynccontextmanager
@@ -95,11 +83,12 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.streams = streams
     app.state.registry = make_registry(store, pool, streams)
     log.info("data in %s; %d workers", settings.data_dir.resolve(), settings.workers)
-    housekeeping = asyncio.create_task(_keep_house(settings, store))
+    housekeeper = Housekeeper(settings, store)
+    housekeeper.start()
     try:
         yield
     finally:
-        housekeeping.cancel()
+        housekeeper.stop()
         streams.shutdown()
         pool.stop()
         store.close()

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import shutil
+import threading
 import time
 from dataclasses import dataclass
 
@@ -63,3 +64,31 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
     if uploads or jobs:
         log.info("housekeeping: %d uploads and %d expired jobs removed", uploads, jobs)
     return Swept(uploads, jobs)
+
+
+class Housekeeper:
+    """:func:`sweep` on a thread of its own every ``settings.housekeeping_interval`` seconds.
+
+    A thread, not a task on the event loop: :meth:`stop` waits for a sweep in progress, so the
+    service never closes the store under one.
+    """
+
+    def __init__(self, settings: Settings, store: JobStore) -> None:
+        self._settings = settings
+        self._store = store
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="vtrack-housekeeping", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stopping.set()
+        self._thread.join()
+
+    def _run(self) -> None:
+        while not self._stopping.wait(self._settings.housekeeping_interval):
+            try:
+                sweep(self._settings, self._store)
+            except Exception:  # a full disk or a locked file must not end the sweeps
+                log.exception("housekeeping failed; trying again later")
