@@ -63,8 +63,9 @@ class DetectorOptions(BaseModel):
         le=4,
         description="Enlarge frames by this factor before detecting. Embedded detector: "
         "people smaller than about 80 px need more than 1.5 (people 40-55 px tall need 2.0), "
-        "at about twice the cost; None: by the frame's height, to about 720 px within "
-        "1.5-2.0 (360 px high: 2.0; 480 px and more: 1.5). DPM: it finds people down to "
+        "at about twice the cost; None: by the frame's height, 1.5 moved to keep the enlarged "
+        "frame 720-1080 px high, at most 2.0 (360 px high: 2.0; 480-720 px: 1.5; 1080 px: "
+        "1.0; 2160 px: 0.5). DPM: it finds people down to "
         "about 60 px / upscale tall; None: 1.",
     )
 

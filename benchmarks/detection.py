@@ -3,7 +3,7 @@
     python benchmarks/detection.py [--data DIR] [--sequences NAME_OR_DIR ...] [--step N]
                                    [--detectors a,b,...] [--json] [--picture PNG] [--plot PNG]
                                    [--timing-frames N] [--repeats N] [--workers N]
-                                   [--no-timing] [--no-accuracy]
+                                   [--height H] [--no-timing] [--no-accuracy]
 
 Accuracy, on every ``step``-th frame of each MOTChallenge sequence (default: PETS09-S2L1 and
 TUD-Stadtmitte under ``<repo>/../shared/data/mot``; the same frames for every detector). The
@@ -34,11 +34,18 @@ up to three ground-truth people per frame (centre +- 0.25 of its height; window 
 ("wide", 6 pyramid levels) or 0.9..1.1 ("narrow", 3 levels) of its height: the spread a particle
 filter searches).
 
+``--height H`` resizes every frame (and its ground truth and public detections) to ``H`` pixels
+high: the same scene as a camera of that resolution shows it, for the automatic enlargement of
+the embedded default (``HogPeopleConfig.upscale_for``) and the cost of larger frames. Speed is
+then measured on the resized frames.
+
 DPM variants are named ``dpm-<model>[@upscale][:levels per octave][>min height][+exact]``, e.g.
 ``dpm-inria`` (the voc-release5 defaults with the star cascade), ``dpm-inria+exact`` (every root
 scored exactly), ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave) or
 ``dpm-inria>128`` (only windows at least 128 pixels tall, the height of OpenCV's HOG window).
-``opencv-hog`` runs OpenCV's HOG at 1.5x, ``opencv-hog@<upscale>`` at another scale.
+``default`` is the embedded detector with its enlargement chosen by the frame's height,
+``default@<upscale>`` the same at a fixed enlargement. ``opencv-hog`` runs OpenCV's HOG at 1.5x,
+``opencv-hog@<upscale>`` at another scale.
 
 The machine may be shared; timings are medians. ``--workers`` sets the DPM's level threads; with
 more than one the script runs BLAS single-threaded (set before numpy loads) so the two do not
@@ -116,6 +123,38 @@ ROI_HEIGHTS = {  # window heights searched, as fractions of the person's height
 Detect = Callable[[np.ndarray, int], tuple[np.ndarray, np.ndarray]]
 
 
+# --------------------------------------------------------------------------------- data
+@dataclasses.dataclass
+class Sequence:
+    """A MOTChallenge sequence as the benchmark reads it: frames, ground truth and the public
+    detections, all resized by ``scale`` (``--height``)."""
+
+    source: MotSequence
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        self.name = self.source.name
+        self.gt = {i: boxes * self.scale for i, boxes in self.source.gt.items()}
+        self._public: MotDetections | None = None
+
+    def __len__(self) -> int:
+        return len(self.source)
+
+    def read_frame(self, index: int) -> np.ndarray:
+        frame = self.source.read_frame(index)
+        if self.scale == 1.0:
+            return frame
+        size = (round(frame.shape[1] * self.scale), round(frame.shape[0] * self.scale))
+        return cv2.resize(frame, size, interpolation=cv2.INTER_LINEAR)
+
+    def public(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """The public ``det/det.txt`` boxes and scores of a 0-based frame."""
+        if self._public is None:
+            self._public = MotDetections.from_file(self.source.detections_file)
+        d = self._public.for_frame(index)
+        return d.boxes * self.scale, d.scores
+
+
 # --------------------------------------------------------------------------------- detectors
 @dataclasses.dataclass
 class Entry:
@@ -190,9 +229,9 @@ def _positive(text: str, name: str, form: str) -> float:
     return value
 
 
-def _hog_upscale(name: str) -> float:
-    """The scale of ``opencv-hog@<upscale>``."""
-    return _positive(name.removeprefix("opencv-hog@"), name, "opencv-hog@<upscale>")
+def _upscale(name: str, detector: str) -> float:
+    """The scale of ``<detector>@<upscale>``."""
+    return _positive(name.removeprefix(f"{detector}@"), name, f"{detector}@<upscale>")
 
 
 def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry]:
@@ -221,18 +260,20 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
                 upscale,
                 dpm=detector,
             )
-        elif name == "default":
-            detector = HogPeopleDetector(HogPeopleConfig(hit_threshold=-0.5))
+        elif name == "default" or name.startswith("default@"):
+            fixed = None if name == "default" else _upscale(name, "default")
+            detector = HogPeopleDetector(HogPeopleConfig(hit_threshold=-0.5, upscale=fixed))
 
             def detect(frame: np.ndarray, index: int, d: HogPeopleDetector = detector) -> tuple:
                 result = d.detect(frame)
                 return result.boxes, result.scores
 
+            scale = "by frame height" if fixed is None else f"{fixed:g}x"
             entries[name] = Entry(
-                name, "embedded default (OpenCV HOG 1.5x, our NMS, SVM >= -0.5)", detect, 1.5
+                name, f"embedded default (OpenCV HOG {scale}, our NMS, SVM >= -0.5)", detect
             )
         elif name == "opencv-hog" or name.startswith("opencv-hog@"):
-            upscale = PEER_UPSCALE if name == "opencv-hog" else _hog_upscale(name)
+            upscale = PEER_UPSCALE if name == "opencv-hog" else _upscale(name, "opencv-hog")
             entries[name] = Entry(
                 name,
                 f"OpenCV HOG detectMultiScale defaults at {upscale:g}x (peer)",
@@ -249,18 +290,14 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
 
 
 # --------------------------------------------------------------------------------- accuracy
-def evaluate(
-    entry: Entry, sequence: MotSequence, frames: list[int]
-) -> tuple[DetectionCurve, float]:
+def evaluate(entry: Entry, sequence: Sequence, frames: list[int]) -> tuple[DetectionCurve, float]:
     """Detection curve of ``entry`` on ``frames`` of ``sequence`` and seconds per frame."""
     records = []
     seconds = []
-    public = MotDetections.from_file(sequence.detections_file) if entry.name == "public" else None
     for index in frames:
         gt = sequence.gt[index]
-        if public is not None:
-            d = public.for_frame(index)
-            records.append((d.boxes, d.scores, gt))
+        if entry.name == "public":
+            records.append((*sequence.public(index), gt))
             continue
         frame = sequence.read_frame(index)
         start = time.perf_counter()
@@ -282,11 +319,12 @@ def _median_time(call: Callable[[], object], repeats: int) -> float:
 
 def timing(
     entries: dict[str, Entry],
-    sequences: list[MotSequence],
+    sequences: list[Sequence],
     frames_per_sequence: int,
     repeats: int,
 ) -> dict[str, dict[str, float]]:
-    """Frames (or regions) per second at native resolution; medians over frames and repeats."""
+    """Frames (or regions) per second on the sequences' frames (native resolution unless
+    ``--height``); medians over frames and repeats."""
     out: dict[str, dict[str, float]] = {}
     peers = {f"opencv-hog@{u:g}": _opencv_peer(u) for u in (1.0, PEER_UPSCALE)}
     for entry in entries.values():
@@ -348,7 +386,7 @@ def roi_around(gt: np.ndarray, spread: str = "wide") -> tuple[Box, tuple[float, 
 
 
 # --------------------------------------------------------------------------------- pictures
-def save_picture(detector: DpmDetector, sequence: MotSequence, index: int, path: Path) -> None:
+def save_picture(detector: DpmDetector, sequence: Sequence, index: int, path: Path) -> None:
     """Detections and their part boxes drawn on one frame (palette PNG, kept small)."""
     from PIL import Image  # matplotlib's dependency; only the benchmark draws
 
@@ -409,13 +447,15 @@ def save_plot(curves: dict[str, dict[str, DetectionCurve]], path: Path) -> None:
 
 
 # --------------------------------------------------------------------------------- main
-def _sequences(args: argparse.Namespace) -> list[MotSequence]:
+def _sequences(args: argparse.Namespace) -> list[Sequence]:
     out = []
     for item in args.sequences:
         path = Path(item)
         if not path.is_dir():
             path = args.data / "mot" / item
-        out.append(MotSequence.open(path))
+        source = MotSequence.open(path)
+        height = source.read_frame(0).shape[0]
+        out.append(Sequence(source, args.height / height if args.height else 1.0))
     return out
 
 
@@ -431,6 +471,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=1, help="DPM level threads")
     parser.add_argument(
+        "--height", type=int, help="resize the frames to this height in pixels (default: as is)"
+    )
+    parser.add_argument(
         "--picture",
         type=lambda v: Path(v) if v else None,
         default=DEFAULT_PICTURE,
@@ -443,6 +486,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.step < 1:
         parser.error("--step must be positive")
+    if args.height is not None and args.height < 16:
+        parser.error("--height must be at least 16 pixels")
 
     sequences = _sequences(args)
     entries = build_entries(args, [n.strip() for n in args.detectors.split(",") if n.strip()])
@@ -480,6 +525,7 @@ def main(argv: list[str] | None = None) -> int:
             "ap": "all-points VOC AP (precision envelope), greedy matching by score",
             "miss_rate": "log-average over 9 FPPI points in [1e-2, 1e0] (Dollar et al. 2012)",
             "step": args.step,
+            "height": args.height,
             "roi": {"half_size": ROI_HALF_SIZE, "heights": ROI_HEIGHTS},
             "workers": args.workers,
             "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "default"),

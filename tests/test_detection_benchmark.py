@@ -1,5 +1,5 @@
 """The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``,
-``opencv-hog@<upscale>``)."""
+``opencv-hog@<upscale>``, ``default@<upscale>``) and its resized sequences (``--height``)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -53,12 +54,30 @@ def test_bad_dpm_names_are_refused(detection, name):
         detection.parse_dpm_name(name)
 
 
-def test_hog_names_give_their_scale(detection):
-    assert detection._hog_upscale("opencv-hog@1") == 1.0
-    assert detection._hog_upscale("opencv-hog@2.5") == 2.5
+@pytest.mark.parametrize("detector", ["opencv-hog", "default"])
+def test_hog_names_give_their_scale(detection, detector):
+    assert detection._upscale(f"{detector}@1", detector) == 1.0
+    assert detection._upscale(f"{detector}@2.5", detector) == 2.5
 
 
 @pytest.mark.parametrize("name", ["opencv-hog@", "opencv-hog@x", "opencv-hog@0", "opencv-hog@inf"])
 def test_bad_hog_names_are_refused(detection, name):
     with pytest.raises(SystemExit, match="bad detector name"):
-        detection._hog_upscale(name)
+        detection._upscale(name, "opencv-hog")
+
+
+@pytest.mark.slow
+def test_height_resizes_frames_ground_truth_and_public_detections(detection, shared_data):
+    """``--height 1080``: the PETS09-S2L1 scene as a 1440x1080 camera shows it."""
+    args = detection.argparse.Namespace(sequences=["PETS09-S2L1"], data=shared_data, height=1080)
+    (sequence,) = detection._sequences(args)
+    source = sequence.source
+    assert sequence.scale == pytest.approx(1080 / 576)
+    assert sequence.read_frame(10).shape == (1080, 1440, 3)
+    np.testing.assert_allclose(sequence.gt[10], source.gt[10] * 1080 / 576)
+    public = detection.MotDetections.from_file(source.detections_file).for_frame(10)
+    boxes, scores = sequence.public(10)
+    np.testing.assert_allclose(boxes, public.boxes * 1080 / 576)
+    np.testing.assert_array_equal(scores, public.scores)
+    (native,) = detection._sequences(detection.argparse.Namespace(**{**vars(args), "height": None}))
+    assert native.read_frame(10).shape == (576, 768, 3)

@@ -33,6 +33,16 @@ def test_detects_the_people_of_a_pets_frame(detector, pets):
     assert np.all((found.probabilities >= 0) & (found.probabilities <= 1))
 
 
+@pytest.mark.parametrize("height", [1080, 2160])
+def test_detects_the_people_of_a_large_frame(detector, pets, height):
+    # The same frame as a 1080p or 4K camera would show it: searched at 1080 px high (1.0x and
+    # 0.5x), where its people are 100-190 px tall, well above the window's 96-px person.
+    frame, scale = pets.read_frame(200), height / 576
+    large = cv2.resize(frame, (round(768 * scale), height), interpolation=cv2.INTER_LINEAR)
+    found = detector.detect(large)
+    assert int(match_frame(found.boxes, found.scores, pets.gt[200] * scale).sum()) >= 5
+
+
 def test_dense_scores_agree_with_the_detection(detector, pets, pets_frame):
     gt = pets.gt[0][1]
     x, y, w, h = gt
@@ -76,15 +86,22 @@ def test_bad_config(options):
 
 def test_default_upscale_follows_the_frame_height():
     config = HogPeopleConfig()
-    # 480x360 video: people 40-60 px tall need 2.0; 640x480 and 768x576 keep the fitted 1.5.
+    # 480x360 video: people 40-60 px tall need 2.0; 640x480 and 768x576 keep the fitted 1.5;
+    # frames above 720 px are searched at 1080 px high, so a 4K frame is shrunk, not enlarged.
+    assert config.upscale_for(240) == 2.0
     assert config.upscale_for(360) == 2.0
+    assert config.upscale_for(400) == pytest.approx(1.8)
     assert config.upscale_for(480) == 1.5
     assert config.upscale_for(576) == 1.5
-    assert config.upscale_for(1080) == 1.5
-    assert config.upscale_for(400) == pytest.approx(1.8)
-    assert HogPeopleConfig(upscale=1.0).upscale_for(360) == 1.0
-    with pytest.raises(ValueError, match="auto_range"):
-        HogPeopleConfig(auto_range=(2.0, 1.5))
+    assert config.upscale_for(720) == 1.5
+    assert config.upscale_for(800) == pytest.approx(1.35)
+    assert config.upscale_for(1080) == 1.0
+    assert config.upscale_for(2160) == 0.5
+    assert HogPeopleConfig(upscale=1.0).upscale_for(2160) == 1.0
+    with pytest.raises(ValueError, match="auto_heights"):
+        HogPeopleConfig(auto_heights=(1080.0, 720.0))
+    with pytest.raises(ValueError, match="max_upscale"):
+        HogPeopleConfig(max_upscale=0.0)
 
 
 @pytest.fixture

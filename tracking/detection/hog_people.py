@@ -75,14 +75,20 @@ class HogPeopleConfig:
     upscale:
         Enlarge the frame by this factor first; boxes are mapped back to the frame. ``None``
         (default): by the frame's height, :meth:`upscale_for`.
-    upscaled_height:
-        With ``upscale`` None: the height the frame is enlarged to, the factor kept within
-        ``auto_range``. Surveillance frames show people at sizes that scale with the frame:
-        in the 480x360 PETS video most are 40-60 px tall and need 2.0 (HOTA of the service
-        pipeline 39.1 at 2.0 against 21.9 at 1.5, docs/benchmarks.md), while 1.5 serves the
-        768x576 and 640x480 sequences the calibration was fitted on.
-    auto_range:
-        Smallest and largest automatic factor.
+    auto_upscale:
+        With ``upscale`` None: the factor to start from, 1.5, at which the calibration and
+        ``box_scale`` were fitted (768x576 and 640x480 sequences).
+    auto_heights:
+        With ``upscale`` None: the range the enlarged frame's height is kept in, by moving
+        the factor off ``auto_upscale``. Surveillance frames show people at sizes that scale
+        with the frame: in the 480x360 PETS video most are 40-60 px tall and need 2.0 (720
+        px; HOTA of the service pipeline 39.1 at 2.0 against 21.9 at 1.5,
+        docs/benchmarks.md), while in a 1080-px frame the people that need 1.5 (under about
+        90 px) are under a twelfth of its height, and the enlarged frame costs 2.5 times as
+        much (on PETS09-S2L1 and TUD-Stadtmitte resized to 1080 px, 1.0 matched 1.5's
+        detection AP and tracking HOTA: docs/benchmarks.md).
+    max_upscale:
+        The largest automatic factor, 2.0: below 360 px high, frames stay under 720 px.
     hit_threshold:
         Raw SVM score a window must exceed (OpenCV's ``hitThreshold``, default 0).
     win_stride:
@@ -105,8 +111,9 @@ class HogPeopleConfig:
     """
 
     upscale: float | None = None
-    upscaled_height: float = 720.0
-    auto_range: tuple[float, float] = (1.5, 2.0)
+    auto_upscale: float = 1.5
+    auto_heights: tuple[float, float] = (720.0, 1080.0)
+    max_upscale: float = 2.0
     hit_threshold: float = 0.0
     win_stride: int = 8
     scale_step: float = 1.1
@@ -118,10 +125,13 @@ class HogPeopleConfig:
     def __post_init__(self) -> None:
         if self.upscale is not None and not (math.isfinite(self.upscale) and self.upscale > 0):
             raise ValueError(f"upscale must be a positive number, got {self.upscale}")
-        if not (math.isfinite(self.upscaled_height) and self.upscaled_height > 0):
-            raise ValueError(f"upscaled_height must be positive, got {self.upscaled_height}")
-        if not 0 < self.auto_range[0] <= self.auto_range[1]:
-            raise ValueError(f"auto_range must be 0 < low <= high, got {self.auto_range}")
+        for name in ("auto_upscale", "max_upscale"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value}")
+        low, high = self.auto_heights
+        if not (0 < low <= high < math.inf):
+            raise ValueError(f"auto_heights must be 0 < low <= high, got {self.auto_heights}")
         if not math.isfinite(self.hit_threshold):
             raise ValueError(f"hit_threshold must be finite, got {self.hit_threshold}")
         if not is_int(self.win_stride) or self.win_stride < 1:
@@ -140,12 +150,13 @@ class HogPeopleConfig:
 
     def upscale_for(self, frame_height: int) -> float:
         """The enlargement of a frame ``frame_height`` pixels high: ``upscale`` if set, else
-        ``upscaled_height / frame_height`` within ``auto_range`` (360 px: 2.0; 480 and more:
-        1.5)."""
+        ``auto_upscale`` moved just enough to bring the enlarged height into ``auto_heights``,
+        at most ``max_upscale`` (360 px: 2.0; 480-720 px: 1.5; 1080 px: 1.0; 2160 px: 0.5)."""
         if self.upscale is not None:
             return self.upscale
-        low, high = self.auto_range
-        return min(max(self.upscaled_height / max(frame_height, 1), low), high)
+        height = max(frame_height, 1)
+        low, high = self.auto_heights
+        return min(max(self.auto_upscale, low / height), high / height, self.max_upscale)
 
 
 @dataclass(slots=True)
