@@ -161,6 +161,7 @@ class StreamWorker:
         self._last_arrival: float | None = None  # time.monotonic()
         self._last_frame_wall: float | None = None
         self._last_timestamp: float | None = None
+        self._frame_size: tuple[int, int] | None = None  # (width, height) of this run's frames
         self._id_offset = 0
         self._max_id = 0
         self._current_json: bytes | None = None  # the latest tracks message
@@ -261,6 +262,7 @@ class StreamWorker:
         self._pipeline = self._new_pipeline()
         self._id_offset = self._max_id
         self._last_timestamp = None
+        self._frame_size = None
         self._current_json = None
         self._restarts += 1
 
@@ -292,6 +294,15 @@ class StreamWorker:
                 f"frame {attachment.sequence} is stamped {attachment.timestamp:.3f}, before the "
                 f"previous frame ({self._last_timestamp:.3f}): the camera started over"
             )
+        size = (image.shape[1], image.shape[0])
+        if self._frame_size is not None and size != self._frame_size:
+            # A new geometry: positions and appearance models no longer apply, and a
+            # recording holds frames of one size.
+            self._restart(
+                f"frame {attachment.sequence} is {size[0]}x{size[1]}, the frames before it "
+                f"{self._frame_size[0]}x{self._frame_size[1]}: the camera changed resolution"
+            )
+        self._frame_size = size
         detections, source = self._detections_for(attachment.sequence)
         assert self._pipeline is not None
         try:

@@ -175,7 +175,8 @@ def test_a_change_of_frame_size_starts_again():
     tracker = MultiPersonTracker(PeopleTrackerConfig(confirm_hits=1))
     assert len(tracker.update(_frame(), 0.0, _detections([[40, 20, 30, 70]]))) == 1
     out = tracker.update(_frame(200, 300), 0.1, _detections([[100, 50, 30, 70]]))
-    assert [t.track_id for t in out] == [1]  # ids start again with the new geometry
+    # the old tracks end (nothing carries over into the new geometry); ids are never reused
+    assert [t.track_id for t in out] == [2]
 
 
 @pytest.mark.parametrize(

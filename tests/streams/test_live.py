@@ -313,6 +313,54 @@ def test_a_camera_that_stops_goes_idle_its_tracks_end_and_it_resumes(
         assert not old_ids & new_ids, "a track of the second run reused an id of the first"
 
 
+def test_a_camera_that_changes_resolution_starts_over_with_new_ids(
+    server, session, pets_frames, public_detections
+):
+    import cv2
+
+    camera = "zoom"
+    keys = StreamKeys("vtrack", camera)
+    large = [cv2.resize(f, (768, 576), interpolation=cv2.INTER_LINEAR) for f in pets_frames[20:40]]
+    with server.client() as client:
+        start_stream(client, session, camera, record=True)
+        follower = Follower(session, keys)
+        # 480x360, then the same scene at 768x576 (where the public detections are native)
+        for frames, scale, first in ((pets_frames[:20], 0.625, 0), (large, 1.0, 20)):
+            publish_frames(
+                session,
+                keys,
+                iter(frames),
+                10.0,
+                detections=public_detections.for_frame,
+                detections_scale=scale,
+                first_sequence=first,
+                wait_for_subscriber=10,
+                block=True,
+            )
+        wait_for(lambda: status(client, camera)["counters"]["frames_in"] == 40, 30, "every frame")
+        wait_for(
+            lambda: any(m.sequence >= 30 and m.tracks for m in follower.received()),
+            30,
+            "tracks of the large frames",
+        )
+        follower.close()
+        final = client.delete(f"/v1/streams/{camera}").json()
+        assert final["counters"]["restarts"] == 1 and final["counters"]["malformed"] == 0
+        messages = follower.received()
+        before = {t.track_id for m in messages if m.sequence < 20 for t in m.tracks}
+        after = [t for m in messages if m.sequence >= 20 for t in m.tracks]
+        assert before and after
+        assert not before & {t.track_id for t in after}, "an id of the small frames came back"
+        # the new tracks live in the new geometry: people of the large frames, 80-180 px tall
+        assert max(t.box.h for t in after) > 80
+        # one recording per frame size
+        assert len(final["recordings"]) == 2
+        for url in final["recordings"]:
+            topics = read_mcap_topics(client.get(url).content)
+            assert topics["/camera/image"] == topics["/tracks"] >= 1
+        assert client.delete(f"/v1/streams/{camera}").status_code == 204
+
+
 def test_upstream_detections_are_used_when_present(server, session, pets_frames, public_detections):
     camera = "upstream"
     keys = StreamKeys("vtrack", camera)

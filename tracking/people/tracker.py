@@ -138,7 +138,9 @@ class MultiPersonTracker:
         Parameters
         ----------
         frame:
-            RGB uint8 ``(H, W, 3)``.
+            RGB uint8 ``(H, W, 3)``. A frame of another size than the previous one ends every
+            track (the geometry changed, e.g. a camera switched resolution); the people found
+            from then on get new ids.
         timestamp:
             Capture time in seconds; must not go backwards.
         detections:
@@ -167,7 +169,10 @@ class MultiPersonTracker:
                 self._frame_shape,
                 frame.shape,
             )
+            # New ids continue from the old ones: an id never names two people.
+            next_id = self._next_id
             self.reset()
+            self._next_id = next_id
         dt = 0.0 if self._last_timestamp is None else timestamp - self._last_timestamp
         self._frame_shape = frame.shape
         self._last_timestamp = timestamp
