@@ -3,32 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from tests.conftest import benchmark_module
 from tracking.detection import DPM_TRACKING_CONFIG, make_detector
 from tracking.people import PeopleTrackerConfig
-
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def mot():
-    sys.path.insert(0, str(BENCHMARKS))  # mot.py imports its sibling _mot_env
-    try:
-        spec = importlib.util.spec_from_file_location("mot_benchmark", BENCHMARKS / "mot.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = module  # its dataclasses look their module up
-        spec.loader.exec_module(module)
+    with benchmark_module("mot") as module:  # it imports its sibling _mot_env
         yield module
-    finally:
-        sys.modules.pop("mot_benchmark", None)
-        sys.path.remove(str(BENCHMARKS))
 
 
 class CountingDetector:

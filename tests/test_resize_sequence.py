@@ -3,25 +3,17 @@ shows it, readable by the same readers as the original."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from tests.conftest import benchmark_module
 from tracking.detection import MotDetections, MotSequence
-
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def resize():
-    spec = importlib.util.spec_from_file_location(
-        "resize_sequence", BENCHMARKS / "resize_sequence.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    with benchmark_module("resize_sequence") as module:
+        yield module
 
 
 @pytest.mark.slow
