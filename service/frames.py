@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -75,10 +76,14 @@ class FrameSource:
         return self.fps if self.fps and self.fps > 0 else DEFAULT_FPS
 
     def timed(self, step: int = 1) -> Iterator[TimedFrame]:
-        """Every ``step``-th frame with its index and timestamp (``index / fps``).
+        """Every ``step``-th frame with its index and timestamp.
 
-        Skipped frames of a video are grabbed, not decoded into RGB, so a larger step is
-        cheaper. A video that stops decoding early (a truncated file) simply ends.
+        A video frame's timestamp is its presentation time in the container, so the frames of
+        a variable-frame-rate video (phones, recorders that drop frames) keep their real
+        spacing; where the container gives none that advances, the previous frame's plus
+        ``1 / fps`` (:func:`_presentation_time`). Image folders: ``index / fps``. Skipped frames
+        of a video are grabbed, not decoded into RGB, so a larger step is cheaper. A video that
+        stops decoding early (a truncated file) simply ends.
         """
         if step < 1:
             raise ValueError(f"step must be >= 1, got {step}")
@@ -89,19 +94,47 @@ class FrameSource:
             return
         capture = cv2.VideoCapture(str(self.path))
         try:
-            index = 0
+            index, clock = 0, _PresentationClock(fps)
             while True:
-                if index % step:
-                    if not capture.grab():
-                        break
-                else:
-                    ok, bgr = capture.read()
-                    if not ok:
-                        break
-                    yield TimedFrame(index, index / fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+                skipped = index % step
+                ok, bgr = (capture.grab(), None) if skipped else capture.read()
+                if not ok:
+                    break
+                seconds = clock.time_of(capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
+                if not skipped:
+                    yield TimedFrame(index, seconds, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
                 index += 1
         finally:
             capture.release()
+
+
+class _PresentationClock:
+    """Timestamps of successive video frames from their presentation times.
+
+    OpenCV reports the presentation time of the frame just read (``CAP_PROP_POS_MSEC``).
+    The first frame is time 0: containers may start later (an H.264 AVI with B-frames puts
+    its first frame at two frame periods). A time that is missing, or not after the previous
+    frame's (damaged timestamps), gives way to the previous one plus ``1 / fps``, so time
+    never stands still or runs backwards.
+    """
+
+    def __init__(self, fps: float) -> None:
+        self._period = 1.0 / fps
+        self._origin: float | None = None
+        self._previous: float | None = None
+
+    def time_of(self, presentation: float) -> float:
+        valid = math.isfinite(presentation)
+        if self._origin is None:
+            self._origin = presentation if valid else 0.0
+            self._previous = 0.0
+            return 0.0
+        seconds = presentation - self._origin if valid else -math.inf
+        assert self._previous is not None
+        if not seconds > self._previous:
+            seconds = self._previous + self._period
+        self._previous = seconds
+        return round(seconds, 6)  # microseconds: drops the float noise of the subtraction
 
 
 def capture_frames(capture: cv2.VideoCapture) -> Iterator[np.ndarray]:
