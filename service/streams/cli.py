@@ -115,7 +115,7 @@ def _publish(args: argparse.Namespace) -> int:
 
 
 def _subscribe(args: argparse.Namespace) -> int:
-    from service.streams.tools import current_tracks, follow_tracks, reach_tracker
+    from service.streams.tools import current_tracks, follow_tracks, reach_tracker, watch_trackers
 
     if args.output:
         try:
@@ -156,6 +156,22 @@ def _subscribe(args: argparse.Namespace) -> int:
             if args.count is not None and received >= args.count:
                 done.set()
 
+    def tell(news: str) -> None:
+        """One stderr line, whole: Zenoh's threads report too."""
+        with lock:
+            sys.stderr.write(f"vtrack subscribe: {news}\n")
+            sys.stderr.flush()
+
+    def tracker_changed(instance: str, alive: bool) -> None:
+        # A consumer that goes quiet should say why: the tracker it listens to went away.
+        if alive:
+            tell(f"camera {args.camera} is tracked by {instance}")
+        else:
+            tell(
+                f"the tracker of camera {args.camera} ({instance}) went away: the stream or "
+                "the service stopped, or the network to it is down; listening on"
+            )
+
     try:
         if args.current:
             message = current_tracks(session, keys)
@@ -165,16 +181,15 @@ def _subscribe(args: argparse.Namespace) -> int:
             show(message, time.time())
             return 0
         subscriber = follow_tracks(session, keys, show)
+        watcher = watch_trackers(session, keys, tracker_changed)
         if not reach_tracker(session, keys, timeout=5.0):
-            print(
-                f"vtrack subscribe: no tracker of camera {args.camera} answers yet (is the "
-                "stream started?); listening anyway",
-                file=sys.stderr,
+            tell(
+                f"no tracker of camera {args.camera} answers yet (is the stream started?); "
+                "listening anyway"
             )
-        print(
-            f"vtrack subscribe: following {keys.tracks} (Ctrl-C stops)", file=sys.stderr, flush=True
-        )
+        tell(f"following {keys.tracks} (Ctrl-C stops)")
         done.wait(args.duration)
+        watcher.undeclare()
         subscriber.undeclare()
     except KeyboardInterrupt:
         pass

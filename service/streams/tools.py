@@ -201,6 +201,21 @@ def reach_tracker(session: zenoh.Session, keys: StreamKeys, timeout: float = 5.0
     return False
 
 
+def watch_trackers(
+    session: zenoh.Session, keys: StreamKeys, changed: Callable[[str, bool], None]
+) -> zenoh.Subscriber:
+    """Call ``changed(instance, alive)`` when a service instance starts or stops tracking the
+    camera, first for those tracking it now. Its liveliness token goes when the stream is
+    stopped, the service stops or dies, or the network to it fails. Undeclare the returned
+    subscriber to stop."""
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        instance = str(sample.key_expr).rsplit("/", 1)[-1]
+        changed(instance, sample.kind == zenoh.SampleKind.PUT)
+
+    return session.liveliness().declare_subscriber(keys.trackers, on_sample, history=True)
+
+
 def trackers_of(session: zenoh.Session, keys: StreamKeys, timeout: float = 1.0) -> list[str]:
     """Instances whose liveliness token says they track this camera (as this session knows)."""
     found = []

@@ -689,6 +689,45 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
         assert untracked.returncode == 0 and "nobody subscribed" in untracked.stderr
 
 
+class StderrLines:
+    """The stderr lines of a running process, gathered by a thread as they come."""
+
+    def __init__(self, process: subprocess.Popen) -> None:
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, args=(process,), daemon=True)
+        self._reader.start()
+
+    def _read(self, process: subprocess.Popen) -> None:
+        for line in process.stderr:
+            self.lines.append(line)
+
+    def has(self, text: str) -> bool:
+        return any(text in line for line in list(self.lines))
+
+
+def test_subscribe_says_when_the_tracker_goes_away(server, session):
+    camera = "leave"
+    with server.client() as client:
+        start_stream(client, session, camera)
+        subscriber = subprocess.Popen(
+            [*VTRACK, "subscribe", "--camera", camera, "--connect", server.zenoh_listen[0]],
+            cwd=REPO_ROOT,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        stderr = StderrLines(subscriber)
+        try:
+            wait_for(lambda: stderr.has("is tracked by"), 30, "the subscriber to see the tracker")
+            assert client.delete(f"/v1/streams/{camera}").status_code == 200
+            wait_for(lambda: stderr.has("went away"), 30, "the subscriber to see it go")
+            assert subscriber.poll() is None, "it listens on for the tracker to come back"
+        finally:
+            subscriber.kill()
+            subscriber.wait()
+        assert client.delete(f"/v1/streams/{camera}").status_code == 204
+
+
 def follow_ready(process: subprocess.Popen) -> bool:
     """True once ``vtrack subscribe`` says it follows (its first stderr line)."""
     assert process.poll() is None, process.stderr.read() if process.stderr else ""
