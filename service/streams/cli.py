@@ -56,8 +56,35 @@ def _session(args: argparse.Namespace, command: str) -> tuple[zenoh.Session, Str
         return None
 
 
+_STDERR = threading.Lock()
+
+
+def _tell(command: str, news: str) -> None:
+    """One whole stderr line (Zenoh's threads report too)."""
+    with _STDERR:
+        sys.stderr.write(f"vtrack {command}: {news}\n")
+        sys.stderr.flush()
+
+
+def _tracker_news(command: str, camera: str, going_on: str) -> Callable[[str, bool], None]:
+    """What ``command`` says when a tracker of ``camera`` comes up or goes away: a camera or a
+    consumer that goes on regardless should say why nothing comes through."""
+
+    def changed(instance: str, alive: bool) -> None:
+        if alive:
+            _tell(command, f"camera {camera} is tracked by {instance}")
+        else:
+            _tell(
+                command,
+                f"the tracker of camera {camera} ({instance}) went away: the stream or the "
+                f"service stopped, or the network to it is down; {going_on}",
+            )
+
+    return changed
+
+
 def _publish(args: argparse.Namespace) -> int:
-    from service.streams.tools import publish_frames, video_frames
+    from service.streams.tools import publish_frames, video_frames, watch_trackers
     from tracking.detection import MotDetections
 
     try:
@@ -74,11 +101,8 @@ def _publish(args: argparse.Namespace) -> int:
     if opened is None:
         return 1
     session, keys = opened
-    print(
-        f"vtrack publish: {args.source} on {keys.frames} at {rate:g} fps (Ctrl-C stops)",
-        file=sys.stderr,
-        flush=True,
-    )
+    _tell("publish", f"{args.source} on {keys.frames} at {rate:g} fps (Ctrl-C stops)")
+    watcher = watch_trackers(session, keys, _tracker_news("publish", args.camera, "sending on"))
     sent = 0
     try:
         while True:
@@ -96,11 +120,10 @@ def _publish(args: argparse.Namespace) -> int:
                 limit=None if args.limit is None else args.limit - sent,
             )
             if report.subscribed is False:
-                print(
-                    f"vtrack publish: nobody subscribed to {keys.frames} within {args.wait:g} s "
-                    "(is a stream started for this camera? POST /v1/streams); frames were sent "
-                    "anyway",
-                    file=sys.stderr,
+                _tell(
+                    "publish",
+                    f"nobody subscribed to {keys.frames} within {args.wait:g} s (is a stream "
+                    "started for this camera? POST /v1/streams); frames were sent anyway",
                 )
             sent += report.frames
             if not args.loop or (args.limit is not None and sent >= args.limit):
@@ -109,8 +132,9 @@ def _publish(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        watcher.undeclare()
         session.close()
-    print(f"vtrack publish: {sent} frames sent", file=sys.stderr)
+    _tell("publish", f"{sent} frames sent")
     return 0
 
 
@@ -156,22 +180,6 @@ def _subscribe(args: argparse.Namespace) -> int:
             if args.count is not None and received >= args.count:
                 done.set()
 
-    def tell(news: str) -> None:
-        """One stderr line, whole: Zenoh's threads report too."""
-        with lock:
-            sys.stderr.write(f"vtrack subscribe: {news}\n")
-            sys.stderr.flush()
-
-    def tracker_changed(instance: str, alive: bool) -> None:
-        # A consumer that goes quiet should say why: the tracker it listens to went away.
-        if alive:
-            tell(f"camera {args.camera} is tracked by {instance}")
-        else:
-            tell(
-                f"the tracker of camera {args.camera} ({instance}) went away: the stream or "
-                "the service stopped, or the network to it is down; listening on"
-            )
-
     try:
         if args.current:
             message = current_tracks(session, keys)
@@ -181,13 +189,16 @@ def _subscribe(args: argparse.Namespace) -> int:
             show(message, time.time())
             return 0
         subscriber = follow_tracks(session, keys, show)
-        watcher = watch_trackers(session, keys, tracker_changed)
+        watcher = watch_trackers(
+            session, keys, _tracker_news("subscribe", args.camera, "listening on")
+        )
         if not reach_tracker(session, keys, timeout=5.0):
-            tell(
+            _tell(
+                "subscribe",
                 f"no tracker of camera {args.camera} answers yet (is the stream started?); "
-                "listening anyway"
+                "listening anyway",
             )
-        tell(f"following {keys.tracks} (Ctrl-C stops)")
+        _tell("subscribe", f"following {keys.tracks} (Ctrl-C stops)")
         done.wait(args.duration)
         watcher.undeclare()
         subscriber.undeclare()

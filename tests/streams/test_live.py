@@ -705,26 +705,39 @@ class StderrLines:
         return any(text in line for line in list(self.lines))
 
 
-def test_subscribe_says_when_the_tracker_goes_away(server, session):
+def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, shared_data):
     camera = "leave"
+    connect = ["--camera", camera, "--connect", server.zenoh_listen[0]]
+    video = str(shared_data / PETS_VIDEO)
+    tools = {
+        "subscribe": [*VTRACK, "subscribe", *connect],
+        "publish": [*VTRACK, "publish", video, "--loop", "--fps", "5", *connect],
+    }
     with server.client() as client:
         start_stream(client, session, camera)
-        subscriber = subprocess.Popen(
-            [*VTRACK, "subscribe", "--camera", camera, "--connect", server.zenoh_listen[0]],
-            cwd=REPO_ROOT,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        stderr = StderrLines(subscriber)
+        running = {
+            name: subprocess.Popen(
+                command,
+                cwd=REPO_ROOT,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            for name, command in tools.items()
+        }
+        stderr = {name: StderrLines(process) for name, process in running.items()}
         try:
-            wait_for(lambda: stderr.has("is tracked by"), 30, "the subscriber to see the tracker")
+            for name, lines in stderr.items():
+                wait_for(lambda s=lines: s.has("is tracked by"), 30, f"{name} to see the tracker")
             assert client.delete(f"/v1/streams/{camera}").status_code == 200
-            wait_for(lambda: stderr.has("went away"), 30, "the subscriber to see it go")
-            assert subscriber.poll() is None, "it listens on for the tracker to come back"
+            for name, lines in stderr.items():
+                wait_for(lambda s=lines: s.has("went away"), 30, f"{name} to see it go")
+            # both go on: the tracker may come back
+            assert all(process.poll() is None for process in running.values())
         finally:
-            subscriber.kill()
-            subscriber.wait()
+            for process in running.values():
+                process.kill()
+                process.wait()
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
 
 
