@@ -227,7 +227,8 @@ def _summary(
     warnings = []
     if source.fps is None:
         warnings.append(
-            f"the video declares no frame rate; timestamps assume {source.timing_fps:g} fps"
+            "the video declares no frame rate; frames without a presentation time of their "
+            f"own are stamped {source.timing_fps:g} per second"
         )
     if source.frame_count and source.frame_count - frames_read >= options.frame_step:
         warnings.append(
