@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -63,6 +64,9 @@ class Server:
         Job worker processes (``--workers``); ``None``: the service's default.
     log_level:
         ``--log-level``. The log goes to ``<data_dir>-server.log`` beside ``data_dir``.
+    file_size_limit:
+        Largest file in bytes the service and its workers may write (``ulimit -f``): beyond
+        it a write fails with ``EFBIG``, as a full disk fails one with ``ENOSPC``.
     **settings:
         Service settings by name, passed as ``VTRACK_<NAME>`` (``api_token="..."``,
         ``zenoh_listen='["tcp/..."]'``...). ``zenoh_listen`` defaults to a free loopback port.
@@ -73,9 +77,11 @@ class Server:
         data_dir: Path,
         workers: int | None = 2,
         log_level: str = "info",
+        file_size_limit: int | None = None,
         **settings: object,
     ) -> None:
         self.data_dir = data_dir
+        self.file_size_limit = file_size_limit
         self.workers = workers
         self.log_level = log_level
         settings.setdefault("zenoh_listen", json.dumps([f"tcp/127.0.0.1:{free_port()}"]))
@@ -112,10 +118,20 @@ class Server:
             command += ["--workers", str(self.workers)]
         with self.log_path.open("a") as log:
             self.process = subprocess.Popen(
-                command, cwd=_REPO_ROOT, env=env, stdout=log, stderr=subprocess.STDOUT
+                command,
+                cwd=_REPO_ROOT,
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                preexec_fn=self._limit_file_size if self.file_size_limit else None,
             )
         wait_for(self._ready, timeout, f"the server on port {self.port} to be ready", 0.1)
         return self
+
+    def _limit_file_size(self) -> None:
+        # Python ignores SIGXFSZ, so a write beyond the limit raises OSError(EFBIG).
+        limit = int(self.file_size_limit or 0)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     def _ready(self) -> bool:
         if self.process is not None and self.process.poll() is not None:

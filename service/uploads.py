@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,8 @@ from fastapi import HTTPException, Request, status
 from python_multipart import MultipartParser
 from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import parse_options_header
+
+from service.storage import storage_problem
 
 log = logging.getLogger(__name__)
 
@@ -150,7 +153,8 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
     ------
     HTTPException
         413 above the size limit, 415 for a body that is not multipart, 422 for a missing
-        ``video`` part, an unexpected part or a malformed body.
+        ``video`` part, an unexpected part or a malformed body, 507 when the data folder
+        cannot take the video (disk full, file-size limit).
     """
     content_type = request.headers.get("content-type", "")
     kind, params = parse_options_header(content_type)
@@ -173,6 +177,7 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
             parser.write(chunk)
             await anyio.to_thread.run_sync(receiver.flush)
         parser.finalize()
+        receiver.close()  # inside: the last buffered bytes may not fit either
     except UploadError as error:
         receiver.close()
         video_path.unlink(missing_ok=True)
@@ -187,11 +192,23 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
             f"the multipart body is malformed ({error}); send multipart/form-data with a "
             "'video' file part",
         ) from None
+    except OSError as error:
+        problem = storage_problem(error)
+        with contextlib.suppress(OSError):  # closing flushes, and may fail the same way
+            receiver.close()
+        video_path.unlink(missing_ok=True)
+        if problem is None:
+            raise
+        await _drain(request)
+        raise HTTPException(
+            status.HTTP_507_INSUFFICIENT_STORAGE,
+            f"{problem}: the upload was not kept; the service's operator must free space in "
+            "its data folder (VTRACK_DATA_DIR), then send the video again",
+        ) from None
     except BaseException:
         receiver.close()
         video_path.unlink(missing_ok=True)
         raise
-    receiver.close()
     if VIDEO_PART not in receiver.seen:
         video_path.unlink(missing_ok=True)
         raise HTTPException(

@@ -20,6 +20,7 @@ from api_schemas.jobs import JobOptions, JobState
 from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
 from service.frames import FrameSourceError
 from service.jobs.store import JobRecord, JobStore
+from service.storage import storage_problem
 from service.worker_processes import ignore_stop_signals
 
 log = logging.getLogger(__name__)
@@ -104,19 +105,25 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         _stopped(store, job, scratch)
         return
     except (FrameSourceError, OptionsError, ValueError) as error:
+        shutil.rmtree(scratch, ignore_errors=True)
         store.finish(job, pid, JobState.failed, error=f"the job could not run: {error}")
         log.warning("job %s: failed: %s", job.id, error)
-        shutil.rmtree(scratch, ignore_errors=True)
         return
     except Exception as error:
-        log.exception("job %s: internal error", job.id)
-        store.finish(
-            job,
-            pid,
-            JobState.failed,
-            error=f"internal error while tracking ({type(error).__name__}: {error})",
-        )
+        # The partial results go first: on a full disk that makes room to record the failure.
         shutil.rmtree(scratch, ignore_errors=True)
+        problem = storage_problem(error)
+        if problem is None:
+            log.exception("job %s: internal error", job.id)
+            message = f"internal error while tracking ({type(error).__name__}: {error})"
+        else:
+            log.error("job %s: failed: %s", job.id, problem)
+            message = (
+                f"{problem} while the results were written; the partial results were removed. "
+                "Free space in the service's data folder (VTRACK_DATA_DIR), then submit the "
+                "job again"
+            )
+        store.finish(job, pid, JobState.failed, error=message)
         return
     fps = result.frames_processed / max(result.seconds, 1e-9)
     if not progress(result.video.frames_read, result.frames_processed, fps):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import sqlite3
 import uuid
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from service.analysis import OptionsError, PipelineResources, check_options
 from service.frames import FrameSource, FrameSourceError, open_frames
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
+from service.storage import storage_problem
 from service.uploads import receive_upload
 
 log = logging.getLogger(__name__)
@@ -88,14 +90,25 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
     except BaseException:
         upload.video_path.unlink(missing_ok=True)
         raise
-    record = store.create(
-        job_id,
-        options.model_dump(mode="json"),
-        video_path=video_path,
-        result_dir=settings.results_dir / job_id,
-        video_filename=upload.filename,
-        frames_total=source.frame_count or None,
-    )
+    try:
+        record = store.create(
+            job_id,
+            options.model_dump(mode="json"),
+            video_path=video_path,
+            result_dir=settings.results_dir / job_id,
+            video_filename=upload.filename,
+            frames_total=source.frame_count or None,
+        )
+    except sqlite3.OperationalError as error:
+        video_path.unlink(missing_ok=True)
+        problem = storage_problem(error)
+        if problem is None:
+            raise
+        raise HTTPException(
+            status.HTTP_507_INSUFFICIENT_STORAGE,
+            f"{problem}: the job was not recorded; the service's operator must free space in "
+            "its data folder (VTRACK_DATA_DIR), then send the video again",
+        ) from None
     log.info(
         "job %s queued: %s, %d bytes, %d frames announced",
         job_id,

@@ -10,7 +10,7 @@ import json
 
 import pytest
 
-from tests.service.conftest import Server, submit, wait_for, wait_for_state
+from tests.service.conftest import PETS_VIDEO, Server, submit, wait_for, wait_for_state
 
 pytestmark = pytest.mark.slow
 
@@ -212,3 +212,31 @@ def test_job_over_the_time_limit_fails_and_the_service_goes_on(client, pets_shor
         return "vtrack_workers_replaced_total 1.0" in metrics and client.get("/readyz").is_success
 
     wait_for(replaced, 30, "a new worker after the time limit")
+
+
+def test_a_full_data_folder_is_reported_and_the_service_goes_on(make_server, shared_data, tmp_path):
+    # The service and its workers may write no file beyond 2 MB (ulimit -f): a write that would
+    # need more fails with EFBIG, as a write to a full disk fails with ENOSPC.
+    server = make_server(workers=1, file_size_limit=2_000_000)
+    video = shared_data / PETS_VIDEO  # 3.1 MB
+    start = _write(tmp_path / "start.avi", video.read_bytes()[:400_000])  # its first 10 s
+    with server.client() as client:
+        refused = submit(client, video, {"formats": ["json"]})
+        assert refused.status_code == 507, refused.text
+        assert "free space" in refused.json()["detail"]
+        assert list((server.data_dir / "uploads").iterdir()) == [], "the partial upload stays"
+
+        # 100 frames as JPEG in an MCAP need about 3.5 MB
+        job = submit(client, start, {"formats": ["mcap"]})
+        assert job.status_code == 202, job.text
+        failed = wait_for_state(client, job.json()["id"], ("succeeded", "failed"))
+        assert failed["state"] == "failed"
+        assert "largest file" in failed["error"] and "submit the job again" in failed["error"]
+        left = (server.data_dir / "results" / failed["id"]).rglob("*")
+        assert [p for p in left if p.is_file()] == [], "the partial results stay"
+
+        # the service goes on: a job whose results fit succeeds, on the same worker
+        job = submit(client, start, {"formats": ["json"]})
+        done = wait_for_state(client, job.json()["id"], ("succeeded", "failed"))
+        assert done["state"] == "succeeded", done["error"]
+        assert "vtrack_workers_replaced_total 0.0" in client.get("/metrics").text
