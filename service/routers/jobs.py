@@ -21,7 +21,7 @@ from service.outputs.base import MEDIA_TYPES
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
 
-_ERRORS = {code: {"model": ErrorResponse} for code in (401, 404, 409, 413, 415, 422)}
+_ERRORS = {code: {"model": ErrorResponse} for code in (401, 404, 409, 413, 415, 422, 507)}
 
 _UPLOAD_BODY = {
     "requestBody": {
