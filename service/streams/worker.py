@@ -31,6 +31,7 @@ from service.convert import track_state
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
 from service.outputs.mcap_out import McapWriter, salvage
+from service.storage import storage_problem
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
     PayloadError,
@@ -171,6 +172,7 @@ class StreamWorker:
         self._recording_path: Path | None = None
         self._segment_start = 0.0  # capture time of the recording's first frame
         self._segment_frames = 0
+        self._recording_resumes: float | None = None  # stream time a paused recording resumes
         self._last_report = 0.0
 
     # -- Zenoh callbacks (Zenoh's threads) ---------------------------------------------------
@@ -263,6 +265,7 @@ class StreamWorker:
         self._id_offset = self._max_id
         self._last_timestamp = None
         self._frame_size = None
+        self._recording_resumes = None  # stream time may start over
         self._current_json = None
         self._restarts += 1
 
@@ -346,6 +349,34 @@ class StreamWorker:
         folder = self.context.recordings_dir
         if not self.spec.record or folder is None:
             return
+        if self._recording_resumes is not None and message.timestamp < self._recording_resumes:
+            return
+        try:
+            self._record_frame(folder, image, message)
+        except OSError as error:
+            self._pause_recording(error, message.timestamp)
+        else:
+            self._recording_resumes = None
+
+    def _pause_recording(self, error: OSError, timestamp: float) -> None:
+        """A recording that cannot be written (a full disk) stops; tracking goes on, and the
+        recording starts again ``record_segment`` seconds of stream time later. What it had
+        written stays as ``.mcap.partial``, finished when a worker next starts."""
+        if self._recorder is not None:
+            self._recorder.abort()
+            self._recorder = None
+        segment = self.spec.record_segment
+        self._recording_resumes = timestamp + segment
+        problem = storage_problem(error) or f"{type(error).__name__}: {error}"
+        reason = (
+            f"recording paused: {problem}; tracking goes on and recording tries again in "
+            f"{segment:g} s"
+        )
+        with self._lock:
+            self._errors.append(reason)
+        log.error("camera %s: %s", self.spec.camera, reason)
+
+    def _record_frame(self, folder: Path, image, message: StreamTracksMessage) -> None:
         if (
             self._recorder is not None
             and message.timestamp - self._segment_start >= self.spec.record_segment
@@ -385,7 +416,11 @@ class StreamWorker:
             frames_read=self._segment_frames,
             frame_step=1,
         )
-        self._recorder.close(RunSummary(video=video, frames_processed=self._segment_frames))
+        try:
+            self._recorder.close(RunSummary(video=video, frames_processed=self._segment_frames))
+        except OSError as error:  # the summary did not fit either
+            self._pause_recording(error, self._last_timestamp or 0.0)
+            return
         os.replace(self._recorder.path, self._recording_path)
         log.info("camera %s: recording saved to %s", self.spec.camera, self._recording_path)
         self._recorder = None

@@ -510,6 +510,32 @@ def test_a_recording_cut_by_a_killed_worker_is_salvaged(server, session, pets_fr
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
 
 
+def test_a_recording_that_cannot_be_written_pauses_and_tracking_goes_on(tmp_path, pets_frames):
+    # The service may write no file beyond 1 MB (ulimit -f), as on a nearly full disk: a
+    # recording of these 480x360 frames reaches that within about 30 frames.
+    server = Server(tmp_path / "data", workers=1, file_size_limit=1_000_000).start()
+    camera = "full"
+    keys = StreamKeys("vtrack", camera)
+    session = member_session(ZenohOptions(listen=server.zenoh_listen))
+    try:
+        with server.client() as client:
+            start_stream(client, session, camera, record=True, record_segment=60.0)
+            publish_frames(session, keys, iter(pets_frames), 10.0, block=True)
+            final = wait_for(
+                lambda: (s := status(client, camera))["counters"]["frames_in"] == 60 and s,
+                60,
+                "every frame",
+            )
+            paused = [e for e in final["errors"] if "recording paused" in e]
+            assert paused and "largest file" in paused[0] and "tracking goes on" in paused[0]
+            assert final["state"] == "running" and final["worker_starts"] == 1
+            assert final["counters"]["frames_processed"] >= 40  # well past the recording's end
+            assert final["tracks"] is not None
+    finally:
+        session.close()
+        server.stop()
+
+
 def read_mcap_topics(data: bytes) -> dict[str, int]:
     import io
 
