@@ -81,7 +81,7 @@ class FrameSource:
         A video frame's timestamp is its presentation time in the container, so the frames of
         a variable-frame-rate video (phones, recorders that drop frames) keep their real
         spacing; where the container gives none that advances, the previous frame's plus
-        ``1 / fps`` (:func:`_presentation_time`). Image folders: ``index / fps``. Skipped frames
+        ``1 / fps`` (:class:`_PresentationClock`). Image folders: ``index / fps``. Skipped frames
         of a video are grabbed, not decoded into RGB, so a larger step is cheaper. A video that
         stops decoding early (a truncated file) simply ends.
         """

@@ -12,6 +12,9 @@ import sqlite3
 
 _FULL = {errno.ENOSPC, errno.EDQUOT}
 
+FREE_SPACE = "the service's operator must free space in its data folder (VTRACK_DATA_DIR)"
+"""What to do, the same in every answer about a full data folder."""
+
 
 def storage_problem(error: BaseException) -> str | None:
     """A sentence naming the storage problem behind ``error``; ``None`` for any other error."""

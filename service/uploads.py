@@ -20,7 +20,7 @@ from python_multipart import MultipartParser
 from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import parse_options_header
 
-from service.storage import storage_problem
+from service.storage import FREE_SPACE, storage_problem
 
 log = logging.getLogger(__name__)
 
@@ -202,8 +202,7 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
         await _drain(request)
         raise HTTPException(
             status.HTTP_507_INSUFFICIENT_STORAGE,
-            f"{problem}: the upload was not kept; the service's operator must free space in "
-            "its data folder (VTRACK_DATA_DIR), then send the video again",
+            f"{problem}: the upload was not kept; {FREE_SPACE}, then send the video again",
         ) from None
     except BaseException:
         receiver.close()

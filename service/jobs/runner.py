@@ -20,7 +20,7 @@ from api_schemas.jobs import JobOptions, JobState
 from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
 from service.frames import FrameSourceError
 from service.jobs.store import JobRecord, JobStore
-from service.storage import storage_problem
+from service.storage import FREE_SPACE, storage_problem
 from service.worker_processes import ignore_stop_signals
 
 log = logging.getLogger(__name__)
@@ -119,9 +119,8 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         else:
             log.error("job %s: failed: %s", job.id, problem)
             message = (
-                f"{problem} while the results were written; the partial results were removed. "
-                "Free space in the service's data folder (VTRACK_DATA_DIR), then submit the "
-                "job again"
+                f"{problem} while the results were written; the partial results were removed: "
+                f"{FREE_SPACE}, then submit the job again"
             )
         store.finish(job, pid, JobState.failed, error=message)
         return

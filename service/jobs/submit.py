@@ -16,7 +16,7 @@ from service.analysis import OptionsError, PipelineResources, check_options
 from service.frames import FrameSource, FrameSourceError, open_frames
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
-from service.storage import storage_problem
+from service.storage import FREE_SPACE, storage_problem
 from service.uploads import receive_upload
 
 log = logging.getLogger(__name__)
@@ -106,8 +106,7 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             raise
         raise HTTPException(
             status.HTTP_507_INSUFFICIENT_STORAGE,
-            f"{problem}: the job was not recorded; the service's operator must free space in "
-            "its data folder (VTRACK_DATA_DIR), then send the video again",
+            f"{problem}: the job was not recorded; {FREE_SPACE}, then send the video again",
         ) from None
     log.info(
         "job %s queued: %s, %d bytes, %d frames announced",

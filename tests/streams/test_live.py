@@ -629,9 +629,10 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
             stderr=subprocess.PIPE,
             text=True,
         )
+        stderr = StderrLines(subscriber)
         try:
             wait_for(
-                lambda: len(trackers_of(session, keys)) and follow_ready(subscriber),
+                lambda: len(trackers_of(session, keys)) and stderr.has("following"),
                 30,
                 "the subscriber",
             )
@@ -720,15 +721,23 @@ class StderrLines:
 
     def __init__(self, process: subprocess.Popen) -> None:
         self.lines: list[str] = []
-        self._reader = threading.Thread(target=self._read, args=(process,), daemon=True)
+        self._process = process
+        self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
-    def _read(self, process: subprocess.Popen) -> None:
-        for line in process.stderr:
+    def _read(self) -> None:
+        for line in self._process.stderr:
             self.lines.append(line)
 
     def has(self, text: str) -> bool:
-        return any(text in line for line in list(self.lines))
+        """Whether a line so far holds ``text``; a process that ended without one fails."""
+        if any(text in line for line in list(self.lines)):
+            return True
+        if self._process.poll() is not None:
+            self._reader.join(5)
+            assert any(text in line for line in self.lines), "".join(self.lines)
+            return True
+        return False
 
 
 def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, shared_data):
@@ -765,13 +774,6 @@ def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, s
                 process.kill()
                 process.wait()
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
-
-
-def follow_ready(process: subprocess.Popen) -> bool:
-    """True once ``vtrack subscribe`` says it follows (its first stderr line)."""
-    assert process.poll() is None, process.stderr.read() if process.stderr else ""
-    line = process.stderr.readline() if process.stderr else ""
-    return "following" in line
 
 
 def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames):
