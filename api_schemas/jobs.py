@@ -66,8 +66,8 @@ class DetectorOptions(BaseModel):
         "at about twice the cost; None: by the frame's height, 1.5 moved to keep the enlarged "
         "frame 720-1080 px high, at most 2.0 (360 px high: 2.0; 480-720 px: 1.5; 1080 px: "
         "1.0; 2160 px: 0.5). DPM: it finds people down to "
-        "about 60 px / upscale tall; None: 1 (for 4K video, 0.5 searches a quarter of the pixels, "
-        "at 1080 px high).",
+        "about 60 px / upscale tall; None: 1, or less for frames over 1080 px high, which are "
+        "searched at 1080 px (2160 px: 0.5, a quarter of the pixels).",
     )
 
 

@@ -163,7 +163,6 @@ class Entry:
     name: str
     description: str
     detect: Detect  # (frame, 0-based index) -> boxes (N, 4), scores (N,)
-    upscale: float = 1.0
     timed: bool = True
     dpm: DpmDetector | None = None
 
@@ -245,7 +244,7 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
                 threshold=probe.model.threshold - 1.0, workers=args.workers, **fields
             )
             detector = DpmDetector(probe.model, config)
-            upscale = config.upscale
+            scale = "by frame height" if config.upscale is None else f"{config.upscale:g}"
 
             def detect(frame: np.ndarray, index: int, d: DpmDetector = detector) -> tuple:
                 result = d.detect(frame)
@@ -253,11 +252,10 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
 
             entries[name] = Entry(
                 name,
-                f"DPM {model}, upscale {upscale:g}, {detector.interval} levels/octave, windows "
+                f"DPM {model}, upscale {scale}, {detector.interval} levels/octave, windows "
                 f">= {config.min_height or 0:g} px, {'cascade' if config.cascade else 'exact'}, "
                 "threshold thresh-1",
                 detect,
-                upscale,
                 dpm=detector,
             )
         elif name == "default" or name.startswith("default@"):
@@ -278,7 +276,6 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
                 name,
                 f"OpenCV HOG detectMultiScale defaults at {upscale:g}x (peer)",
                 _opencv_peer(upscale),
-                upscale,
             )
         elif name == "public":
             entries[name] = Entry(
@@ -326,17 +323,19 @@ def timing(
     """Frames (or regions) per second on the sequences' frames (native resolution unless
     ``--height``); medians over frames and repeats."""
     out: dict[str, dict[str, float]] = {}
-    peers = {f"opencv-hog@{u:g}": _opencv_peer(u) for u in (1.0, PEER_UPSCALE)}
-    for entry in entries.values():
-        if entry.dpm is None:
-            continue
-        # The DPM's finest features: its upscale, doubled by the extra octave if it has one.
-        finest = entry.upscale * (2.0 if entry.dpm.model.extra_octave else 1.0)
-        for u in {entry.upscale, finest} - {1.0, PEER_UPSCALE}:
-            peers[f"opencv-hog@{u:g}"] = _opencv_peer(u)
     for sequence in sequences:
         picks = np.linspace(0, len(sequence) - 1, frames_per_sequence).round().astype(int)
         frames = [(i, sequence.read_frame(int(i))) for i in picks]
+        peers = {f"opencv-hog@{u:g}": _opencv_peer(u) for u in (1.0, PEER_UPSCALE)}
+        for entry in entries.values():
+            if entry.dpm is None:
+                continue
+            # The DPM's scale for these frames and its finest features' (its scale, doubled
+            # by the extra octave if the model has one).
+            scale = entry.dpm.config.upscale_for(frames[0][1].shape[0])
+            finest = scale * (2.0 if entry.dpm.model.extra_octave else 1.0)
+            for u in {scale, finest} - {1.0, PEER_UPSCALE}:
+                peers[f"opencv-hog@{u:g}"] = _opencv_peer(u)
         row: dict[str, float] = {}
         calls: dict[str, Callable[[np.ndarray, int], object]] = {
             name: entry.detect for name, entry in entries.items() if entry.timed

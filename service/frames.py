@@ -29,7 +29,8 @@ class TimedFrame:
     index:
         0-based position of the frame in the video (skipped frames count).
     timestamp:
-        Capture time in seconds from the start of the video: ``index / fps``.
+        Presentation time in seconds from the video's first frame (``index / fps`` for a
+        constant-rate video).
     image:
         RGB uint8 ``(H, W, 3)``.
     """

@@ -7,14 +7,18 @@ condition with a deadline; nothing sleeps for a fixed time hoping something has 
 
 from __future__ import annotations
 
+import fractions
 import json
 from collections.abc import Callable, Iterator
+from itertools import islice
 from pathlib import Path
 
+import av
 import cv2
 import httpx
 import pytest
 
+from service.frames import open_frames
 from service.testing import Server, wait_for
 from tests.conftest import REPO_ROOT
 
@@ -57,6 +61,30 @@ def pets_short(shared_data, tmp_path_factory) -> Path:
     """8 frames of the same: for jobs whose content does not matter."""
     folder = tmp_path_factory.mktemp("pets")
     return cut_video(shared_data / PETS_VIDEO, folder / "pets_8.avi", 8)
+
+
+# Presentation times in milliseconds of a video whose recorder dropped frames: steady 10 fps
+# runs broken by gaps of 0.5 s and 1.2 s.
+VFR_MS = [0, 100, 200, 300, 800, 900, 1000, 2200, 2300, 2400, 2500, 2600]
+
+
+@pytest.fixture(scope="session")
+def vfr_video(shared_data, tmp_path_factory):
+    """An MPEG-4 file of real PETS frames stamped with ``VFR_MS`` (written by PyAV: OpenCV's
+    writer has one frame rate)."""
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), len(VFR_MS)))
+    path = tmp_path_factory.mktemp("vfr") / "dropped_frames.mp4"
+    millisecond = fractions.Fraction(1, 1000)
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream("mpeg4", rate=10)
+        stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
+        stream.time_base = millisecond
+        for image, ms in zip(frames, VFR_MS, strict=True):
+            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
+            frame.pts, frame.time_base = ms, millisecond
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode())
+    return path
 
 
 @pytest.fixture

@@ -7,6 +7,7 @@ import io
 import json
 from concurrent.futures import ThreadPoolExecutor
 
+import av
 import cv2
 import jsonschema
 import numpy as np
@@ -201,6 +202,8 @@ def test_mp4_result_decodes(client, finished_job, tmp_path):
         frames.append(frame)
     capture.release()
     assert len(frames) == 24 and frames[0].shape == (360, 480, 3)
+    with av.open(str(path)) as container:  # H.264: what a browser plays
+        assert container.streams.video[0].codec_context.name == "h264"
 
 
 def test_three_uploads_at_once(client, pets_short):

@@ -3,42 +3,17 @@ a variable-frame-rate video keep their real spacing in the results and in the mo
 
 from __future__ import annotations
 
-import fractions
 from itertools import islice
 
-import av
 import pytest
 
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
 from service.frames import open_frames
 from service.outputs.json_out import read_trajectories
-from tests.service.conftest import PETS_VIDEO
+from tests.service.conftest import PETS_VIDEO, VFR_MS
 
 pytestmark = pytest.mark.slow
-
-# Presentation times in milliseconds of a video whose recorder dropped frames: steady 10 fps
-# runs broken by gaps of 0.5 s and 1.2 s.
-VFR_MS = [0, 100, 200, 300, 800, 900, 1000, 2200, 2300, 2400, 2500, 2600]
-
-
-@pytest.fixture(scope="module")
-def vfr_video(shared_data, tmp_path_factory):
-    """An MPEG-4 file of real PETS frames stamped with ``VFR_MS`` (written by PyAV: OpenCV's
-    writer has one frame rate)."""
-    frames = list(islice(open_frames(shared_data / PETS_VIDEO), len(VFR_MS)))
-    path = tmp_path_factory.mktemp("vfr") / "dropped_frames.mp4"
-    millisecond = fractions.Fraction(1, 1000)
-    with av.open(str(path), "w") as container:
-        stream = container.add_stream("mpeg4", rate=10)
-        stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
-        stream.time_base = millisecond
-        for image, ms in zip(frames, VFR_MS, strict=True):
-            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
-            frame.pts, frame.time_base = ms, millisecond
-            container.mux(stream.encode(frame))
-        container.mux(stream.encode())
-    return path
 
 
 def test_a_constant_rate_video_is_stamped_index_over_fps(shared_data):

@@ -24,7 +24,13 @@ class DpmConfig:
     upscale:
         Enlarge the frame by this factor before building the pyramid (1: voc-release5). The
         smallest window the INRIA model finds is 15 cells of ``sbin / 2`` = 60 px tall at 1;
-        2.0 halves that.
+        2.0 halves that. ``None`` (default): by the frame's height, :meth:`upscale_for`.
+    auto_max_height:
+        With ``upscale`` None: frames up to this many pixels high are searched as they are,
+        taller ones shrunk to it (a 4K frame by half). The cost grows with the pixels, and
+        people in such frames are far above the smallest window: on PETS09-S2L1 enlarged to
+        2160 px, half size finds them as well as full size at a quarter of the time
+        (``docs/benchmarks.md``).
     levels_per_octave:
         Pyramid levels per octave; ``None``: the model's ``interval`` (10). Fewer levels are
         proportionally faster and sample scale more coarsely (5: steps of 15% in size).
@@ -70,7 +76,8 @@ class DpmConfig:
     """
 
     threshold: float | None = None
-    upscale: float = 1.0
+    upscale: float | None = None
+    auto_max_height: int = 1080
     levels_per_octave: int | None = None
     min_height: float | None = None
     max_height: float | None = None
@@ -86,8 +93,10 @@ class DpmConfig:
     cascade_thresholds: Path | None = None
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.upscale) and self.upscale > 0):
-            raise ValueError(f"upscale must be a positive number, got {self.upscale}")
+        if self.upscale is not None and not (math.isfinite(self.upscale) and self.upscale > 0):
+            raise ValueError(f"upscale must be a positive number or None, got {self.upscale}")
+        if not is_int(self.auto_max_height) or self.auto_max_height < 1:
+            raise ValueError(f"auto_max_height must be a positive int, got {self.auto_max_height}")
         for name in ("min_height", "max_height"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
@@ -123,6 +132,14 @@ class DpmConfig:
         low, high = self.region_heights
         if not (0 < low <= high):
             raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")
+
+    def upscale_for(self, frame_height: int) -> float:
+        """The enlargement of a frame ``frame_height`` pixels high: ``upscale`` if set, else 1
+        up to ``auto_max_height`` and ``auto_max_height / frame_height`` above it (1080 px:
+        1.0; 2160 px: 0.5)."""
+        if self.upscale is not None:
+            return self.upscale
+        return min(1.0, self.auto_max_height / max(frame_height, 1))
 
 
 DPM_TRACKING_CONFIG = DpmConfig(threshold=-0.7, nms_criterion="iou", nms_overlap=0.3)

@@ -1,0 +1,90 @@
+"""Cost of the annotated MP4: H.264 (the service's encoder) against OpenCV's mp4v (its fallback).
+
+    python benchmarks/video_encoding.py [--video PATH] [--frames N] [--heights H ...]
+                                        [--repeats N] [--json]
+
+Encodes the first ``frames`` frames of the video (default: 200 of the PETS09-S2L1 video of the
+shared data) resized to each height (4:3, bilinear), with each encoder of
+``service/outputs/video_out.py`` as a job writes them (BGR frames, one per 0.1 s), and reports
+milliseconds per frame (best of ``repeats`` runs: encoding is deterministic, so the best is the
+least disturbed) and kilobytes per frame of the file. x264 uses its default threads.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO_ROOT))  # benchmarks/ first on sys.path would shadow the packages
+
+from service.outputs.video_out import H264Encoder, Mp4vEncoder  # noqa: E402
+
+SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
+DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
+ENCODERS = {"h264": H264Encoder, "mp4v": Mp4vEncoder}
+
+
+def read_frames(video: Path, count: int) -> list:
+    capture = cv2.VideoCapture(str(video))
+    frames = []
+    while len(frames) < count and (frame := capture.read()[1]) is not None:
+        frames.append(frame)
+    capture.release()
+    if not frames:
+        raise SystemExit(f"no frames could be read from {video}")
+    return frames
+
+
+def measure(frames: list, height: int, repeats: int, folder: Path) -> dict[str, dict]:
+    width = round(height * 4 / 3)
+    sized = [cv2.resize(f, (width, height)) for f in frames]
+    out = {}
+    for name, encoder_type in ENCODERS.items():
+        path = folder / f"{name}_{height}.mp4"
+        best = float("inf")
+        for _ in range(repeats):
+            start = time.perf_counter()
+            encoder = encoder_type(path, width, height, 10.0)
+            for index, frame in enumerate(sized):
+                encoder.write(frame, index / 10)
+            encoder.close()
+            best = min(best, time.perf_counter() - start)
+        out[name] = {
+            "ms_per_frame": 1000 * best / len(sized),
+            "kb_per_frame": path.stat().st_size / len(sized) / 1024,
+        }
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--video", type=Path, default=DEFAULT_VIDEO)
+    parser.add_argument("--frames", type=int, default=200)
+    parser.add_argument("--heights", type=int, nargs="+", default=[360, 576, 1080, 2160])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args(argv)
+    frames = read_frames(args.video, args.frames)
+    with tempfile.TemporaryDirectory(prefix="vtrack-encode-") as scratch:
+        results = {f"{h}": measure(frames, h, args.repeats, Path(scratch)) for h in args.heights}
+    if args.json:
+        print(json.dumps({"frames": len(frames), "heights": results}, indent=2))
+        return
+    print(f"{len(frames)} frames; ms per frame / KB per frame")
+    for height, row in results.items():
+        cells = "  ".join(
+            f"{n} {r['ms_per_frame']:.2f} / {r['kb_per_frame']:.1f}" for n, r in row.items()
+        )
+        print(f"{height:>5} px  {cells}")
+
+
+if __name__ == "__main__":
+    main()

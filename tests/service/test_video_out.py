@@ -1,0 +1,139 @@
+"""Annotated MP4: H.264 that browsers play from the first bytes, each frame at its presentation
+time, and the tracks drawn where the JSON result puts them."""
+
+from __future__ import annotations
+
+import struct
+from itertools import islice
+from pathlib import Path
+
+import av
+import cv2
+import numpy as np
+import pytest
+
+from api_schemas.jobs import JobOptions
+from service.analysis import analyze
+from service.frames import open_frames
+from service.outputs.json_out import read_trajectories
+from service.outputs.video_out import H264Encoder, Mp4vEncoder, h264_unavailable
+from tests.service.conftest import PETS_VIDEO, VFR_MS
+
+pytestmark = pytest.mark.slow
+
+
+def top_level_boxes(data: bytes) -> list[str]:
+    """The types of an MP4 file's top-level boxes, in file order (ISO 14496-12)."""
+    types, offset = [], 0
+    while offset + 8 <= len(data):
+        size, kind = struct.unpack(">I4s", data[offset : offset + 8])
+        if size == 1:  # 64-bit size follows the type
+            size = struct.unpack(">Q", data[offset + 8 : offset + 16])[0]
+        types.append(kind.decode("ascii"))
+        if size < 8:
+            break
+        offset += size
+    return types
+
+
+def decoded(path: Path) -> list[tuple[float, np.ndarray]]:
+    """(presentation time in seconds, RGB image) of every frame."""
+    with av.open(str(path)) as container:
+        return [
+            (float(f.pts * f.time_base), f.to_ndarray(format="rgb24"))
+            for f in container.decode(video=0)
+        ]
+
+
+@pytest.fixture(scope="module")
+def annotated(vfr_video, tmp_path_factory):
+    return analyze(
+        vfr_video, JobOptions(formats=["json", "mp4"]), tmp_path_factory.mktemp("annotated")
+    )
+
+
+def test_this_install_writes_h264():
+    # PyAV is a dependency and its wheels carry x264: the mp4v fallback is for custom builds.
+    assert h264_unavailable() is None
+
+
+def test_the_annotated_video_is_h264_with_its_index_first(annotated):
+    path = annotated.files["mp4"]
+    boxes = top_level_boxes(path.read_bytes())
+    # the index (moov) before the frames (mdat): a browser starts playing before the download ends
+    assert boxes[0] == "ftyp" and boxes.index("moov") < boxes.index("mdat"), boxes
+    with av.open(str(path)) as container:
+        codec = container.streams.video[0].codec_context
+        assert (codec.name, codec.pix_fmt, codec.width, codec.height) == (
+            "h264",
+            "yuv420p",
+            480,
+            360,
+        )
+
+
+def test_frames_keep_their_presentation_times(annotated):
+    # the source dropped frames (gaps of 0.5 s and 1.2 s): a constant-rate video would play
+    # them 0.1 s apart and drift 1.5 s from the JSON's timestamps
+    times = [t for t, _ in decoded(annotated.files["mp4"])]
+    assert times == pytest.approx([ms / 1000 for ms in VFR_MS], abs=1e-3)
+
+
+def test_tracks_are_drawn_where_the_json_puts_them(annotated, vfr_video):
+    sources = list(open_frames(vfr_video))
+    frames = [image for _, image in decoded(annotated.files["mp4"])]
+    points: dict[int, list] = {}
+    for track in read_trajectories(annotated.files["json"]).tracks:
+        for point in track.frames:
+            points.setdefault(point.frame_index, []).append(point.box)
+    assert points, "people are tracked in the PETS frames"
+    edges, beside = [], []
+    for index, boxes in points.items():
+        change = np.abs(frames[index].astype(int) - sources[index].astype(int)).sum(axis=2)
+        for box in boxes:
+            x0, y0 = round(box.x), round(box.y)
+            x1, y1 = round(box.x + box.w), round(box.y + box.h)
+            if x0 < 5 or y0 < 0 or x1 > 474 or y1 >= 360:
+                continue
+            edges.extend([change[y0:y1, x0].mean(), change[y0:y1, x1].mean()])
+            beside.extend([change[y0:y1, x0 - 5].mean(), change[y0:y1, x1 + 5].mean()])
+    assert edges
+    # a box's sides are painted in its colour; 5 px beside them is the frame, up to compression
+    # (inside are the part dots)
+    assert np.median(edges) > 4 * np.median(beside), (np.median(edges), np.median(beside))
+
+
+def test_odd_sized_frames_are_padded_by_one_row_and_column(shared_data, tmp_path):
+    images = [
+        np.ascontiguousarray(image[:359, :479, ::-1])
+        for image in islice(open_frames(shared_data / PETS_VIDEO), 5)
+    ]
+    path = tmp_path / "odd.mp4"
+    encoder = H264Encoder(path, 479, 359, 10.0)
+    for i, image in enumerate(images):
+        encoder.write(image, i / 10)
+    encoder.close()
+    frames = decoded(path)
+    assert [t for t, _ in frames] == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
+    for (_, image), source in zip(frames, images, strict=True):
+        assert image.shape == (360, 480, 3)
+        error = np.abs(image[:359, :479].astype(int) - source[:, :, ::-1].astype(int)).mean()
+        assert error < 6, error  # the same picture, up to compression
+
+
+def test_the_mp4v_fallback_writes_a_video_opencv_reads(shared_data, tmp_path):
+    images = [
+        np.ascontiguousarray(image[:, :, ::-1])
+        for image in islice(open_frames(shared_data / PETS_VIDEO), 5)
+    ]
+    path = tmp_path / "fallback.mp4"
+    encoder = Mp4vEncoder(path, 480, 360, 10.0)
+    for i, image in enumerate(images):
+        encoder.write(image, i / 10)
+    encoder.close()
+    capture = cv2.VideoCapture(str(path))
+    read = []
+    while (frame := capture.read()[1]) is not None:
+        read.append(frame)
+    capture.release()
+    assert len(read) == 5 and read[0].shape == (360, 480, 3)
