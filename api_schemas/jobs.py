@@ -141,6 +141,12 @@ class JobOptions(BaseModel):
         min_length=1,
         description="Results to write. Each costs time: mcap and mp4 encode every frame.",
     )
+    mcap_images: Literal["h264", "jpeg"] = Field(
+        default="h264",
+        description="How the mcap result stores the frames: 'h264' as foxglove.CompressedVideo "
+        "(a key frame every second; a fifth of the bytes at 360 px and 10 fps), 'jpeg' as "
+        "foxglove.CompressedImage (each frame on its own, for tools that read images only).",
+    )
     frame_step: int = Field(
         default=1,
         ge=1,

@@ -186,6 +186,7 @@ def analyze(
         mode=options.mode,
         job_id=job_id,
         filename=filename,
+        mcap_images=options.mcap_images,
     )
     writers = open_writers(list(options.formats), scratch, info)
     processed = frames_read = 0

@@ -115,7 +115,11 @@ def _analyze(args: argparse.Namespace) -> int:
     from api_schemas.jobs import JobOptions
     from service.analysis import OptionsError, PipelineResources, analyze, publish
 
-    raw: dict = {"formats": args.format, "frame_step": args.frame_step}
+    raw: dict = {
+        "formats": args.format,
+        "frame_step": args.frame_step,
+        "mcap_images": args.mcap_images,
+    }
     if args.box is not None:
         box = args.box
         raw.update(
@@ -268,6 +272,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=_formats,
         default=["json", "mcap", "mot", "mp4"],
         help="comma-separated results to write: json,mcap,mot,mp4 (default: all)",
+    )
+    analyze.add_argument(
+        "--mcap-images",
+        choices=("h264", "jpeg"),
+        default="h264",
+        help="frames in the MCAP as H.264 video (default) or JPEG images (for tools that read "
+        "foxglove.CompressedImage only)",
     )
     analyze.add_argument(
         "--dpm-model", type=Path, help="detect with this voc-release5 model (.mat) instead"

@@ -38,6 +38,7 @@ class StreamInfo:
     mode: str
     job_id: str | None = None
     filename: str | None = None
+    mcap_images: str = "h264"
 
 
 @dataclass(slots=True)

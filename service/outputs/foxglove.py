@@ -1,9 +1,9 @@
 """The Foxglove message schemas the MCAP result uses, as JSON Schema (JSON message encoding).
 
 Field names, types and the ``PointsAnnotationType`` values follow the published
-``foxglove.CompressedImage`` and ``foxglove.ImageAnnotations`` schemas (foxglove/schemas,
-``schemas/jsonschema``); Foxglove's Image panel draws the annotations over the image whose
-timestamp they carry.
+``foxglove.CompressedVideo``, ``foxglove.CompressedImage`` and ``foxglove.ImageAnnotations``
+schemas (foxglove/schemas, ``schemas/jsonschema``); Foxglove's Image panel draws the
+annotations over the image whose timestamp they carry.
 """
 
 from __future__ import annotations
@@ -72,6 +72,27 @@ COMPRESSED_IMAGE_SCHEMA: dict[str, Any] = {
             "description": "Compressed image data",
         },
         "format": {"type": "string", "description": "Image format (jpeg, png, webp)"},
+    },
+}
+
+COMPRESSED_VIDEO_SCHEMA: dict[str, Any] = {
+    "title": "foxglove.CompressedVideo",
+    "description": "A single frame of a compressed video bitstream",
+    "type": "object",
+    "properties": {
+        "timestamp": _time("Timestamp of video frame"),
+        "frame_id": {
+            "type": "string",
+            "description": "Frame of reference for the video. The origin of the frame is the "
+            "optical center of the camera.",
+        },
+        "data": {
+            "type": "string",
+            "contentEncoding": "base64",
+            "description": "Compressed video frame data: for h264, the Annex B NAL units of "
+            "exactly one frame, SPS and PPS with every key frame, no B-frames",
+        },
+        "format": {"type": "string", "description": "Video format (h264, h265, vp9, av1)"},
     },
 }
 
@@ -155,10 +176,14 @@ def color(rgb: tuple[int, int, int], alpha: float = 1.0) -> dict[str, float]:
     return {"r": r / 255.0, "g": g / 255.0, "b": b / 255.0, "a": alpha}
 
 
-def compressed_image(nanoseconds: int, jpeg: bytes, frame_id: str) -> dict[str, Any]:
+def compressed_image(
+    nanoseconds: int, data: bytes, frame_id: str, format: str = "jpeg"
+) -> dict[str, Any]:
+    """A ``foxglove.CompressedImage`` or, with ``format`` "h264", ``foxglove.CompressedVideo``
+    message (the two share their fields)."""
     return {
         "timestamp": time_of(nanoseconds),
         "frame_id": frame_id,
-        "data": base64.b64encode(jpeg).decode("ascii"),
-        "format": "jpeg",
+        "data": base64.b64encode(data).decode("ascii"),
+        "format": format,
     }

@@ -2,7 +2,10 @@
 
 Channels (JSON message encoding, JSON Schema schemas):
 
-- ``/camera/image`` - ``foxglove.CompressedImage``: each tracked frame as JPEG;
+- ``/camera/image`` - ``foxglove.CompressedVideo``: the tracked frames as H.264, one access unit
+  per frame, a key frame every second (:class:`~service.outputs.h264.AccessUnitEncoder`); or,
+  with ``images`` "jpeg" (or where PyAV has no H.264 encoder), ``foxglove.CompressedImage``:
+  each frame as JPEG, five to ten times the bytes;
 - ``/camera/annotations`` - ``foxglove.ImageAnnotations``: per track, the box as a
   ``LINE_LOOP``, the parts as ``POINTS`` (visible parts filled, hidden ones faded) and the track
   id as text;
@@ -17,6 +20,7 @@ clock, so Foxglove pairs each annotation with its image.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import struct
 from pathlib import Path
@@ -33,7 +37,10 @@ from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
 from service.outputs import foxglove
 from service.outputs.base import RunSummary, StreamInfo
+from service.outputs.h264 import AccessUnitEncoder, h264_unavailable
 from service.outputs.palette import track_colour
+
+log = logging.getLogger(__name__)
 
 IMAGE_TOPIC = "/camera/image"
 ANNOTATIONS_TOPIC = "/camera/annotations"
@@ -108,12 +115,22 @@ class McapWriter:
         chunk_size: int = 1024 * 1024,
     ) -> None:
         self.path = path
+        self._video = info.mcap_images == "h264"
+        if self._video and (reason := h264_unavailable()) is not None:
+            log.warning("the MCAP stores JPEG images instead of H.264: %s", reason)
+            self._video = False
+        self._encoder: AccessUnitEncoder | None = None
         self._file = path.open("wb")
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="visual-tracking")
         self._channels = {}
+        image_schema = (
+            ("foxglove.CompressedVideo", foxglove.COMPRESSED_VIDEO_SCHEMA)
+            if self._video
+            else ("foxglove.CompressedImage", foxglove.COMPRESSED_IMAGE_SCHEMA)
+        )
         for topic, name, schema in (
-            (IMAGE_TOPIC, "foxglove.CompressedImage", foxglove.COMPRESSED_IMAGE_SCHEMA),
+            (IMAGE_TOPIC, *image_schema),
             (ANNOTATIONS_TOPIC, "foxglove.ImageAnnotations", foxglove.IMAGE_ANNOTATIONS_SCHEMA),
             (
                 TRACKS_TOPIC,
@@ -123,31 +140,44 @@ class McapWriter:
         ):
             schema_id = self._writer.register_schema(name, "jsonschema", _encode(schema))
             self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)
-        self._sequence = 0
+        self._sequences = dict.fromkeys(self._channels, 0)
         self._info = info
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
         stamp = nanoseconds(frame.timestamp)
-        bgr = cv2.cvtColor(frame.image, cv2.COLOR_RGB2BGR)
-        ok, jpeg = cv2.imencode(".jpg", bgr, (cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY))
-        if not ok:
-            raise RuntimeError(f"could not encode frame {frame.index} as JPEG")
-        payloads = (
-            (IMAGE_TOPIC, foxglove.compressed_image(stamp, jpeg.tobytes(), FRAME_ID)),
-            (ANNOTATIONS_TOPIC, annotations(message, stamp)),
-            (TRACKS_TOPIC, message.model_dump(mode="json")),
-        )
-        for topic, document in payloads:
-            self._writer.add_message(
-                self._channels[topic],
-                log_time=stamp,
-                publish_time=stamp,
-                data=_encode(document),
-                sequence=self._sequence,
+        if self._video:
+            if self._encoder is None:
+                height, width = frame.image.shape[:2]
+                self._encoder = AccessUnitEncoder(width, height, "rgb24")
+            self._add_video(self._encoder.encode(frame.image, stamp))
+        else:
+            bgr = cv2.cvtColor(frame.image, cv2.COLOR_RGB2BGR)
+            ok, jpeg = cv2.imencode(".jpg", bgr, (cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY))
+            if not ok:
+                raise RuntimeError(f"could not encode frame {frame.index} as JPEG")
+            self._add(
+                IMAGE_TOPIC, stamp, foxglove.compressed_image(stamp, jpeg.tobytes(), FRAME_ID)
             )
-        self._sequence += 1
+        self._add(ANNOTATIONS_TOPIC, stamp, annotations(message, stamp))
+        self._add(TRACKS_TOPIC, stamp, message.model_dump(mode="json"))
+
+    def _add_video(self, units: list[tuple[int, bytes]]) -> None:
+        for stamp, unit in units:
+            self._add(IMAGE_TOPIC, stamp, foxglove.compressed_image(stamp, unit, FRAME_ID, "h264"))
+
+    def _add(self, topic: str, stamp: int, document: dict[str, Any]) -> None:
+        self._writer.add_message(
+            self._channels[topic],
+            log_time=stamp,
+            publish_time=stamp,
+            data=_encode(document),
+            sequence=self._sequences[topic],
+        )
+        self._sequences[topic] += 1
 
     def close(self, summary: RunSummary) -> None:
+        if self._encoder is not None:
+            self._add_video(self._encoder.flush())
         info = {
             "mode": self._info.mode,
             "frames_processed": str(summary.frames_processed),

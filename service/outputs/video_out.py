@@ -4,17 +4,15 @@ Boxes are solid for visible people and thin for occluded ones; visible parts are
 hidden parts open circles; the trail is the box's bottom centre over the last
 :data:`TRAIL_SECONDS`.
 
-The video is H.264 (x264 through PyAV, whose wheels carry it), 4:2:0, with its index at the
-front of the file, so browsers and phones play it and start before the download ends; each
-frame keeps its presentation time, so a variable-frame-rate source and ``frame_step`` keep
-their timing. Where PyAV has no H.264 encoder (a PyAV built against an FFmpeg without x264,
-e.g. to keep GPL code out of a deployment), the video is OpenCV's ``mp4v`` (MPEG-4 part 2) at
-the nominal rate of the tracked frames: desktop players open it, browsers do not.
+The video is H.264 (:mod:`service.outputs.h264`), 4:2:0, with its index at the front of the
+file, so browsers and phones play it and start before the download ends; each frame keeps its
+presentation time, so a variable-frame-rate source and ``frame_step`` keep their timing. Where
+PyAV has no H.264 encoder, the video is OpenCV's ``mp4v`` (MPEG-4 part 2) at the nominal rate
+of the tracked frames: desktop players open it, browsers do not.
 """
 
 from __future__ import annotations
 
-import functools
 import logging
 from collections import deque
 from fractions import Fraction
@@ -27,14 +25,12 @@ import numpy as np
 from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
+from service.outputs.h264 import H264_OPTIONS, even_sides, h264_unavailable
 from service.outputs.palette import track_colour
 
 log = logging.getLogger(__name__)
 
 TRAIL_SECONDS = 3.0
-H264_OPTIONS = {"preset": "veryfast", "crf": "23"}
-"""x264 settings: ``veryfast`` encodes a 360-px frame in about 2 ms and a file a third the size
-of ``mp4v``'s; ``crf`` 23 is x264's default quality."""
 TIME_BASE = Fraction(1, 1000)
 """Presentation times are stored in milliseconds."""
 
@@ -104,10 +100,7 @@ class H264Encoder:
             stream = self._container.add_stream(
                 "libx264", rate=Fraction(fps).limit_denominator(1001), options=dict(H264_OPTIONS)
             )
-            # 4:2:0 halves the chroma planes, so x264 needs even sides: odd ones get one
-            # replicated row or column rather than a resampled frame.
-            self._pad = (height % 2, width % 2)
-            stream.width, stream.height = width + self._pad[1], height + self._pad[0]
+            stream.width, stream.height = width + width % 2, height + height % 2
             stream.pix_fmt = "yuv420p"
             stream.codec_context.time_base = TIME_BASE
         except BaseException:
@@ -117,9 +110,7 @@ class H264Encoder:
         self._last_pts = -1
 
     def write(self, bgr: np.ndarray, timestamp: float) -> None:
-        if any(self._pad):
-            bgr = cv2.copyMakeBorder(bgr, 0, self._pad[0], 0, self._pad[1], cv2.BORDER_REPLICATE)
-        frame = self._frame_type.from_ndarray(bgr, format="bgr24")
+        frame = self._frame_type.from_ndarray(even_sides(bgr), format="bgr24")
         # MP4 needs increasing times; frames under a millisecond apart are nudged apart.
         frame.pts = self._last_pts = max(round(timestamp / TIME_BASE), self._last_pts + 1)
         frame.time_base = TIME_BASE
@@ -146,20 +137,6 @@ class Mp4vEncoder:
 
     def close(self) -> None:
         self._writer.release()
-
-
-@functools.cache
-def h264_unavailable() -> str | None:
-    """Why H.264 cannot be written here, or ``None`` when it can."""
-    try:
-        import av
-    except ImportError:
-        return "PyAV is not installed"
-    try:
-        av.codec.Codec("libx264", "w")
-    except Exception:  # PyAV raises its own UnknownCodecError
-        return "PyAV's FFmpeg has no libx264 encoder"
-    return None
 
 
 def open_encoder(path: Path, width: int, height: int, fps: float) -> _Encoder:

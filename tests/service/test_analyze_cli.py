@@ -9,6 +9,7 @@ import sys
 import cv2
 import jsonschema
 import pytest
+from mcap.reader import make_reader
 
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import schema_for
@@ -40,6 +41,21 @@ def test_analyze_writes_the_requested_results(pets_short, tmp_path):
     assert document["frames_processed"] == 8
     assert cv2.VideoCapture(str(out / "annotated.mp4")).get(cv2.CAP_PROP_FRAME_COUNT) == 8
     assert "tracked 8 frames" in result.stderr
+
+
+@pytest.mark.slow
+def test_analyze_writes_jpeg_images_into_the_mcap_on_request(pets_short, tmp_path):
+    names = {}
+    for images in ("h264", "jpeg"):
+        out = tmp_path / images
+        arguments = ["--format", "mcap", "--mcap-images", images, "--quiet"]
+        result = vtrack("analyze", pets_short, "--out-dir", out, *arguments)
+        assert result.returncode == 0, result.stderr
+        with (out / "tracks.mcap").open("rb") as handle:
+            summary = make_reader(handle).get_summary()
+        channel = next(c for c in summary.channels.values() if c.topic == "/camera/image")
+        names[images] = summary.schemas[channel.schema_id].name
+    assert names == {"h264": "foxglove.CompressedVideo", "jpeg": "foxglove.CompressedImage"}
 
 
 def test_analyze_follows_one_box_every_other_frame(pets_short, tmp_path):

@@ -120,21 +120,12 @@ def test_mot_result_lists_the_json_boxes_in_mot_pixels(client, finished_job):
         assert x1 == pytest.approx(x2, abs=0.01) and y1 == pytest.approx(y2, abs=0.01)
 
 
-def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client, finished_job):
-    _, _, status = finished_job
-    data = _download(client, status, "mcap").content
+def _mcap_messages(data: bytes) -> tuple[dict[str, str], dict[str, list]]:
+    """Schema name per topic, and per topic (log time, publish time, document) of every
+    message, each validated against its channel's stored JSON Schema."""
     reader = make_reader(io.BytesIO(data))
     summary = reader.get_summary()
     topics = {c.topic: c for c in summary.channels.values()}
-    assert set(topics) == {"/camera/image", "/camera/annotations", "/tracks"}
-    schema_names = {
-        topic: summary.schemas[channel.schema_id].name for topic, channel in topics.items()
-    }
-    assert schema_names == {
-        "/camera/image": "foxglove.CompressedImage",
-        "/camera/annotations": "foxglove.ImageAnnotations",
-        "/tracks": "vtrack.FrameTracks",
-    }
     for channel in topics.values():
         assert channel.message_encoding == "json"
         assert summary.schemas[channel.schema_id].encoding == "jsonschema"
@@ -151,6 +142,18 @@ def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client,
         document = json.loads(message.data)
         jsonschema.validate(document, schemas[channel.topic])
         by_topic[channel.topic].append((message.log_time, message.publish_time, document))
+    names = {topic: summary.schemas[channel.schema_id].name for topic, channel in topics.items()}
+    return names, by_topic
+
+
+def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client, finished_job):
+    _, _, status = finished_job
+    names, by_topic = _mcap_messages(_download(client, status, "mcap").content)
+    assert names == {
+        "/camera/image": "foxglove.CompressedVideo",
+        "/camera/annotations": "foxglove.ImageAnnotations",
+        "/tracks": "vtrack.FrameTracks",
+    }
     images, annotations, tracks = (
         by_topic["/camera/image"],
         by_topic["/camera/annotations"],
@@ -165,13 +168,9 @@ def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client,
         images, annotations, tracks, strict=True
     ):
         stamp = image["timestamp"]
+        assert image["format"] == "h264" and image["frame_id"] == "camera"
         assert all(p["timestamp"] == stamp for p in annotation["points"])
         assert all(t["timestamp"] == stamp for t in annotation["texts"])
-        decoded = cv2.imdecode(
-            np.frombuffer(base64.b64decode(image["data"]), np.uint8),
-            cv2.IMREAD_COLOR,
-        )
-        assert image["format"] == "jpeg" and decoded.shape == (360, 480, 3)
         loops = [p for p in annotation["points"] if p["type"] == 2]
         assert len(loops) == len(frame["tracks"])
         assert sorted(t["text"] for t in annotation["texts"]) == sorted(
@@ -185,6 +184,54 @@ def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client,
             )
     assert any(frame["tracks"] for _, _, frame in tracks)
     assert any(p["type"] == 1 for _, _, a in annotations for p in a["points"])  # parts
+
+
+def _nal_types(unit: bytes) -> list[int]:
+    """The NAL unit types of an Annex B byte stream (after each 00 00 01 start code)."""
+    types, start = [], unit.find(b"\x00\x00\x01")
+    while start >= 0:
+        types.append(unit[start + 3] & 0x1F)
+        start = unit.find(b"\x00\x00\x01", start + 3)
+    return types
+
+
+def test_mcap_video_follows_foxglove_compressed_video(client, finished_job, pets_cut):
+    # Foxglove decodes message by message: Annex B, exactly one picture per message, SPS (7)
+    # and PPS (8) with every key frame (IDR, 5), no B-frames; it starts at a key frame to seek.
+    _, _, status = finished_job
+    _, by_topic = _mcap_messages(_download(client, status, "mcap").content)
+    units = [base64.b64decode(image["data"]) for _, _, image in by_topic["/camera/image"]]
+    assert all(unit.startswith((b"\x00\x00\x00\x01", b"\x00\x00\x01")) for unit in units)
+    keys = [i for i, unit in enumerate(units) if 5 in _nal_types(unit)]
+    assert keys == [0, 10, 20]  # a key frame a second at 10 fps
+    assert all({7, 8} <= set(_nal_types(units[i])) for i in keys)
+    capture = cv2.VideoCapture(str(pets_cut))
+    sources = [cv2.cvtColor(capture.read()[1], cv2.COLOR_BGR2RGB) for _ in range(24)]
+    capture.release()
+    decoder = av.CodecContext.create("h264", "r")  # a player that seeks to 1.0 s
+    for index in range(10, 24):
+        pictures = decoder.decode(av.Packet(units[index]))
+        assert len(pictures) == 1, f"message {index} gave {len(pictures)} pictures"
+        assert int(pictures[0].pict_type) != 3  # AV_PICTURE_TYPE_B
+        image = pictures[0].to_ndarray(format="rgb24")
+        assert image.shape == (360, 480, 3)
+        error = np.abs(image.astype(int) - sources[index].astype(int)).mean()
+        assert error < 6, (index, error)  # the frame, up to compression
+
+
+def test_mcap_images_can_be_jpeg(client, pets_cut):
+    # for tools that read foxglove.CompressedImage only
+    response = submit(client, pets_cut, {"formats": ["mcap"], "mcap_images": "jpeg"})
+    assert response.status_code == 202, response.text
+    status = wait_for_state(client, response.json()["id"], ("succeeded", "failed"))
+    assert status["state"] == "succeeded", status
+    names, by_topic = _mcap_messages(_download(client, status, "mcap").content)
+    assert names["/camera/image"] == "foxglove.CompressedImage"
+    for _, _, image in by_topic["/camera/image"]:
+        decoded = cv2.imdecode(
+            np.frombuffer(base64.b64decode(image["data"]), np.uint8), cv2.IMREAD_COLOR
+        )
+        assert image["format"] == "jpeg" and decoded.shape == (360, 480, 3)
 
 
 def test_mp4_result_decodes(client, finished_job, tmp_path):

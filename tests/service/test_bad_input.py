@@ -227,7 +227,7 @@ def test_a_full_data_folder_is_reported_and_the_service_goes_on(make_server, sha
         assert list((server.data_dir / "uploads").iterdir()) == [], "the partial upload stays"
 
         # 100 frames as JPEG in an MCAP need about 3.5 MB
-        job = submit(client, start, {"formats": ["mcap"]})
+        job = submit(client, start, {"formats": ["mcap"], "mcap_images": "jpeg"})
         assert job.status_code == 202, job.text
         failed = wait_for_state(client, job.json()["id"], ("succeeded", "failed"))
         assert failed["state"] == "failed"

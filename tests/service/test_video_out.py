@@ -15,8 +15,9 @@ import pytest
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
 from service.frames import open_frames
+from service.outputs.h264 import h264_unavailable
 from service.outputs.json_out import read_trajectories
-from service.outputs.video_out import H264Encoder, Mp4vEncoder, h264_unavailable
+from service.outputs.video_out import H264Encoder, Mp4vEncoder
 from tests.service.conftest import PETS_VIDEO, VFR_MS
 
 pytestmark = pytest.mark.slow
@@ -103,16 +104,24 @@ def test_tracks_are_drawn_where_the_json_puts_them(annotated, vfr_video):
     assert np.median(edges) > 4 * np.median(beside), (np.median(edges), np.median(beside))
 
 
-def test_odd_sized_frames_are_padded_by_one_row_and_column(shared_data, tmp_path):
+def encode_pets(encoder_type, path: Path, shared_data: Path, size: tuple[int, int]) -> list:
+    """The first 5 frames of the PETS video cropped to ``size`` (w, h), encoded 0.1 s apart;
+    returns the BGR frames written."""
+    width, height = size
     images = [
-        np.ascontiguousarray(image[:359, :479, ::-1])
+        np.ascontiguousarray(image[:height, :width, ::-1])
         for image in islice(open_frames(shared_data / PETS_VIDEO), 5)
     ]
-    path = tmp_path / "odd.mp4"
-    encoder = H264Encoder(path, 479, 359, 10.0)
+    encoder = encoder_type(path, width, height, 10.0)
     for i, image in enumerate(images):
         encoder.write(image, i / 10)
     encoder.close()
+    return images
+
+
+def test_odd_sized_frames_are_padded_by_one_row_and_column(shared_data, tmp_path):
+    path = tmp_path / "odd.mp4"
+    images = encode_pets(H264Encoder, path, shared_data, (479, 359))
     frames = decoded(path)
     assert [t for t, _ in frames] == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
     for (_, image), source in zip(frames, images, strict=True):
@@ -122,15 +131,8 @@ def test_odd_sized_frames_are_padded_by_one_row_and_column(shared_data, tmp_path
 
 
 def test_the_mp4v_fallback_writes_a_video_opencv_reads(shared_data, tmp_path):
-    images = [
-        np.ascontiguousarray(image[:, :, ::-1])
-        for image in islice(open_frames(shared_data / PETS_VIDEO), 5)
-    ]
     path = tmp_path / "fallback.mp4"
-    encoder = Mp4vEncoder(path, 480, 360, 10.0)
-    for i, image in enumerate(images):
-        encoder.write(image, i / 10)
-    encoder.close()
+    encode_pets(Mp4vEncoder, path, shared_data, (480, 360))
     capture = cv2.VideoCapture(str(path))
     read = []
     while (frame := capture.read()[1]) is not None:

@@ -511,9 +511,9 @@ def test_a_recording_cut_by_a_killed_worker_is_salvaged(server, session, pets_fr
 
 
 def test_a_recording_that_cannot_be_written_pauses_and_tracking_goes_on(tmp_path, pets_frames):
-    # The service may write no file beyond 1 MB (ulimit -f), as on a nearly full disk: a
-    # recording of these 480x360 frames reaches that within about 30 frames.
-    server = Server(tmp_path / "data", workers=1, file_size_limit=1_000_000).start()
+    # The service may write no file beyond 150 kB (ulimit -f), as on a nearly full disk: an
+    # H.264 recording of these 480x360 frames reaches that within about 30 frames.
+    server = Server(tmp_path / "data", workers=1, file_size_limit=150_000).start()
     camera = "full"
     keys = StreamKeys("vtrack", camera)
     session = member_session(ZenohOptions(listen=server.zenoh_listen))

@@ -1,0 +1,93 @@
+"""H.264 through PyAV (x264, which PyAV's wheels carry): the annotated MP4's codec and the MCAP's
+video channel.
+
+Licence: x264 is GPL-2.0. A deployment that must not ship GPL code installs PyAV built against
+an FFmpeg without x264; :func:`h264_unavailable` then says why, and the writers fall back to
+``mp4v`` (MP4) and JPEG (MCAP).
+"""
+
+from __future__ import annotations
+
+import functools
+from fractions import Fraction
+
+import cv2
+import numpy as np
+
+H264_OPTIONS = {"preset": "veryfast", "crf": "23"}
+"""x264 settings: ``veryfast`` encodes a 360-px frame in about 2 ms, into a third of the bytes
+of OpenCV's ``mp4v``; ``crf`` 23 is x264's default quality."""
+
+
+@functools.cache
+def h264_unavailable() -> str | None:
+    """Why H.264 cannot be written here, or ``None`` when it can."""
+    try:
+        import av
+    except ImportError:
+        return "PyAV is not installed"
+    try:
+        av.codec.Codec("libx264", "w")
+    except Exception:  # PyAV raises its own UnknownCodecError
+        return "PyAV's FFmpeg has no libx264 encoder"
+    return None
+
+
+def even_sides(image: np.ndarray) -> np.ndarray:
+    """``image`` with one replicated row and/or column where a side is odd: 4:2:0 halves the
+    chroma planes, so x264 needs even sides (padding keeps every pixel where it was, which
+    resampling would not)."""
+    rows, cols = image.shape[0] % 2, image.shape[1] % 2
+    if not (rows or cols):
+        return image
+    return cv2.copyMakeBorder(image, 0, rows, 0, cols, cv2.BORDER_REPLICATE)
+
+
+class AccessUnitEncoder:
+    """Frames to H.264 access units in Annex B form, one per frame, for players that decode
+    message by message (Foxglove's ``CompressedVideo``): no B-frames and no lookahead (x264's
+    ``zerolatency``), so each frame's unit comes out as it goes in; SPS and PPS before every
+    key frame; a key frame at least every ``keyframe_seconds`` of stream time (by the stamps,
+    so it holds for any frame rate, known or not), where a player can start after a seek.
+    """
+
+    def __init__(
+        self, width: int, height: int, pixel_format: str, keyframe_seconds: float = 1.0
+    ) -> None:
+        import av
+
+        self._frame_type = av.VideoFrame
+        self._intra = av.video.frame.PictureType.I
+        self._pixel_format = pixel_format
+        self._keyframe_ns = round(keyframe_seconds * 1e9)
+        self._last_key: int | None = None
+        context = av.CodecContext.create("libx264", "w")
+        context.width, context.height = width + width % 2, height + height % 2
+        context.pix_fmt = "yuv420p"
+        context.time_base = Fraction(1, 1000)
+        context.gop_size = 1000  # a bound only: key frames are forced by time (below)
+        context.max_b_frames = 0
+        # forced-idr: a forced key frame is an IDR, where decoding can start
+        context.options = {**H264_OPTIONS, "tune": "zerolatency", "forced-idr": "1"}
+        self._context = context
+        self._stamps: dict[int, int] = {}
+        self._last_pts = -1
+
+    def encode(self, image: np.ndarray, stamp: int) -> list[tuple[int, bytes]]:
+        """(stamp, access unit) of what the encoder gives back for ``image`` (its own unit: the
+        encoder has no delay); ``stamp`` (nanoseconds) comes back with the unit."""
+        frame = self._frame_type.from_ndarray(even_sides(image), format=self._pixel_format)
+        # milliseconds, increasing (frames under 1 ms apart nudged), for x264's rate control;
+        # units are matched back to their stamps by it
+        frame.pts = self._last_pts = max(stamp // 1_000_000, self._last_pts + 1)
+        self._stamps[frame.pts] = stamp
+        if self._last_key is None or stamp - self._last_key >= self._keyframe_ns:
+            frame.pict_type = self._intra
+            self._last_key = stamp
+        return self._units(frame)
+
+    def flush(self) -> list[tuple[int, bytes]]:
+        return self._units(None)
+
+    def _units(self, frame) -> list[tuple[int, bytes]]:
+        return [(self._stamps.pop(p.pts), bytes(p)) for p in self._context.encode(frame)]
