@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from datetime import datetime
 from enum import StrEnum
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -159,6 +160,11 @@ class StreamSpec(BaseModel):
         default=0,
         ge=0,
         description="Finished recordings kept per stream, the oldest deleted first; 0 keeps all.",
+    )
+    record_images: Literal["h264", "jpeg"] = Field(
+        default="h264",
+        description="How recordings store the frames, as a job's mcap_images: 'h264' "
+        "(foxglove.CompressedVideo) or 'jpeg' (foxglove.CompressedImage).",
     )
     idle_after: float = Field(
         default=2.0, gt=0, le=600, description="Seconds without a frame before 'idle'."

@@ -155,7 +155,15 @@ def get_result(
             status.HTTP_404_NOT_FOUND, f"the {format.value} result of job {job_id} is gone"
         )
     download = f"{job_id}-{name}"
-    return FileResponse(path, media_type=MEDIA_TYPES[format], filename=download)
+    # The video opens in a browser tab (inline) rather than as a download; FileResponse answers
+    # Range requests, which players need to seek (Safari to play at all).
+    disposition = "inline" if format == OutputFormat.mp4 else "attachment"
+    return FileResponse(
+        path,
+        media_type=MEDIA_TYPES[format],
+        filename=download,
+        content_disposition_type=disposition,
+    )
 
 
 @router.get(

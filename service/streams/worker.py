@@ -393,6 +393,7 @@ class StreamWorker:
                 frame_step=1,
                 part_names=tuple(self._pipeline.part_names) if self._pipeline else (),
                 mode="people",
+                mcap_images=self.spec.record_images,
             )
             partial = self._recording_path.with_suffix(".mcap.partial")
             # Small chunks: a worker that dies loses at most its open chunk (a second or two).

@@ -253,6 +253,26 @@ def test_mp4_result_decodes(client, finished_job, tmp_path):
         assert container.streams.video[0].codec_context.name == "h264"
 
 
+def test_mp4_result_plays_in_a_browser_tab_and_seeks(client, finished_job):
+    _, _, status = finished_job
+    url = status["links"]["results"]["mp4"]
+    whole = client.get(url)
+    assert whole.headers["content-disposition"].startswith("inline")  # shown, not saved
+    assert whole.headers["accept-ranges"] == "bytes"
+    size = len(whole.content)
+    part = client.get(url, headers={"Range": "bytes=1000-1999"})
+    assert part.status_code == 206
+    assert part.headers["content-range"] == f"bytes 1000-1999/{size}"
+    assert part.content == whole.content[1000:2000]
+    beyond = client.get(url, headers={"Range": f"bytes={size}-"})
+    assert beyond.status_code == 416
+    assert (
+        client.get(status["links"]["results"]["json"])
+        .headers["content-disposition"]
+        .startswith("attachment")
+    )
+
+
 def test_three_uploads_at_once(client, pets_short):
     with ThreadPoolExecutor(3) as pool:
         responses = list(pool.map(lambda _: submit(client, pets_short, FAST_OPTIONS), range(3)))

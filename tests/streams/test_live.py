@@ -356,8 +356,10 @@ def test_a_camera_that_changes_resolution_starts_over_with_new_ids(
         # one recording per frame size
         assert len(final["recordings"]) == 2
         for url in final["recordings"]:
-            topics = read_mcap_topics(client.get(url).content)
+            recording = client.get(url).content
+            topics = read_mcap_topics(recording)
             assert topics["/camera/image"] == topics["/tracks"] >= 1
+            assert image_schema(recording) == "foxglove.CompressedVideo"
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
 
 
@@ -445,7 +447,15 @@ def test_recordings_rotate_by_stream_time_and_keep_the_newest(server, session, p
     camera = "rot"
     keys = StreamKeys("vtrack", camera)
     with server.client() as client:
-        start_stream(client, session, camera, record=True, record_segment=1.0, record_keep=2)
+        start_stream(
+            client,
+            session,
+            camera,
+            record=True,
+            record_segment=1.0,
+            record_keep=2,
+            record_images="jpeg",
+        )
         publisher = threading.Thread(
             target=publish_frames,
             args=(session, keys, iter(pets_frames[:40]), 10.0),
@@ -469,8 +479,10 @@ def test_recordings_rotate_by_stream_time_and_keep_the_newest(server, session, p
         assert len(names) == 2, "only the two newest recordings are kept"
         assert names == sorted(names) and running["recordings"][0] not in final["recordings"]
         for url in final["recordings"]:
-            topics = read_mcap_topics(client.get(url).content)
+            recording = client.get(url).content
+            topics = read_mcap_topics(recording)
             assert topics["/camera/image"] == topics["/tracks"] >= 1
+            assert image_schema(recording) == "foxglove.CompressedImage"
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
 
 
@@ -534,6 +546,15 @@ def test_a_recording_that_cannot_be_written_pauses_and_tracking_goes_on(tmp_path
     finally:
         session.close()
         server.stop()
+
+
+def image_schema(data: bytes) -> str:
+    """The schema name of an MCAP recording's ``/camera/image`` channel."""
+    import io
+
+    summary = make_reader(io.BytesIO(data)).get_summary()
+    channel = next(c for c in summary.channels.values() if c.topic == "/camera/image")
+    return summary.schemas[channel.schema_id].name
 
 
 def read_mcap_topics(data: bytes) -> dict[str, int]:
