@@ -21,7 +21,7 @@ from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
 from service.frames import FrameSource, open_frames
-from service.outputs import RunSummary, open_writers
+from service.outputs import RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detector
@@ -237,6 +237,15 @@ def _summary(
             "container announces (truncated or damaged file); the frames that decoded were "
             "tracked"
         )
+    missing = h264.h264_unavailable()
+    if missing is not None and OutputFormat.mp4 in options.formats:
+        warnings.append(f"the annotated video is mp4v, which browsers do not play: {missing}")
+    if (
+        missing is not None
+        and OutputFormat.mcap in options.formats
+        and options.mcap_images == "h264"
+    ):
+        warnings.append(f"the mcap holds JPEG images instead of H.264 video: {missing}")
     video = VideoInfo(
         filename=filename,
         width=source.width,

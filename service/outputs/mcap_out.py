@@ -35,9 +35,9 @@ from pydantic import BaseModel
 
 from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
-from service.outputs import foxglove
+from service.outputs import foxglove, h264
 from service.outputs.base import RunSummary, StreamInfo
-from service.outputs.h264 import AccessUnitEncoder, h264_unavailable
+from service.outputs.h264 import AccessUnitEncoder
 from service.outputs.palette import track_colour
 
 log = logging.getLogger(__name__)
@@ -116,7 +116,7 @@ class McapWriter:
     ) -> None:
         self.path = path
         self._video = info.mcap_images == "h264"
-        if self._video and (reason := h264_unavailable()) is not None:
+        if self._video and (reason := h264.h264_unavailable()) is not None:
             log.warning("the MCAP stores JPEG images instead of H.264: %s", reason)
             self._video = False
         self._encoder: AccessUnitEncoder | None = None

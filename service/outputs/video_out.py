@@ -24,8 +24,9 @@ import numpy as np
 
 from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
+from service.outputs import h264
 from service.outputs.base import RunSummary, StreamInfo
-from service.outputs.h264 import H264_OPTIONS, even_sides, h264_unavailable
+from service.outputs.h264 import H264_OPTIONS, even_sides
 from service.outputs.palette import track_colour
 
 log = logging.getLogger(__name__)
@@ -141,7 +142,7 @@ class Mp4vEncoder:
 
 def open_encoder(path: Path, width: int, height: int, fps: float) -> _Encoder:
     """H.264 where PyAV can write it, else ``mp4v`` (see the module docstring)."""
-    reason = h264_unavailable()
+    reason = h264.h264_unavailable()
     if reason is None:
         return H264Encoder(path, width, height, fps)
     log.warning("annotated video falls back to mp4v, which browsers do not play: %s", reason)

@@ -11,10 +11,12 @@ import av
 import cv2
 import numpy as np
 import pytest
+from mcap.reader import make_reader
 
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
 from service.frames import open_frames
+from service.outputs import h264
 from service.outputs.h264 import h264_unavailable
 from service.outputs.json_out import read_trajectories
 from service.outputs.video_out import H264Encoder, Mp4vEncoder
@@ -139,3 +141,19 @@ def test_the_mp4v_fallback_writes_a_video_opencv_reads(shared_data, tmp_path):
         read.append(frame)
     capture.release()
     assert len(read) == 5 and read[0].shape == (360, 480, 3)
+
+
+def test_without_x264_the_results_fall_back_and_the_job_says_so(monkeypatch, vfr_video, tmp_path):
+    # as on a PyAV built against an FFmpeg without x264
+    monkeypatch.setattr(h264, "h264_unavailable", lambda: "PyAV's FFmpeg has no libx264 encoder")
+    result = analyze(vfr_video, JobOptions(formats=["mcap", "mp4"]), tmp_path / "out")
+    with av.open(str(result.files["mp4"])) as container:
+        assert container.streams.video[0].codec_context.name == "mpeg4"
+    with result.files["mcap"].open("rb") as handle:
+        summary = make_reader(handle).get_summary()
+    assert {s.name for s in summary.schemas.values()} >= {"foxglove.CompressedImage"}
+    assert [w for w in result.warnings if "libx264" in w] == [
+        "the annotated video is mp4v, which browsers do not play: PyAV's FFmpeg has no libx264 "
+        "encoder",
+        "the mcap holds JPEG images instead of H.264 video: PyAV's FFmpeg has no libx264 encoder",
+    ]
