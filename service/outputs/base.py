@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Literal, Protocol
 
 from api_schemas.jobs import OutputFormat
 from api_schemas.tracks import FrameTracksMessage, VideoInfo
@@ -38,7 +38,7 @@ class StreamInfo:
     mode: str
     job_id: str | None = None
     filename: str | None = None
-    mcap_images: str = "h264"
+    mcap_images: Literal["h264", "jpeg"] = "h264"
 
 
 @dataclass(slots=True)
