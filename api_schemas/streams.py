@@ -3,8 +3,10 @@
 Key expressions, under a configurable prefix (``vtrack`` by default), for camera ``<camera>``:
 
 - ``<prefix>/cameras/<camera>/frames`` (in): one sample per frame. The payload is a JPEG
-  (encoding ``image/jpeg``) or raw pixels (any other encoding; ``width``, ``height`` and
-  ``format`` in the attachment). The attachment is a :class:`FrameAttachment` as JSON.
+  (encoding ``image/jpeg``), an H.264 access unit (``video/h264``: Annex B, one frame, no
+  B-frames; tracked from the first key frame on) or raw pixels (any other encoding;
+  ``width``, ``height`` and ``format`` in the attachment). The attachment is a
+  :class:`FrameAttachment` as JSON.
 - ``<prefix>/cameras/<camera>/detections`` (in, optional): :class:`UpstreamDetections` as JSON,
   matched to frames by sequence number; used instead of the service's detector when present.
 - ``<prefix>/cameras/<camera>/tracks`` (out): one :class:`StreamTracksMessage` as JSON per

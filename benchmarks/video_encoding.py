@@ -1,13 +1,21 @@
-"""Cost of the annotated MP4: H.264 (the service's encoder) against OpenCV's mp4v (its fallback).
+"""What the service's frame encodings cost: the annotated MP4 (H.264, the mp4v fallback), the
+MCAP's and live cameras' H.264 access units, and JPEG.
 
     python benchmarks/video_encoding.py [--video PATH] [--frames N] [--heights H ...]
                                         [--repeats N] [--json]
 
 Encodes the first ``frames`` frames of the video (default: 200 of the PETS09-S2L1 video of the
-shared data) resized to each height (4:3, bilinear), with each encoder of
-``service/outputs/video_out.py`` as a job writes them (BGR frames, one per 0.1 s), and reports
-milliseconds per frame (best of ``repeats`` runs: encoding is deterministic, so the best is the
-least disturbed) and kilobytes per frame of the file. x264 uses its default threads.
+shared data) resized to each height (4:3, bilinear), one per 0.1 s, and reports milliseconds
+per frame (best of ``repeats`` runs: encoding is deterministic, so the best is the least
+disturbed) and kilobytes per frame:
+
+* ``h264``, ``mp4v``: the annotated MP4's encoders (``service/outputs/video_out.py``), size of
+  the file;
+* ``h264-units``: :class:`~service.outputs.h264.AccessUnitEncoder` (x264 zerolatency, a key
+  frame a second), as the MCAP stores frames and ``vtrack publish --h264`` sends them;
+* ``jpeg``: ``encode_jpeg`` at quality 90, as ``vtrack publish`` sends frames by default.
+
+x264 uses its default threads.
 """
 
 from __future__ import annotations
@@ -25,11 +33,43 @@ import cv2
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))  # benchmarks/ first on sys.path would shadow the packages
 
+from service.outputs.h264 import AccessUnitEncoder  # noqa: E402
 from service.outputs.video_out import H264Encoder, Mp4vEncoder  # noqa: E402
+from service.streams.payloads import encode_jpeg  # noqa: E402
 
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
-ENCODERS = {"h264": H264Encoder, "mp4v": Mp4vEncoder}
+
+
+def video_file(encoder_type, frames: list, path: Path) -> int:
+    """Bytes of the MP4 ``encoder_type`` makes of the BGR ``frames``."""
+    height, width = frames[0].shape[:2]
+    encoder = encoder_type(path, width, height, 10.0)
+    for index, frame in enumerate(frames):
+        encoder.write(frame, index / 10)
+    encoder.close()
+    return path.stat().st_size
+
+
+def access_units(frames: list, path: Path) -> int:
+    """Bytes of the H.264 access units of the BGR ``frames`` (``path`` unused)."""
+    height, width = frames[0].shape[:2]
+    encoder = AccessUnitEncoder(width, height, "bgr24")
+    units = [u for i, f in enumerate(frames) for _, u in encoder.encode(f, i * 10**8)]
+    return sum(map(len, units + [u for _, u in encoder.flush()]))
+
+
+def jpeg(frames: list, path: Path) -> int:
+    """Bytes of the BGR ``frames`` as JPEG (``path`` unused)."""
+    return sum(len(encode_jpeg(cv2.cvtColor(f, cv2.COLOR_BGR2RGB))) for f in frames)
+
+
+ENCODERS = {
+    "h264": lambda frames, path: video_file(H264Encoder, frames, path),
+    "mp4v": lambda frames, path: video_file(Mp4vEncoder, frames, path),
+    "h264-units": access_units,
+    "jpeg": jpeg,
+}
 
 
 def read_frames(video: Path, count: int) -> list:
@@ -47,19 +87,16 @@ def measure(frames: list, height: int, repeats: int, folder: Path) -> dict[str, 
     width = round(height * 4 / 3)
     sized = [cv2.resize(f, (width, height)) for f in frames]
     out = {}
-    for name, encoder_type in ENCODERS.items():
+    for name, encode in ENCODERS.items():
         path = folder / f"{name}_{height}.mp4"
         best = float("inf")
         for _ in range(repeats):
             start = time.perf_counter()
-            encoder = encoder_type(path, width, height, 10.0)
-            for index, frame in enumerate(sized):
-                encoder.write(frame, index / 10)
-            encoder.close()
+            size = encode(sized, path)
             best = min(best, time.perf_counter() - start)
         out[name] = {
             "ms_per_frame": 1000 * best / len(sized),
-            "kb_per_frame": path.stat().st_size / len(sized) / 1024,
+            "kb_per_frame": size / len(sized) / 1024,
         }
     return out
 

@@ -22,6 +22,6 @@ def test_prints_time_and_size_per_frame_for_each_encoder(shared_data, capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["frames"] == 6 and set(report["heights"]) == {"120", "241"}
     for row in report["heights"].values():
-        assert set(row) == {"h264", "mp4v"}
+        assert set(row) == {"h264", "mp4v", "h264-units", "jpeg"}
         for figures in row.values():
             assert figures["ms_per_frame"] > 0 and figures["kb_per_frame"] > 0

@@ -33,6 +33,16 @@ def h264_unavailable() -> str | None:
     return None
 
 
+def nal_unit_types(unit: bytes) -> list[int]:
+    """The NAL unit types of an Annex B byte stream, in order (each after a 00 00 01 start
+    code; 5: IDR slice, 7: SPS, 8: PPS)."""
+    types, start = [], unit.find(b"\x00\x00\x01")
+    while start >= 0 and start + 3 < len(unit):
+        types.append(unit[start + 3] & 0x1F)
+        start = unit.find(b"\x00\x00\x01", start + 3)
+    return types
+
+
 def even_sides(image: np.ndarray) -> np.ndarray:
     """``image`` with one replicated row and/or column where a side is odd: 4:2:0 halves the
     chroma planes, so x264 needs even sides (padding keeps every pixel where it was, which

@@ -111,7 +111,7 @@ def _publish(args: argparse.Namespace) -> int:
                 keys,
                 frames,
                 rate,
-                raw=args.raw,
+                payload="raw" if args.raw else "h264" if args.h264 else "jpeg",
                 quality=args.quality,
                 detections=detections,
                 detections_scale=args.detections_scale,
@@ -278,7 +278,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     publish = commands.add_parser(
         "publish",
         help="publish a video file or webcam to Zenoh as a camera, at its frame rate",
-        description="Publish frames as a camera does: JPEG (or raw rgb8) on "
+        description="Publish frames as a camera does: JPEG (or raw rgb8, or H.264) on "
         "<prefix>/cameras/<camera>/frames with sequence number and capture time attached.",
     )
     publish.add_argument("source", help="video file, image folder, or webcam:N")
@@ -292,7 +292,13 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         default=5.0,
         help="seconds to wait for a tracker to subscribe before the first frame (default 5)",
     )
-    publish.add_argument("--raw", action="store_true", help="raw rgb8 pixels instead of JPEG")
+    encoding = publish.add_mutually_exclusive_group()
+    encoding.add_argument("--raw", action="store_true", help="raw rgb8 pixels instead of JPEG")
+    encoding.add_argument(
+        "--h264",
+        action="store_true",
+        help="H.264 instead of JPEG: one access unit per frame, a key frame every second",
+    )
     publish.add_argument(
         "--quality", type=_number(int, 1, 100), default=90, help="JPEG quality (default 90)"
     )

@@ -14,12 +14,16 @@ import numpy as np
 from pydantic import ValidationError
 
 from api_schemas.streams import FrameAttachment, PixelFormat, UpstreamDetections
+from service.outputs.h264 import nal_unit_types
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
 
 JPEG = "image/jpeg"
 RAW = "application/octet-stream"
+H264 = "video/h264"
 MAX_PIXELS = 8192 * 8192
+IDR = 5
+"""NAL unit type of an H.264 key frame's slices, where decoding can start."""
 
 
 class PayloadError(ValueError):
@@ -73,6 +77,51 @@ def decode_frame(payload: bytes, encoding: str, attachment: FrameAttachment) -> 
         return cv2.cvtColor(pixels.reshape(a.height, a.width), cv2.COLOR_GRAY2RGB)
     image = pixels.reshape(a.height, a.width, 3)
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if a.format is PixelFormat.bgr8 else image.copy()
+
+
+def is_h264(encoding: str) -> bool:
+    return encoding.split(";", 1)[0] == H264
+
+
+class H264Frames:
+    """One camera's H.264 stream, decoded unit by unit in arrival order.
+
+    Each sample is one access unit in Annex B form holding exactly one frame, no B-frames (as
+    Foxglove's ``CompressedVideo``, and what ``vtrack publish --h264`` sends). Every unit must
+    be decoded, dropped frames or not, since the next ones are coded against it. Units before
+    the first key frame (IDR) cannot be decoded and are refused; a decoder that joins a stream
+    late waits for the camera's next key frame.
+    """
+
+    def __init__(self) -> None:
+        import av
+
+        self._av = av
+        self._decoder = None
+
+    def decode(self, unit: bytes) -> np.ndarray:
+        """The unit's frame as RGB uint8 ``(H, W, 3)``; raises :class:`PayloadError`."""
+        if not unit:  # an empty packet would put the decoder into draining, for good
+            raise PayloadError(f"empty {H264} unit")
+        if self._decoder is None:
+            if IDR not in nal_unit_types(unit):
+                raise PayloadError(
+                    f"{H264} unit of {len(unit)} bytes before the first key frame (IDR): "
+                    "frames are decoded from the camera's next key frame on"
+                )
+            self._decoder = self._av.CodecContext.create("h264", "r")
+        try:
+            pictures = self._decoder.decode(self._av.Packet(unit))
+        except self._av.FFmpegError as error:
+            raise PayloadError(
+                f"{H264} unit of {len(unit)} bytes does not decode ({error})"
+            ) from None
+        if not pictures:
+            raise PayloadError(
+                f"{H264} unit of {len(unit)} bytes gave no frame: send one frame per unit, "
+                "without B-frames"
+            )
+        return pictures[-1].to_ndarray(format="rgb24")
 
 
 def parse_detections(payload: bytes) -> UpstreamDetections:

@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -19,6 +20,7 @@ import zenoh
 
 from api_schemas.streams import StreamTracksMessage, UpstreamDetection, UpstreamDetections
 from service.frames import capture_frames, open_frames
+from service.outputs.h264 import AccessUnitEncoder
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions, open_session
@@ -55,7 +57,7 @@ def publish_frames(
     frames: Iterator[np.ndarray],
     fps: float | None,
     *,
-    raw: bool = False,
+    payload: Literal["jpeg", "raw", "h264"] = "jpeg",
     quality: int = 90,
     detections: Callable[[int], Detections | None] | None = None,
     detections_scale: float = 1.0,
@@ -67,8 +69,9 @@ def publish_frames(
     block: bool = False,
 ) -> PublishReport:
     """Publish ``frames`` on ``keys.frames`` at ``fps`` frames per second (as fast as possible
-    when ``None``), as a camera does: JPEG (or raw ``rgb8`` with ``raw``), with sequence number
-    and capture time (Unix time) in the attachment.
+    when ``None``), as a camera does: ``payload`` JPEG, raw ``rgb8`` pixels, or H.264 (one
+    Annex B access unit per frame, a key frame every second: what a camera's encoder sends),
+    with sequence number and capture time (Unix time) in the attachment.
 
     ``detections(i)``, when given, supplies the detections of the ``i``-th frame, published on
     ``keys.detections`` right after the frame (an upstream detector), its boxes multiplied by
@@ -90,6 +93,7 @@ def publish_frames(
         waiting = [frame_publisher] + ([detection_publisher] if detections else [])
         subscribed = _wait_for_subscribers(session, keys, waiting, wait_for_subscriber)
     period = 1.0 / fps if fps else 0.0
+    encoder: AccessUnitEncoder | None = None
     started = time.perf_counter()
     sent = late = 0
     try:
@@ -104,15 +108,21 @@ def publish_frames(
                 late += 1
             sequence = first_sequence + index
             stamp = time.time()
-            if raw:
+            extra = {}
+            if payload == "raw":
                 height, width = rgb.shape[:2]
-                payload = np.ascontiguousarray(rgb, dtype=np.uint8).tobytes()
+                data = np.ascontiguousarray(rgb, dtype=np.uint8).tobytes()
                 extra = {"width": width, "height": height, "format": "rgb8"}
                 encoding = zenoh.Encoding.APPLICATION_OCTET_STREAM
+            elif payload == "h264":
+                if encoder is None:
+                    encoder = AccessUnitEncoder(rgb.shape[1], rgb.shape[0], "rgb24")
+                units = encoder.encode(rgb, round(stamp * 1e9))
+                data, encoding = b"".join(unit for _, unit in units), zenoh.Encoding.VIDEO_H264
             else:
-                payload, extra, encoding = encode_jpeg(rgb, quality), {}, zenoh.Encoding.IMAGE_JPEG
+                data, encoding = encode_jpeg(rgb, quality), zenoh.Encoding.IMAGE_JPEG
             frame_publisher.put(
-                payload, encoding=encoding, attachment=frame_attachment(sequence, stamp, **extra)
+                data, encoding=encoding, attachment=frame_attachment(sequence, stamp, **extra)
             )
             if on_sent is not None:
                 on_sent(sequence, stamp)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import zenoh
 
 from api_schemas.jobs import JobOptions
@@ -34,9 +35,11 @@ from service.outputs.mcap_out import McapWriter, salvage
 from service.storage import storage_problem
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
+    H264Frames,
     PayloadError,
     decode_frame,
     frame_attachment,
+    is_h264,
     parse_attachment,
     parse_detections,
     to_detections,
@@ -78,12 +81,14 @@ class StreamContext:
 
 @dataclass(slots=True)
 class Incoming:
-    """A frame sample as it arrived, attachment checked, pixels not decoded yet."""
+    """A frame sample as it arrived, attachment checked; ``image`` is already decoded for
+    H.264 (every unit is decoded on arrival), else ``None``: decoded when taken."""
 
     payload: bytes
     encoding: str
     attachment: Any  # FrameAttachment
     arrived: float  # time.perf_counter()
+    image: np.ndarray | None = None
 
 
 class LatestFrame:
@@ -153,6 +158,8 @@ class StreamWorker:
         self._lock = threading.Lock()  # guards the counters the Zenoh threads touch
         self._frames_in = 0
         self._malformed = 0
+        self._h264 = H264Frames()
+        self._h264_lock = threading.Lock()
         self._processed = 0
         self._used_upstream = 0
         self._restarts = 0
@@ -196,8 +203,18 @@ class StreamWorker:
         except PayloadError as error:
             self._malformed_sample(str(error))
             return
-        payload = sample.payload.to_bytes()
-        self._latest.offer(Incoming(payload, str(sample.encoding), attachment, arrived))
+        payload, encoding = sample.payload.to_bytes(), str(sample.encoding)
+        image = None
+        if is_h264(encoding):
+            # Each unit is coded against the ones before it: all are decoded, in arrival
+            # order, before the slot below drops frames the tracker cannot follow.
+            try:
+                with self._h264_lock:
+                    image = self._h264.decode(payload)
+            except PayloadError as error:
+                self._malformed_sample(f"frame {attachment.sequence}: {error}")
+                return
+        self._latest.offer(Incoming(payload, encoding, attachment, arrived, image))
 
     def _on_detections(self, sample: zenoh.Sample) -> None:
         try:
@@ -288,11 +305,13 @@ class StreamWorker:
     def _track(self, frame: Incoming, publisher: zenoh.Publisher) -> None:
         self._state = StreamState.running
         attachment = frame.attachment
-        try:
-            image = decode_frame(frame.payload, frame.encoding, attachment)
-        except PayloadError as error:
-            self._malformed_sample(f"frame {attachment.sequence}: {error}")
-            return
+        image = frame.image
+        if image is None:
+            try:
+                image = decode_frame(frame.payload, frame.encoding, attachment)
+            except PayloadError as error:
+                self._malformed_sample(f"frame {attachment.sequence}: {error}")
+                return
         if self._last_timestamp is not None and attachment.timestamp < self._last_timestamp:
             self._restart(
                 f"frame {attachment.sequence} is stamped {attachment.timestamp:.3f}, before the "

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from service.outputs.h264 import nal_unit_types
 from tests.service.conftest import (
     FAST_OPTIONS,
     Server,
@@ -186,15 +187,6 @@ def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client,
     assert any(p["type"] == 1 for _, _, a in annotations for p in a["points"])  # parts
 
 
-def _nal_types(unit: bytes) -> list[int]:
-    """The NAL unit types of an Annex B byte stream (after each 00 00 01 start code)."""
-    types, start = [], unit.find(b"\x00\x00\x01")
-    while start >= 0:
-        types.append(unit[start + 3] & 0x1F)
-        start = unit.find(b"\x00\x00\x01", start + 3)
-    return types
-
-
 def test_mcap_video_follows_foxglove_compressed_video(client, finished_job, pets_cut):
     # Foxglove decodes message by message: Annex B, exactly one picture per message, SPS (7)
     # and PPS (8) with every key frame (IDR, 5), no B-frames; it starts at a key frame to seek.
@@ -202,9 +194,9 @@ def test_mcap_video_follows_foxglove_compressed_video(client, finished_job, pets
     _, by_topic = _mcap_messages(_download(client, status, "mcap").content)
     units = [base64.b64decode(image["data"]) for _, _, image in by_topic["/camera/image"]]
     assert all(unit.startswith((b"\x00\x00\x00\x01", b"\x00\x00\x01")) for unit in units)
-    keys = [i for i, unit in enumerate(units) if 5 in _nal_types(unit)]
+    keys = [i for i, unit in enumerate(units) if 5 in nal_unit_types(unit)]
     assert keys == [0, 10, 20]  # a key frame a second at 10 fps
-    assert all({7, 8} <= set(_nal_types(units[i])) for i in keys)
+    assert all({7, 8} <= set(nal_unit_types(units[i])) for i in keys)
     capture = cv2.VideoCapture(str(pets_cut))
     sources = [cv2.cvtColor(capture.read()[1], cv2.COLOR_BGR2RGB) for _ in range(24)]
     capture.release()

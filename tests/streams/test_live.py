@@ -20,6 +20,7 @@ import zenoh
 from mcap.reader import make_reader
 
 from api_schemas.streams import StreamTracksMessage
+from service.outputs.h264 import AccessUnitEncoder
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions
@@ -191,7 +192,7 @@ def test_a_camera_faster_than_the_tracker_is_skipped_not_queued(server, session,
         rss = []
         # Raw frames (518 kB each) as fast as the tracker's link takes them, five rounds.
         for _ in range(5):
-            publish_frames(session, keys, iter(pets_frames), None, raw=True, block=True)
+            publish_frames(session, keys, iter(pets_frames), None, payload="raw", block=True)
             rss.append(resident_kib(pid))
         sent = 5 * len(pets_frames)
 
@@ -211,6 +212,48 @@ def test_a_camera_faster_than_the_tracker_is_skipped_not_queued(server, session,
         assert sum(m.frames_skipped for m in follower.received()) == counters["frames_skipped"]
         # Nothing queues: after the first round the worker's memory stays where it was.
         assert max(rss[1:]) - rss[1] < 64 * 1024, f"worker memory grew: {rss} KiB"
+
+
+def test_an_h264_camera_is_tracked_from_its_next_key_frame(server, session, pets_frames):
+    # A camera that sends its encoder's units (no transcoding to JPEG), joined mid-stream.
+    camera = "h264"
+    keys = StreamKeys("vtrack", camera)
+    encoder = AccessUnitEncoder(480, 360, "rgb24")
+    units = [
+        unit for i, f in enumerate(pets_frames[:30]) for _, unit in encoder.encode(f, i * 10**8)
+    ]
+    start = time.time()
+    with server.client() as client:
+        start_stream(client, session, camera)
+        follower = Follower(session, keys)
+        for i in range(3, 30):  # from its 4th frame; key frames at 0, 1.0 and 2.0 s
+            put_frame(session, keys, units[i], frame_attachment(i, start + i / 10), "video/h264")
+            time.sleep(0.02)
+        settled = wait_for(
+            lambda: (
+                (c := status(client, camera)["counters"])["frames_in"] == 27
+                and c["frames_processed"] + c["frames_skipped"] + c["malformed"] == 27
+                and c
+            ),
+            60,
+            "every unit to be taken",
+        )
+        assert settled["malformed"] == 7  # units 3-9, before the key frame of 1.0 s
+        assert settled["frames_processed"] >= 1
+        errors = status(client, camera)["errors"]
+        assert any("before the first key frame" in e for e in errors)
+        # and what vtrack publish --h264 sends: its own encoder, a key frame first
+        publish_frames(session, keys, iter(pets_frames[30:50]), 10.0, payload="h264", block=True)
+        final = wait_for(
+            lambda: (s := status(client, camera))["counters"]["frames_in"] == 47 and s,
+            60,
+            "the published frames",
+        )
+        wait_for(lambda: follower.received(), 10, "tracks of the H.264 frames")
+        follower.close()
+        assert final["counters"]["malformed"] == 7
+        assert any(m.tracks for m in follower.received())
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
 
 
 def resident_kib(pid: int) -> int:
@@ -767,7 +810,7 @@ def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, s
     video = str(shared_data / PETS_VIDEO)
     tools = {
         "subscribe": [*VTRACK, "subscribe", *connect],
-        "publish": [*VTRACK, "publish", video, "--loop", "--fps", "5", *connect],
+        "publish": [*VTRACK, "publish", video, "--loop", "--fps", "5", "--h264", *connect],
     }
     with server.client() as client:
         start_stream(client, session, camera)
@@ -785,6 +828,12 @@ def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, s
         try:
             for name, lines in stderr.items():
                 wait_for(lambda s=lines: s.has("is tracked by"), 30, f"{name} to see the tracker")
+            tracked = wait_for(
+                lambda: (c := status(client, camera)["counters"])["frames_processed"] >= 3 and c,
+                30,
+                "the published H.264 frames to be tracked",
+            )
+            assert tracked["malformed"] == 0, status(client, camera)["errors"]
             assert client.delete(f"/v1/streams/{camera}").status_code == 200
             for name, lines in stderr.items():
                 wait_for(lambda s=lines: s.has("went away"), 30, f"{name} to see it go")

@@ -23,6 +23,7 @@ from tests.conftest import REPO_ROOT
         (["publish", "v.avi", "--camera", "c", "--quality", "200"], "at least 1 and at most 100"),
         (["publish", "v.avi", "--camera", "c", "--wait", "-1"], "--wait: must be at least 0"),
         (["publish", "v.avi", "--camera", "c", "--detections-scale", "nan"], "greater than 0"),
+        (["publish", "v.avi", "--camera", "c", "--raw", "--h264"], "not allowed with argument"),
         (["subscribe", "--camera", "c", "--count", "0"], "--count: must be at least 1"),
         (["subscribe", "--camera", "c", "--duration", "-1"], "--duration: must be greater"),
     ],

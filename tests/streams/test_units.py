@@ -24,11 +24,13 @@ from api_schemas.streams import (
     UpstreamDetections,
 )
 from api_schemas.tracks import FrameTracksMessage
+from service.outputs.h264 import AccessUnitEncoder
 from service.streams import tools
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
     JPEG,
     RAW,
+    H264Frames,
     PayloadError,
     decode_frame,
     encode_jpeg,
@@ -108,6 +110,48 @@ def test_frame_attachment_round_trip():
 
 
 # -- payloads: frames --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def h264_units(shared_data: Path) -> tuple[list[np.ndarray], list[bytes]]:
+    """30 PETS frames (RGB) and their H.264 units, 0.1 s apart: key frames at 0, 1 and 2 s."""
+    capture = cv2.VideoCapture(str(shared_data / VIDEO))
+    frames = [cv2.cvtColor(capture.read()[1], cv2.COLOR_BGR2RGB) for _ in range(30)]
+    capture.release()
+    encoder = AccessUnitEncoder(480, 360, "rgb24")
+    units = [unit for i, f in enumerate(frames) for _, unit in encoder.encode(f, i * 10**8)]
+    return frames, units
+
+
+def test_h264_units_decode_to_their_frames(h264_units):
+    frames, units = h264_units
+    stream = H264Frames()
+    for frame, unit in zip(frames, units, strict=True):
+        decoded = stream.decode(unit)
+        assert decoded.shape == (360, 480, 3) and decoded.dtype == np.uint8
+        assert np.abs(decoded.astype(np.int16) - frame.astype(np.int16)).mean() < 6
+
+
+def test_an_h264_stream_joined_late_waits_for_a_key_frame(h264_units):
+    frames, units = h264_units
+    stream = H264Frames()
+    for unit in units[3:10]:  # the camera's stream from its 4th frame: no key frame yet
+        with pytest.raises(PayloadError, match="before the first key frame"):
+            stream.decode(unit)
+    for frame, unit in zip(frames[10:], units[10:], strict=True):  # key frame at 1.0 s
+        assert np.abs(stream.decode(unit).astype(np.int16) - frame.astype(np.int16)).mean() < 6
+
+
+def test_bad_h264_units_are_refused_and_the_stream_goes_on(h264_units):
+    frames, units = h264_units
+    stream = H264Frames()
+    stream.decode(units[0])
+    with pytest.raises(PayloadError, match="video/h264 unit of 13 bytes does not decode"):
+        stream.decode(b"not h264 data")
+    with pytest.raises(PayloadError, match="empty video/h264 unit"):
+        stream.decode(b"")
+    for frame, unit in zip(frames[10:13], units[10:13], strict=True):  # from the next key frame
+        assert np.abs(stream.decode(unit).astype(np.int16) - frame.astype(np.int16)).mean() < 6
 
 
 def test_decode_jpeg_of_a_real_frame(first_frame):
