@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 
+import av
 import cv2
 import numpy as np
 from pydantic import ValidationError
@@ -94,10 +95,7 @@ class H264Frames:
     """
 
     def __init__(self) -> None:
-        import av
-
-        self._av = av
-        self._decoder = None
+        self._decoder: av.CodecContext | None = None
 
     def decode(self, unit: bytes) -> np.ndarray:
         """The unit's frame as RGB uint8 ``(H, W, 3)``; raises :class:`PayloadError`."""
@@ -109,10 +107,10 @@ class H264Frames:
                     f"{H264} unit of {len(unit)} bytes before the first key frame (IDR): "
                     "frames are decoded from the camera's next key frame on"
                 )
-            self._decoder = self._av.CodecContext.create("h264", "r")
+            self._decoder = av.CodecContext.create("h264", "r")
         try:
-            pictures = self._decoder.decode(self._av.Packet(unit))
-        except self._av.FFmpegError as error:
+            pictures = self._decoder.decode(av.Packet(unit))
+        except av.FFmpegError as error:
             raise PayloadError(
                 f"{H264} unit of {len(unit)} bytes does not decode ({error})"
             ) from None
@@ -121,7 +119,13 @@ class H264Frames:
                 f"{H264} unit of {len(unit)} bytes gave no frame: send one frame per unit, "
                 "without B-frames"
             )
-        return pictures[-1].to_ndarray(format="rgb24")
+        picture = pictures[-1]
+        if picture.width * picture.height > MAX_PIXELS:
+            raise PayloadError(
+                f"{H264} frame of {picture.width}x{picture.height} is larger than this service "
+                "takes"
+            )
+        return picture.to_ndarray(format="rgb24")
 
 
 def parse_detections(payload: bytes) -> UpstreamDetections:
