@@ -154,6 +154,14 @@ def test_bad_h264_units_are_refused_and_the_stream_goes_on(h264_units):
         assert np.abs(stream.decode(unit).astype(np.int16) - frame.astype(np.int16)).mean() < 6
 
 
+def test_an_h264_frame_over_the_pixel_limit_is_refused(h264_units, monkeypatch):
+    from service.streams import payloads
+
+    monkeypatch.setattr(payloads, "MAX_PIXELS", 480 * 360 - 1)  # as an 8K+ frame would be
+    with pytest.raises(PayloadError, match="frame of 480x360 is larger than this service takes"):
+        H264Frames().decode(h264_units[1][0])
+
+
 def test_decode_jpeg_of_a_real_frame(first_frame):
     payload = encode_jpeg(first_frame)
     assert payload[:2] == b"\xff\xd8"  # JPEG SOI marker
