@@ -1,13 +1,14 @@
 """Live stream benchmark: a video published on Zenoh as a camera, tracked live by the service.
 
     python benchmarks/stream.py [--fps 10] [--frames N] [--configs a,b] [--data DIR]
-                                [--server-log FILE] [--json]
+                                [--payload jpeg|h264|raw] [--server-log FILE] [--json]
 
 Starts ``vtrack serve`` (one job worker, a temporary data folder, Zenoh on a free loopback
 port), then for each configuration starts a stream (``POST /v1/streams``, a camera of its own),
 waits until its worker has subscribed, and publishes the PETS09-S2L1 video (480x360, 795 frames)
 on the camera's frames key at ``--fps`` with :func:`service.streams.tools.publish_frames`, as a
-camera does (JPEG, sequence number and capture time attached), while following the camera's
+camera does (JPEG, or ``--payload`` H.264 or raw pixels; sequence number and capture time
+attached), while following the camera's
 tracks with :func:`service.streams.tools.follow_tracks` in this process. Configurations:
 
 * ``service_detector``: default stream options; the service's embedded HOG detector (at the
@@ -168,7 +169,13 @@ def stream_hota(messages: list[StreamTracksMessage], gt_path: Path, frames: int)
 
 
 def run_config(
-    name: str, server: Server, client: httpx.Client, data: Path, fps: float, frames: int | None
+    name: str,
+    server: Server,
+    client: httpx.Client,
+    data: Path,
+    fps: float,
+    frames: int | None,
+    payload: str = "jpeg",
 ) -> dict:
     camera = f"bench_{name}"
     keys = StreamKeys(PREFIX, camera)
@@ -205,6 +212,7 @@ def run_config(
             keys,
             source,
             fps,
+            payload=payload,
             detections=detections,
             detections_scale=SCALE,
             limit=frames,
@@ -391,7 +399,12 @@ def print_table(result: dict) -> None:
 
 
 def run(
-    data: Path, fps: float, frames: int | None, configs: list[str], server_log: Path | None = None
+    data: Path,
+    fps: float,
+    frames: int | None,
+    configs: list[str],
+    server_log: Path | None = None,
+    payload: str = "jpeg",
 ) -> dict:
     video = data / VIDEO
     if not video.is_file():
@@ -400,6 +413,7 @@ def run(
         "video": video.name,
         "fps": fps,
         "frames": frames,
+        "payload": payload,
         "cpu_count": os.cpu_count(),
         "configs": {},
     }
@@ -411,7 +425,7 @@ def run(
             with httpx.Client(base_url=server.url, timeout=60) as client:
                 for name in configs:
                     try:
-                        figures = run_config(name, server, client, data, fps, frames)
+                        figures = run_config(name, server, client, data, fps, frames, payload)
                     except Exception as error:  # one broken configuration must not stop the rest
                         _log(f"{name}: {type(error).__name__}: {error}\n{server.log_tail()}")
                         figures = {"error": f"{type(error).__name__}: {error}"}
@@ -438,6 +452,12 @@ def main(argv: list[str] | None = None) -> int:
         help=f"comma-separated configurations among {', '.join(CONFIGS)} "
         f"(default: {','.join(DEFAULT_CONFIGS)})",
     )
+    parser.add_argument(
+        "--payload",
+        choices=("jpeg", "h264", "raw"),
+        default="jpeg",
+        help="how the camera sends its frames (default jpeg)",
+    )
     parser.add_argument("--server-log", type=Path, help="keep the service's log in this file")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
@@ -445,7 +465,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(configs) - set(CONFIGS))
     if unknown:
         parser.error(f"unknown configurations {unknown}; choose from {list(CONFIGS)}")
-    result = run(args.data, args.fps, args.frames, configs, args.server_log)
+    result = run(args.data, args.fps, args.frames, configs, args.server_log, args.payload)
     if args.json:
         print(json.dumps(result))
     else:
