@@ -17,6 +17,8 @@ import numpy as np
 H264_OPTIONS = {"preset": "veryfast", "crf": "23"}
 """x264 settings: ``veryfast`` encodes a 360-px frame in about 2 ms, into a third of the bytes
 of OpenCV's ``mp4v``; ``crf`` 23 is x264's default quality."""
+MILLISECOND = Fraction(1, 1000)
+"""Time base of the encoders' frames: presentation times in milliseconds."""
 
 
 @functools.cache
@@ -53,6 +55,33 @@ def even_sides(image: np.ndarray) -> np.ndarray:
     return cv2.copyMakeBorder(image, 0, rows, 0, cols, cv2.BORDER_REPLICATE)
 
 
+def configure(context, width: int, height: int) -> None:
+    """Set an x264 codec context (PyAV) for frames of ``width`` x ``height``: 4:2:0, sides made
+    even as :func:`even_sides` makes them, times in milliseconds."""
+    context.width, context.height = width + width % 2, height + height % 2
+    context.pix_fmt = "yuv420p"
+    context.time_base = MILLISECOND
+
+
+class FrameStamper:
+    """PyAV frames for x264 from images and their times: sides made even, presentation times
+    in milliseconds that always increase (frames under a millisecond apart are nudged apart,
+    as MP4 and x264 need)."""
+
+    def __init__(self, pixel_format: str) -> None:
+        import av
+
+        self._frame_type = av.VideoFrame
+        self._pixel_format = pixel_format
+        self._last_pts = -1
+
+    def frame(self, image: np.ndarray, milliseconds: int):
+        frame = self._frame_type.from_ndarray(even_sides(image), format=self._pixel_format)
+        frame.pts = self._last_pts = max(milliseconds, self._last_pts + 1)
+        frame.time_base = MILLISECOND
+        return frame
+
+
 class AccessUnitEncoder:
     """Frames to H.264 access units in Annex B form, one per frame, for players that decode
     message by message (Foxglove's ``CompressedVideo``): no B-frames and no lookahead (x264's
@@ -66,31 +95,24 @@ class AccessUnitEncoder:
     ) -> None:
         import av
 
-        self._frame_type = av.VideoFrame
+        self._frames = FrameStamper(pixel_format)
         self._intra = av.video.frame.PictureType.I
-        self._pixel_format = pixel_format
         self._keyframe_ns = round(keyframe_seconds * 1e9)
         self._last_key: int | None = None
         context = av.CodecContext.create("libx264", "w")
-        context.width, context.height = width + width % 2, height + height % 2
-        context.pix_fmt = "yuv420p"
-        context.time_base = Fraction(1, 1000)
+        configure(context, width, height)
         context.gop_size = 1000  # a bound only: key frames are forced by time (below)
         context.max_b_frames = 0
         # forced-idr: a forced key frame is an IDR, where decoding can start
         context.options = {**H264_OPTIONS, "tune": "zerolatency", "forced-idr": "1"}
         self._context = context
-        self._stamps: dict[int, int] = {}
-        self._last_pts = -1
+        self._stamps: dict[int, int] = {}  # pts -> the stamp given with the frame
 
     def encode(self, image: np.ndarray, stamp: int) -> list[tuple[int, bytes]]:
         """(stamp, access unit) of what the encoder gives back for ``image`` (its own unit: the
         encoder has no delay); ``stamp`` (nanoseconds) comes back with the unit."""
-        frame = self._frame_type.from_ndarray(even_sides(image), format=self._pixel_format)
-        # milliseconds, increasing (frames under 1 ms apart nudged), for x264's rate control;
-        # units are matched back to their stamps by it
-        frame.pts = self._last_pts = max(stamp // 1_000_000, self._last_pts + 1)
-        self._stamps[frame.pts] = stamp
+        frame = self._frames.frame(image, stamp // 1_000_000)
+        self._stamps[frame.pts] = stamp  # units come back with their frame's pts
         if self._last_key is None or stamp - self._last_key >= self._keyframe_ns:
             frame.pict_type = self._intra
             self._last_key = stamp

@@ -26,14 +26,12 @@ from api_schemas.tracks import FrameTracksMessage
 from service.frames import TimedFrame
 from service.outputs import h264
 from service.outputs.base import RunSummary, StreamInfo
-from service.outputs.h264 import H264_OPTIONS, even_sides
+from service.outputs.h264 import H264_OPTIONS, FrameStamper, configure
 from service.outputs.palette import track_colour
 
 log = logging.getLogger(__name__)
 
 TRAIL_SECONDS = 3.0
-TIME_BASE = Fraction(1, 1000)
-"""Presentation times are stored in milliseconds."""
 
 
 def _bgr(track_id: int) -> tuple[int, int, int]:
@@ -95,26 +93,20 @@ class H264Encoder:
     def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
         import av
 
-        self._frame_type = av.VideoFrame
+        self._frames = FrameStamper("bgr24")
         self._container = av.open(str(path), "w", format="mp4", options={"movflags": "+faststart"})
         try:
             stream = self._container.add_stream(
                 "libx264", rate=Fraction(fps).limit_denominator(1001), options=dict(H264_OPTIONS)
             )
-            stream.width, stream.height = width + width % 2, height + height % 2
-            stream.pix_fmt = "yuv420p"
-            stream.codec_context.time_base = TIME_BASE
+            configure(stream.codec_context, width, height)
         except BaseException:
             self._container.close()
             raise
         self._stream = stream
-        self._last_pts = -1
 
     def write(self, bgr: np.ndarray, timestamp: float) -> None:
-        frame = self._frame_type.from_ndarray(even_sides(bgr), format="bgr24")
-        # MP4 needs increasing times; frames under a millisecond apart are nudged apart.
-        frame.pts = self._last_pts = max(round(timestamp / TIME_BASE), self._last_pts + 1)
-        frame.time_base = TIME_BASE
+        frame = self._frames.frame(bgr, round(timestamp * 1000))
         self._container.mux(self._stream.encode(frame))
 
     def close(self) -> None:

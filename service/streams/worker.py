@@ -235,8 +235,13 @@ class StreamWorker:
     def _malformed_sample(self, reason: str) -> None:
         with self._lock:
             self._malformed += 1
+        self._note_error(reason, logging.WARNING)
+
+    def _note_error(self, reason: str, level: int) -> None:
+        """Keep ``reason`` among the status's last errors, and log it."""
+        with self._lock:
             self._errors.append(reason)
-        log.warning("camera %s: %s", self.spec.camera, reason)
+        log.log(level, "camera %s: %s", self.spec.camera, reason)
 
     # -- the loop ----------------------------------------------------------------------------
 
@@ -388,13 +393,11 @@ class StreamWorker:
         segment = self.spec.record_segment
         self._recording_resumes = timestamp + segment
         problem = storage_problem(error) or f"{type(error).__name__}: {error}"
-        reason = (
+        self._note_error(
             f"recording paused: {problem}; tracking goes on and recording tries again in "
-            f"{segment:g} s"
+            f"{segment:g} s",
+            logging.ERROR,
         )
-        with self._lock:
-            self._errors.append(reason)
-        log.error("camera %s: %s", self.spec.camera, reason)
 
     def _record_frame(self, folder: Path, image, message: StreamTracksMessage) -> None:
         if (
