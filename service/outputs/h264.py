@@ -19,6 +19,11 @@ H264_OPTIONS = {"preset": "veryfast", "crf": "23"}
 of OpenCV's ``mp4v``; ``crf`` 23 is x264's default quality."""
 MILLISECOND = Fraction(1, 1000)
 """Time base of the encoders' frames: presentation times in milliseconds."""
+IDR = 5
+"""NAL unit type of an H.264 key frame's slices, where decoding can start."""
+SPS, PPS = 7, 8
+"""NAL unit types of the sequence and picture parameter sets, which a decoder needs before
+the first frame."""
 
 
 @functools.cache

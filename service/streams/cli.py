@@ -84,11 +84,39 @@ def _tracker_news(command: str, camera: str, going_on: str) -> Callable[[str, bo
 
 
 def _publish(args: argparse.Namespace) -> int:
+    from service.streams.network_camera import (
+        CameraSettings,
+        NetworkCamera,
+        is_stream_url,
+        redacted,
+    )
     from service.streams.tools import publish_frames, video_frames, watch_trackers
     from tracking.detection import MotDetections
 
+    camera = is_stream_url(args.source)
+    if camera and (args.fps or args.loop):
+        print(
+            "vtrack publish: --fps and --loop are for files: a network camera sends at its own "
+            "rate (the tracker skips what it cannot follow) and is connected to again when it "
+            "drops",
+            file=sys.stderr,
+        )
+        return 2
     try:
-        frames, fps = video_frames(args.source)
+        if camera:
+            settings = CameraSettings(read_timeout=args.timeout, options=dict(args.input_option))
+            source = NetworkCamera(
+                args.source,
+                settings,
+                forward_h264=args.h264,
+                tell=lambda news: _tell("publish", news),
+            )
+            frames, rate = iter(source), None
+            pace = f"{source.connection.description}, as it arrives"
+        else:
+            frames, fps = video_frames(args.source)
+            rate = args.fps or fps or 25.0
+            pace = f"at {rate:g} fps"
         detections = None
         if args.detections is not None:
             table = MotDetections.from_file(args.detections)
@@ -96,12 +124,11 @@ def _publish(args: argparse.Namespace) -> int:
     except (ValueError, OSError) as error:
         print(f"vtrack publish: {error}", file=sys.stderr)
         return 2
-    rate = args.fps or fps or 25.0
     opened = _session(args, "publish")
     if opened is None:
         return 1
     session, keys = opened
-    _tell("publish", f"{args.source} on {keys.frames} at {rate:g} fps (Ctrl-C stops)")
+    _tell("publish", f"{redacted(args.source)} on {keys.frames}: {pace} (Ctrl-C stops)")
     watcher = watch_trackers(session, keys, _tracker_news("publish", args.camera, "sending on"))
     sent = 0
     try:
@@ -242,6 +269,13 @@ def _matching(pattern: str, what: str) -> Callable[[str], str]:
     return parse
 
 
+def _ffmpeg_option(text: str) -> tuple[str, str]:
+    key, separator, value = text.partition("=")
+    if not (separator and key):
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    return key, value
+
+
 def _endpoint(text: str) -> str:
     try:
         return zenoh_endpoint(text)
@@ -277,11 +311,15 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
 
     publish = commands.add_parser(
         "publish",
-        help="publish a video file or webcam to Zenoh as a camera, at its frame rate",
+        help="publish a video file, a webcam or a network camera to Zenoh as a camera",
         description="Publish frames as a camera does: JPEG (or raw rgb8, or H.264) on "
         "<prefix>/cameras/<camera>/frames with sequence number and capture time attached.",
     )
-    publish.add_argument("source", help="video file, image folder, or webcam:N")
+    publish.add_argument(
+        "source",
+        help="video file, image folder, webcam:N, or a network camera's URL (rtsp://, "
+        "http(s)://, rtmp://, srt://, tcp://, udp://)",
+    )
     zenoh_arguments(publish)
     publish.add_argument("--fps", type=positive, help="frames per second (default: the video's)")
     publish.add_argument("--loop", action="store_true", help="start over at the end")
@@ -297,7 +335,24 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     encoding.add_argument(
         "--h264",
         action="store_true",
-        help="H.264 instead of JPEG: one access unit per frame, a key frame every second",
+        help="H.264 instead of JPEG: one access unit per frame, a key frame every second; a "
+        "network camera's own H.264 is forwarded as it is when it has no B-frames",
+    )
+    publish.add_argument(
+        "--timeout",
+        type=positive,
+        default=5.0,
+        help="network camera: seconds without data before it counts as lost and is connected "
+        "to again (default 5)",
+    )
+    publish.add_argument(
+        "--input-option",
+        type=_ffmpeg_option,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="network camera: an FFmpeg input option, e.g. rtsp_transport=udp (repeatable; "
+        "RTSP uses TCP by default)",
     )
     publish.add_argument(
         "--quality", type=_number(int, 1, 100), default=90, help="JPEG quality (default 90)"

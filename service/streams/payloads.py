@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from api_schemas.streams import FrameAttachment, PixelFormat, UpstreamDetections
-from service.outputs.h264 import nal_unit_types
+from service.outputs.h264 import IDR, nal_unit_types
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
 
@@ -23,8 +23,6 @@ JPEG = "image/jpeg"
 RAW = "application/octet-stream"
 H264 = "video/h264"
 MAX_PIXELS = 8192 * 8192
-IDR = 5
-"""NAL unit type of an H.264 key frame's slices, where decoding can start."""
 
 
 class PayloadError(ValueError):

@@ -54,7 +54,7 @@ def video_frames(source: str) -> tuple[Iterator[np.ndarray], float | None]:
 def publish_frames(
     session: zenoh.Session,
     keys: StreamKeys,
-    frames: Iterator[np.ndarray],
+    frames: Iterator[np.ndarray | bytes],
     fps: float | None,
     *,
     payload: Literal["jpeg", "raw", "h264"] = "jpeg",
@@ -71,7 +71,9 @@ def publish_frames(
     """Publish ``frames`` on ``keys.frames`` at ``fps`` frames per second (as fast as possible
     when ``None``), as a camera does: ``payload`` JPEG, raw ``rgb8`` pixels, or H.264 (one
     Annex B access unit per frame, a key frame every second: what a camera's encoder sends),
-    with sequence number and capture time (Unix time) in the attachment.
+    with sequence number and capture time (Unix time) in the attachment. An item of
+    ``frames`` that is ``bytes`` is an H.264 access unit a camera encoded itself
+    (:class:`~service.streams.network_camera.NetworkCamera`), published as it is.
 
     ``detections(i)``, when given, supplies the detections of the ``i``-th frame, published on
     ``keys.detections`` right after the frame (an upstream detector), its boxes multiplied by
@@ -81,8 +83,10 @@ def publish_frames(
     (a tracker) to be known: a session that has just opened reaches the others a moment later.
     Frames that the network cannot take at once are dropped, as Zenoh does by default for live
     data; with ``block`` the publisher waits instead (every frame reaches the tracker, which
-    then skips what it cannot follow).
+    then skips what it cannot follow). H.264 is always sent so: the units that follow a lost
+    one do not decode until the next key frame.
     """
+    block = block or payload == "h264"
     congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
     frame_publisher = session.declare_publisher(keys.frames, congestion_control=congestion)
     detection_publisher = session.declare_publisher(
@@ -94,10 +98,11 @@ def publish_frames(
         subscribed = _wait_for_subscribers(session, keys, waiting, wait_for_subscriber)
     period = 1.0 / fps if fps else 0.0
     encoder: AccessUnitEncoder | None = None
+    encoded_shape: tuple[int, ...] = ()
     started = time.perf_counter()
     sent = late = 0
     try:
-        for index, rgb in enumerate(frames):
+        for index, frame in enumerate(frames):
             if (limit is not None and sent >= limit) or (stop is not None and stop.is_set()):
                 break
             due = started + index * period
@@ -109,18 +114,21 @@ def publish_frames(
             sequence = first_sequence + index
             stamp = time.time()
             extra = {}
-            if payload == "raw":
-                height, width = rgb.shape[:2]
-                data = np.ascontiguousarray(rgb, dtype=np.uint8).tobytes()
+            if isinstance(frame, bytes):
+                data, encoding = frame, zenoh.Encoding.VIDEO_H264
+            elif payload == "raw":
+                height, width = frame.shape[:2]
+                data = np.ascontiguousarray(frame, dtype=np.uint8).tobytes()
                 extra = {"width": width, "height": height, "format": "rgb8"}
                 encoding = zenoh.Encoding.APPLICATION_OCTET_STREAM
             elif payload == "h264":
-                if encoder is None:
-                    encoder = AccessUnitEncoder(rgb.shape[1], rgb.shape[0], "rgb24")
-                units = encoder.encode(rgb, round(stamp * 1e9))
+                if encoder is None or encoded_shape != frame.shape:  # a camera may change size
+                    encoder = AccessUnitEncoder(frame.shape[1], frame.shape[0], "rgb24")
+                    encoded_shape = frame.shape
+                units = encoder.encode(frame, round(stamp * 1e9))
                 data, encoding = b"".join(unit for _, unit in units), zenoh.Encoding.VIDEO_H264
             else:
-                data, encoding = encode_jpeg(rgb, quality), zenoh.Encoding.IMAGE_JPEG
+                data, encoding = encode_jpeg(frame, quality), zenoh.Encoding.IMAGE_JPEG
             frame_publisher.put(
                 data, encoding=encoding, attachment=frame_attachment(sequence, stamp, **extra)
             )

@@ -24,6 +24,7 @@ from service.outputs.h264 import AccessUnitEncoder
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions
+from service.streams.simulated_cameras import RtspCamera
 from service.streams.tools import (
     current_tracks,
     follow_tracks,
@@ -253,6 +254,56 @@ def test_an_h264_camera_is_tracked_from_its_next_key_frame(server, session, pets
         follower.close()
         assert final["counters"]["malformed"] == 7
         assert any(m.tracks for m in follower.received())
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_a_network_camera_is_published_by_vtrack_publish(server, session, pets_frames):
+    # An RTSP camera at its 10 frames per second; vtrack publish is the gateway, forwarding
+    # the camera's H.264 as it is.
+    camera = "network"
+    keys = StreamKeys("vtrack", camera)
+    encoder = AccessUnitEncoder(480, 360, "rgb24")
+    units = [u for i, f in enumerate(pets_frames[:40]) for _, u in encoder.encode(f, i * 10**8)]
+    source = RtspCamera(units, fps=10)
+    with server.client() as client:
+        start_stream(client, session, camera)
+        follower = Follower(session, keys)
+        try:
+            publisher = subprocess.run(
+                [
+                    *VTRACK,
+                    "publish",
+                    source.url,
+                    "--camera",
+                    camera,
+                    "--h264",
+                    "--limit",
+                    "40",
+                    "--connect",
+                    server.zenoh_listen[0],
+                ],
+                cwd=REPO_ROOT,
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
+        finally:
+            source.close()
+        assert publisher.returncode == 0, publisher.stderr
+        assert "h264 480x360, forwarded as the camera encoded it" in publisher.stderr
+        assert "40 frames sent" in publisher.stderr
+        final = wait_for(
+            lambda: (
+                (c := status(client, camera)["counters"])["frames_in"] == 40
+                and c["frames_processed"] + c["frames_skipped"] + c["malformed"] == 40
+                and c
+            ),
+            60,
+            "the camera's 40 frames",
+        )
+        assert final["malformed"] == 0  # every unit decoded: forwarded from a key frame on
+        wait_for(lambda: any(m.tracks for m in follower.received()), 30, "people tracked")
+        follower.close()
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
 
 

@@ -1,0 +1,275 @@
+"""Network cameras as the source of ``vtrack publish``: real TCP and HTTP servers on loopback,
+read by FFmpeg as a camera's RTSP or MPEG-TS stream is read."""
+
+from __future__ import annotations
+
+import io
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+from itertools import islice
+
+import av
+import numpy as np
+import pytest
+
+from service.outputs.h264 import IDR, PPS, SPS, AccessUnitEncoder, nal_unit_types
+from service.streams.network_camera import (
+    CameraConnection,
+    CameraSettings,
+    CameraUnavailable,
+    NetworkCamera,
+    is_stream_url,
+    redacted,
+)
+from service.streams.payloads import H264Frames
+from service.streams.simulated_cameras import FileServer, RtspCamera, TcpCamera, h264_video
+from service.streams.tools import video_frames
+from tests.conftest import REPO_ROOT
+from tests.service.conftest import PETS_VIDEO
+
+FRAMES = 40
+
+
+@pytest.fixture(scope="module")
+def pets(shared_data) -> list[np.ndarray]:
+    frames, _ = video_frames(str(shared_data / PETS_VIDEO))
+    return list(islice(frames, FRAMES))
+
+
+@pytest.fixture(scope="module")
+def transport_stream(pets) -> bytes:
+    """40 PETS frames as a camera's MPEG-TS: H.264 without B-frames, a key frame a second."""
+    return h264_video(pets, "mpegts")
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, pets, shared_data) -> FileServer:
+    """An HTTP server with an MP4 from a camera (H.264 in avcC form), the PETS AVI (H.264 with
+    B-frames), a login page and a text file."""
+    folder = tmp_path_factory.mktemp("http")
+    h264_video(pets[:30], "mp4", folder / "camera.mp4")
+    shutil.copy(shared_data / PETS_VIDEO, folder / "b_frames.avi")
+    (folder / "login.html").write_text("<html><body>Please log in</body></html>")
+    (folder / "readme.txt").write_text("not a video\n" * 100)
+    server = FileServer(folder)
+    yield server
+    server.close()
+
+
+@pytest.fixture
+def camera(transport_stream, request) -> TcpCamera:
+    plan = getattr(request, "param", ("whole",))
+    camera = TcpCamera(transport_stream, plan)
+    yield camera
+    camera.close()
+
+
+def decoded(stream: bytes) -> list[np.ndarray]:
+    """Every frame of a video held in memory, as FFmpeg decodes it from a file."""
+    with av.open(io.BytesIO(stream)) as container:
+        return [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+
+
+def test_stream_urls_are_told_from_paths_and_passwords_are_hidden():
+    assert is_stream_url("rtsp://10.0.0.7:554/stream1")
+    assert is_stream_url("HTTPS://cam.example/video.mjpg")
+    assert not is_stream_url("videos/gate.mp4")
+    assert not is_stream_url("webcam:0")
+    assert not is_stream_url("file:///videos/gate.mp4")  # a file: paced at its frame rate
+    assert redacted("rtsp://admin:s3cret@10.0.0.7:554/h264") == "rtsp://admin:***@10.0.0.7:554/h264"
+    assert redacted("rtsp://10.0.0.7/h264") == "rtsp://10.0.0.7/h264"
+
+
+def test_a_tcp_camera_gives_the_frames_it_sends(camera, transport_stream):
+    connection = CameraConnection(camera.url, CameraSettings(), forward_h264=False)
+    assert not connection.forwarding
+    assert connection.description == "h264 480x360"
+    frames = list(connection.items())
+    expected = decoded(transport_stream)
+    assert len(frames) == len(expected) == FRAMES
+    assert all(np.array_equal(f, e) for f, e in zip(frames, expected, strict=True))
+
+
+def test_h264_without_b_frames_is_forwarded_as_the_camera_encoded_it(camera, transport_stream):
+    connection = CameraConnection(camera.url, CameraSettings(), forward_h264=True)
+    assert connection.forwarding
+    assert connection.description.endswith("forwarded as the camera encoded it")
+    units = list(connection.items())
+    with av.open(io.BytesIO(transport_stream)) as container:
+        packets = [bytes(p) for p in container.demux(video=0) if p.size]
+    assert units == packets  # byte for byte: nothing decoded or encoded on the way
+    # The service's live decoder turns each unit into its frame, as a file decoder does.
+    service = H264Frames()
+    expected = decoded(transport_stream)
+    assert all(np.array_equal(service.decode(u), e) for u, e in zip(units, expected, strict=True))
+
+
+def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(pets):
+    # The camera states SPS and PPS in its session description only; the service's decoder
+    # needs them in the stream, before the first key frame.
+    encoder = AccessUnitEncoder(480, 360, "rgb24")
+    units = [u for i, f in enumerate(pets) for _, u in encoder.encode(f, i * 10**8)]
+    camera = RtspCamera(units, fps=20)
+    try:
+        connection = CameraConnection(camera.url, CameraSettings(), forward_h264=True)
+        assert connection.description == "h264 480x360, forwarded as the camera encoded it"
+        forwarded = list(connection.items())
+        frames = list(CameraConnection(camera.url, CameraSettings(), forward_h264=False).items())
+    finally:
+        camera.close()
+    assert len(forwarded) == len(frames) == FRAMES
+    # Every key frame (one a second) carries them, so a tracker can join at any of them.
+    keys = [types for u in forwarded if IDR in (types := nal_unit_types(u))]
+    assert len(keys) == 4 and all(types[:2] == [SPS, PPS] for types in keys)
+    service = H264Frames()
+    for unit, frame, sent in zip(forwarded, frames, pets, strict=True):
+        picture = service.decode(unit)
+        assert np.array_equal(picture, frame)  # forwarded or decoded: the same pictures
+        assert np.abs(picture.astype(np.int16) - sent.astype(np.int16)).mean() < 6
+
+
+def test_an_mp4_over_http_is_forwarded_in_annex_b_form(files, pets):
+    connection = CameraConnection(files.url("camera.mp4"), CameraSettings(), forward_h264=True)
+    assert connection.forwarding
+    units = list(connection.items())
+    assert len(units) == 30
+    assert all(u.startswith((b"\x00\x00\x00\x01", b"\x00\x00\x01")) for u in units)
+    first = nal_unit_types(units[0])
+    assert SPS in first and IDR in first  # parameter sets ride with the key frame
+    service = H264Frames()
+    for unit, frame in zip(units, pets, strict=False):
+        error = np.abs(service.decode(unit).astype(np.int16) - frame.astype(np.int16)).mean()
+        assert error < 6
+
+
+def test_h264_with_b_frames_is_decoded_into_frames_instead(files, pets):
+    connection = CameraConnection(files.url("b_frames.avi"), CameraSettings(), forward_h264=True)
+    assert not connection.forwarding
+    assert "B-frames" in connection.description
+    items = connection.items()
+    frames = list(islice(items, 5))
+    items.close()
+    assert all(np.array_equal(f, p) for f, p in zip(frames, pets, strict=False))
+
+
+def test_b_frames_found_while_forwarding_are_decoded_from_the_next_connection(pets):
+    # A camera joined between key frames, opened without study (the user's FFmpeg options):
+    # nothing tells of B-frames until the frames come out of order.
+    stream = h264_video(pets, "mpegts", b_frames=2)
+    camera = TcpCamera(stream[len(stream) // 8 // 188 * 188 :])
+    news: list[str] = []
+    settings = CameraSettings(options={"analyzeduration": "0", "probesize": "32"})
+    try:
+        source = NetworkCamera(camera.url, settings, forward_h264=True, tell=news.append)
+        assert source.connection.forwarding
+        items = list(islice(source, 10))
+    finally:
+        camera.close()
+    assert news[0] == (
+        f"{camera.url}: the camera's H.264 has B-frames, which a live decoder cannot take unit "
+        "by unit: decoding it instead; connecting again in 1 s"
+    )
+    assert not source.connection.forwarding
+    frames = [item for item in items if isinstance(item, np.ndarray)]
+    assert frames and all(f.shape == (360, 480, 3) for f in frames)
+    # Units forwarded before the order gave the B-frames away (none when it shows before the
+    # first key frame) start at a key frame.
+    units = items[: len(items) - len(frames)]
+    assert all(isinstance(u, bytes) for u in units)
+    assert not units or IDR in nal_unit_types(units[0])
+
+
+@pytest.mark.parametrize("camera", [("drop", "whole")], indirect=True)
+def test_a_camera_that_drops_is_connected_to_again(camera):
+    news: list[str] = []
+    source = NetworkCamera(camera.url, forward_h264=True, tell=news.append)
+    units = list(islice(source, FRAMES + 5))  # half a stream, then the whole one
+    assert source.connections == 2 and camera.connections == 2
+    assert news[0] == f"{camera.url}: the stream ended; connecting again in 1 s"
+    assert news[1].startswith(f"{camera.url}: connected again (h264 480x360")
+    # Each connection starts at a key frame, so the service can decode across the drop.
+    service = H264Frames()
+    assert all(service.decode(u).shape == (360, 480, 3) for u in units)
+
+
+@pytest.mark.parametrize("camera", [("stall", "whole")], indirect=True)
+def test_a_camera_that_stalls_is_lost_after_the_timeout_and_connected_to_again(camera):
+    news: list[str] = []
+    settings = CameraSettings(read_timeout=1.0)
+    source = NetworkCamera(camera.url, settings, tell=news.append)
+    frames = list(islice(source, FRAMES + 5))
+    assert len(frames) == FRAMES + 5 and source.connections == 2
+    assert news[0] == (
+        f"{camera.url}: the stream broke off (no data for 1 s); connecting again in 1 s"
+    )
+
+
+def test_a_camera_that_stays_away_is_tried_again_less_and_less_often(transport_stream):
+    camera = TcpCamera(transport_stream, ("drop",))
+    news: list[str] = []
+    stop = threading.Event()
+
+    def tell(line: str) -> None:
+        news.append(line)
+        if "trying again in 4 s" in line:
+            stop.set()  # seen the waits double: stop instead of waiting 4 s
+
+    source = NetworkCamera(camera.url, forward_h264=True, tell=tell, stop=stop)
+    camera.close()  # the camera goes away after its first half stream
+    units = list(source)  # ends when stopped
+    assert units and IDR in nal_unit_types(units[0])
+    assert news[0].endswith("the stream ended; connecting again in 1 s")
+    assert news[1] == f"cannot open {camera.url}: Connection refused; trying again in 2 s"
+    assert news[2] == f"cannot open {camera.url}: Connection refused; trying again in 4 s"
+
+
+def test_what_is_not_a_camera_is_a_clear_error(files):
+    url = unused_url()
+    login, readme = files.url("login.html"), files.url("readme.txt")
+    for source, message in [
+        (url, f"cannot open {url}: Connection refused"),
+        (files.url("missing.mp4"), "Server returned 404 Not Found"),
+        (login, f"cannot open {login}: Invalid data found when processing input"),
+        (readme, f"{readme} sends no video"),
+    ]:
+        with pytest.raises(CameraUnavailable, match=re.escape(message)):
+            CameraConnection(source, CameraSettings(), forward_h264=False)
+    with pytest.raises(CameraUnavailable) as raised:
+        CameraConnection("rtsp://admin:s3cret@127.0.0.1:9/h264", CameraSettings(), False)
+    assert "s3cret" not in str(raised.value) and "admin:***@" in str(raised.value)
+
+
+def unused_url() -> str:
+    """A loopback TCP URL where nothing listens (a port just freed)."""
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+
+def publish(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "service.cli", "publish", *args],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
+def test_publish_refuses_an_unreachable_camera_and_file_options_for_a_camera():
+    url = unused_url()
+    # Refused before any Zenoh session is opened: nothing listens on port 9 either.
+    result = publish(url, "--camera", "gate", "--connect", "tcp/127.0.0.1:9")
+    assert result.returncode == 2
+    assert f"vtrack publish: cannot open {url}: Connection refused" in result.stderr
+    for option in (["--fps", "5"], ["--loop"]):
+        result = publish("rtsp://10.0.0.7/h264", "--camera", "gate", *option)
+        assert result.returncode == 2
+        assert "--fps and --loop are for files: a network camera sends at its own rate" in (
+            result.stderr
+        )
+    result = publish("rtsp://10.0.0.7/h264", "--camera", "gate", "--input-option", "udp")
+    assert result.returncode == 2 and "expected KEY=VALUE, got 'udp'" in result.stderr

@@ -1,0 +1,35 @@
+"""``benchmarks/gateway.py``: a simulated camera through ``vtrack publish``'s code, each payload
+measured, one JSON object."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from tests.conftest import BENCHMARKS, REPO_ROOT
+
+
+@pytest.mark.slow
+def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
+    command = [sys.executable, str(BENCHMARKS / "gateway.py"), "--json", "--frames", "12"]
+    result = subprocess.run(
+        [*command, "--sizes", "160x120"],
+        cwd=REPO_ROOT,
+        env={**os.environ, "VTRACK_SHARED_DATA": str(shared_data)},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    rows = {row["mode"]: row for row in report["sizes"]["160x120"]}
+    assert set(rows) == {"forward", "h264", "jpeg", "raw"}
+    for row in rows.values():
+        assert row["frames_sent"] == row["frames_received"] == 12
+        assert row["cpu_ms_per_frame"] > 0
+    assert rows["raw"]["kb_per_frame"] == pytest.approx(160 * 120 * 3 / 1000)
+    assert rows["forward"]["kb_per_frame"] < rows["jpeg"]["kb_per_frame"]
