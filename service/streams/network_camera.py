@@ -121,9 +121,9 @@ class CameraConnection:
         not_forwarded = self._not_forwarded(context) if forward_h264 else None
         self.forwarding = forward_h264 and not_forwarded is None
         rate = self._stream.average_rate
-        self.description = f"{context.name} {context.width}x{context.height}" + (
-            f" at {float(rate):g} fps" if rate else ""
-        )
+        self.description = context.name  # size and rate when the study found them
+        self.description += f" {context.width}x{context.height}" if context.width else ""
+        self.description += f" at {float(rate):g} fps" if rate else ""
         if self.forwarding:
             self.description += ", forwarded as the camera encoded it"
         elif not_forwarded:
