@@ -114,6 +114,18 @@ def status(client: httpx.Client, camera: str) -> dict:
     return response.json()
 
 
+def all_taken(client: httpx.Client, camera: str, frames: int) -> dict:
+    """The stream's counters once ``frames`` frames came in and each was processed, skipped or
+    refused as malformed."""
+
+    def taken():
+        counters = status(client, camera)["counters"]
+        done = counters["frames_processed"] + counters["frames_skipped"] + counters["malformed"]
+        return counters["frames_in"] == frames == done and counters
+
+    return wait_for(taken, 60, f"all {frames} frames of {camera} to be taken")
+
+
 def put_frame(session, keys, payload: bytes, attachment: bytes | None, encoding) -> None:
     session.put(keys.frames, payload, encoding=encoding, attachment=attachment)
 
@@ -230,15 +242,7 @@ def test_an_h264_camera_is_tracked_from_its_next_key_frame(server, session, pets
         for i in range(3, 30):  # from its 4th frame; key frames at 0, 1.0 and 2.0 s
             put_frame(session, keys, units[i], frame_attachment(i, start + i / 10), "video/h264")
             time.sleep(0.02)
-        settled = wait_for(
-            lambda: (
-                (c := status(client, camera)["counters"])["frames_in"] == 27
-                and c["frames_processed"] + c["frames_skipped"] + c["malformed"] == 27
-                and c
-            ),
-            60,
-            "every unit to be taken",
-        )
+        settled = all_taken(client, camera, 27)
         assert settled["malformed"] == 7  # units 3-9, before the key frame of 1.0 s
         assert settled["frames_processed"] >= 1
         errors = status(client, camera)["errors"]
@@ -292,15 +296,7 @@ def test_a_network_camera_is_published_by_vtrack_publish(server, session, pets_f
         assert publisher.returncode == 0, publisher.stderr
         assert "h264 480x360, forwarded as the camera encoded it" in publisher.stderr
         assert "40 frames sent" in publisher.stderr
-        final = wait_for(
-            lambda: (
-                (c := status(client, camera)["counters"])["frames_in"] == 40
-                and c["frames_processed"] + c["frames_skipped"] + c["malformed"] == 40
-                and c
-            ),
-            60,
-            "the camera's 40 frames",
-        )
+        final = all_taken(client, camera, 40)
         assert final["malformed"] == 0  # every unit decoded: forwarded from a key frame on
         wait_for(lambda: any(m.tracks for m in follower.received()), 30, "people tracked")
         follower.close()
