@@ -318,7 +318,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     publish.add_argument(
         "source",
         help="video file, image folder, webcam:N, or a network camera's URL (rtsp://, "
-        "http(s)://, rtmp://, srt://, tcp://, udp://)",
+        "http(s)://, rtmp(s)://, tcp://, udp://)",
     )
     zenoh_arguments(publish)
     publish.add_argument("--fps", type=positive, help="frames per second (default: the video's)")

@@ -1,5 +1,5 @@
-"""A network camera as the source of ``vtrack publish``: RTSP, HTTP(S), RTMP, SRT, or MPEG-TS
-over TCP or UDP, read with PyAV (FFmpeg).
+"""A network camera as the source of ``vtrack publish``: RTSP, HTTP(S), RTMP, or MPEG-TS over
+TCP or UDP, read with PyAV (FFmpeg).
 
 Surveillance cameras and their recorders serve video on such URLs; ``vtrack publish URL`` is
 the gateway that puts one on Zenoh. The camera sets the pace, so what it sends is published
@@ -24,10 +24,8 @@ import numpy as np
 
 from service.outputs.h264 import IDR, SPS, nal_unit_types
 
-STREAM_SCHEMES = frozenset(
-    {"rtsp", "rtsps", "rtmp", "rtmps", "http", "https", "tcp", "udp", "srt", "rtp"}
-)
-"""URL schemes read as network cameras (FFmpeg's protocols for live video)."""
+STREAM_SCHEMES = frozenset({"rtsp", "rtsps", "rtmp", "rtmps", "http", "https", "tcp", "udp", "rtp"})
+"""URL schemes read as network cameras: the protocols for live video that PyAV's FFmpeg has."""
 INPUT_DEFAULTS = {"analyzeduration": "1000000", "fpsprobesize": "0"}
 """FFmpeg studies a stream for up to 5 s, and counts frames to estimate their rate, before it
 gives the first one; a second is enough to learn a camera's codec and size (RTSP states them in

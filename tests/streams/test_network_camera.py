@@ -18,6 +18,7 @@ import pytest
 
 from service.outputs.h264 import IDR, PPS, SPS, AccessUnitEncoder, nal_unit_types
 from service.streams.network_camera import (
+    STREAM_SCHEMES,
     CameraConnection,
     CameraSettings,
     CameraUnavailable,
@@ -225,6 +226,14 @@ def test_a_camera_that_stays_away_is_tried_again_less_and_less_often(transport_s
     assert news[0].endswith("the stream ended; connecting again in 1 s")
     assert news[1] == f"cannot open {camera.url}: Connection refused; trying again in 2 s"
     assert news[2] == f"cannot open {camera.url}: Connection refused; trying again in 4 s"
+
+
+@pytest.mark.parametrize("scheme", sorted(STREAM_SCHEMES))
+def test_every_scheme_taken_for_a_camera_is_one_ffmpeg_reads(scheme):
+    port = unused_url().rsplit(":", 1)[1]
+    with pytest.raises(CameraUnavailable) as raised:  # nothing answers there
+        CameraConnection(f"{scheme}://127.0.0.1:{port}/x", CameraSettings(1.0, 1.0), False)
+    assert "Protocol not found" not in str(raised.value)
 
 
 def test_what_is_not_a_camera_is_a_clear_error(files):
