@@ -22,7 +22,6 @@ import argparse
 import json
 import multiprocessing
 import os
-import socket
 import sys
 import threading
 import time
@@ -40,6 +39,7 @@ from service.streams.network_camera import CameraSettings, NetworkCamera  # noqa
 from service.streams.session import ZenohOptions, open_session  # noqa: E402
 from service.streams.simulated_cameras import RtspCamera  # noqa: E402
 from service.streams.tools import member_session, publish_frames, video_frames  # noqa: E402
+from service.testing import free_port  # noqa: E402
 
 MODES = ("forward", "h264", "jpeg", "raw")
 
@@ -78,8 +78,7 @@ def gateway(hub: str, url: str, mode: str, frames: int, results: multiprocessing
 
 
 def measure(units: list[bytes], mode: str) -> dict:
-    with socket.create_server(("127.0.0.1", 0)) as probe:
-        hub = f"tcp/127.0.0.1:{probe.getsockname()[1]}"
+    hub = f"tcp/127.0.0.1:{free_port()}"
     session = open_session(ZenohOptions(listen=(hub,)).hub_config())  # as the service's
     received = []
     lock = threading.Lock()

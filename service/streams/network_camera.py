@@ -31,7 +31,7 @@ INPUT_DEFAULTS = {"analyzeduration": "1000000", "fpsprobesize": "0"}
 gives the first one; a second is enough to learn a camera's codec and size (RTSP states them in
 its session description), and the gateway needs no rate since the camera sets the pace. What
 arrives meanwhile comes out at once, so a short study also means a small burst after each
-connection (0.3-0.8 s to the first frame instead of 2.5-2.8 s on our test cameras)."""
+connection (0.2-0.8 s to the first frame instead of 2.5-2.8 s on our test cameras)."""
 RTSP_DEFAULTS = {"rtsp_transport": "tcp"}
 """RTSP over TCP: FFmpeg's first choice, UDP, loses packets on a busy network and the frames
 then decode smeared; recorders use TCP for the same reason."""
@@ -44,7 +44,12 @@ B_FRAMES = "the camera's H.264 has B-frames, which a live decoder cannot take un
 
 
 class CameraUnavailable(ConnectionError):
-    """A network camera that cannot be reached, sends no video, or broke off."""
+    """A network camera that cannot be reached, sends no video, or broke off; ``reason`` is
+    the message without the camera's URL."""
+
+    def __init__(self, message: str, reason: str | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason or message
 
 
 class ReorderedFrames(CameraUnavailable):
@@ -162,7 +167,8 @@ class CameraConnection:
             else:
                 yield from self._frames()
         except av.FFmpegError as error:
-            raise CameraUnavailable(f"{redacted(self._url)}: {self._reason(error)}") from None
+            reason = self._reason(error)
+            raise CameraUnavailable(f"{redacted(self._url)}: {reason}", reason) from None
         finally:
             self._container.close()
 
@@ -236,7 +242,7 @@ class NetworkCamera:
                 self._forward = False
                 what = f"{B_FRAMES}: decoding it instead"
             except CameraUnavailable as error:
-                what = f"the stream broke off ({str(error).removeprefix(name + ': ')})"
+                what = f"the stream broke off ({error.reason})"
             delay = FIRST_RETRY_SECONDS
             self._tell(f"{name}: {what}; connecting again in {delay:g} s")
             while not self._stop.wait(delay):

@@ -23,6 +23,11 @@ from pathlib import Path
 import av
 import numpy as np
 
+from service.outputs.h264 import PPS, SPS
+
+DELIMITER = 9
+"""NAL unit type of an access unit delimiter."""
+
 
 def h264_video(
     frames: Iterable[np.ndarray], container: str, target=None, fps: int = 10, b_frames: int = 0
@@ -47,7 +52,38 @@ def h264_video(
     return Path(target).read_bytes() if target else buffer.getvalue()
 
 
-class TcpCamera:
+class _Listener:
+    """A loopback server at ``url`` (``url_pattern`` with its port) that serves each connection
+    on a thread of its own (``_serve(connection, number)``, numbered from 0)."""
+
+    def __init__(self, url_pattern: str) -> None:
+        self.connections = 0
+        self._closed = threading.Event()
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self.url = url_pattern.format(port=self._server.getsockname()[1])
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while not self._closed.is_set():
+            try:
+                connection, _ = self._server.accept()
+            except OSError:
+                return
+            number, self.connections = self.connections, self.connections + 1
+            threading.Thread(target=self._serve, args=(connection, number), daemon=True).start()
+
+    def _serve(self, connection: socket.socket, number: int) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Stop answering: connections are refused from now on."""
+        self._closed.set()
+        # A thread blocked in accept() keeps the port open past close(); shutdown wakes it.
+        self._server.shutdown(socket.SHUT_RDWR)
+        self._server.close()
+
+
+class TcpCamera(_Listener):
     """A camera serving an MPEG-TS stream to whoever connects to its port, a frame every
     ``1 / fps`` seconds (all at once when ``fps`` is 0).
 
@@ -62,11 +98,7 @@ class TcpCamera:
         self._frames = self._split(stream)
         self._plan = list(plan)
         self._period = 1.0 / fps if fps else 0.0
-        self.connections = 0
-        self._closed = threading.Event()
-        self._server = socket.create_server(("127.0.0.1", 0))
-        self.url = f"tcp://127.0.0.1:{self._server.getsockname()[1]}"
-        threading.Thread(target=self._accept, daemon=True).start()
+        super().__init__("tcp://127.0.0.1:{port}")
 
     @classmethod
     def _split(cls, stream: bytes) -> list[bytes]:
@@ -80,17 +112,8 @@ class TcpCamera:
         cuts = [0, *starts[1:], len(stream)]
         return [stream[a:b] for a, b in itertools.pairwise(cuts)]
 
-    def _accept(self) -> None:
-        while not self._closed.is_set():
-            try:
-                connection, _ = self._server.accept()
-            except OSError:
-                return
-            plan = self._plan[min(self.connections, len(self._plan) - 1)]
-            self.connections += 1
-            threading.Thread(target=self._play, args=(connection, plan), daemon=True).start()
-
-    def _play(self, connection: socket.socket, plan: str) -> None:
+    def _serve(self, connection: socket.socket, number: int) -> None:
+        plan = self._plan[min(number, len(self._plan) - 1)]
         frames = self._frames if plan == "whole" else self._frames[: len(self._frames) * 3 // 4]
         try:
             for frame in frames:
@@ -102,13 +125,6 @@ class TcpCamera:
             pass  # the reader hung up
         finally:
             connection.close()
-
-    def close(self) -> None:
-        """Stop answering: connections are refused from now on."""
-        self._closed.set()
-        # A thread blocked in accept() keeps the port open past close(); shutdown wakes it.
-        self._server.shutdown(socket.SHUT_RDWR)
-        self._server.close()
 
 
 class FileServer:
@@ -132,7 +148,7 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
         pass
 
 
-class RtspCamera:
+class RtspCamera(_Listener):
     """An RTSP camera (RFC 2326) on a loopback port: the protocol of IP cameras, reduced to what
     a client needs to play one H.264 stream over TCP (RTP interleaved in the RTSP connection,
     RFC 6184 packetization).
@@ -147,22 +163,12 @@ class RtspCamera:
 
     def __init__(self, units: list[bytes], fps: float = 10.0, path: str = "stream1") -> None:
         self._nals = [_nal_units(unit) for unit in units]
-        parameter_sets = {nal[0] & 0x1F: nal for nal in self._nals[0] if nal[0] & 0x1F in (7, 8)}
-        self._sprop = ",".join(base64.b64encode(parameter_sets[kind]).decode() for kind in (7, 8))
+        sets = {nal[0] & 0x1F: nal for nal in self._nals[0] if nal[0] & 0x1F in (SPS, PPS)}
+        self._sprop = ",".join(base64.b64encode(sets[kind]).decode() for kind in (SPS, PPS))
         self._period = 1.0 / fps
-        self._server = socket.create_server(("127.0.0.1", 0))
-        self.url = f"rtsp://127.0.0.1:{self._server.getsockname()[1]}/{path}"
-        threading.Thread(target=self._accept, daemon=True).start()
+        super().__init__(f"rtsp://127.0.0.1:{{port}}/{path}")
 
-    def _accept(self) -> None:
-        while True:
-            try:
-                connection, _ = self._server.accept()
-            except OSError:
-                return
-            threading.Thread(target=self._serve, args=(connection,), daemon=True).start()
-
-    def _serve(self, connection: socket.socket) -> None:
+    def _serve(self, connection: socket.socket, number: int) -> None:
         reader = connection.makefile("rb")
         try:
             while (request := self._request(reader)) is not None:
@@ -223,8 +229,9 @@ class RtspCamera:
         try:
             for index, nals in enumerate(self._nals):
                 stamp = index * round(90000 * self._period)
-                slices = [nal for nal in nals if nal[0] & 0x1F not in (7, 8, 9)]
-                packets = [p for n, nal in enumerate(slices) for p in self._packets(nal)]
+                # Parameter sets went in the description; access unit delimiters are optional.
+                slices = [nal for nal in nals if nal[0] & 0x1F not in (SPS, PPS, DELIMITER)]
+                packets = [p for nal in slices for p in self._packets(nal)]
                 for number, payload in enumerate(packets):
                     last = number == len(packets) - 1  # the marker bit ends the access unit
                     header = struct.pack(
@@ -263,10 +270,6 @@ class RtspCamera:
             + piece
             for i, piece in enumerate(pieces)
         ]
-
-    def close(self) -> None:
-        self._server.shutdown(socket.SHUT_RDWR)
-        self._server.close()
 
 
 def _nal_units(unit: bytes) -> list[bytes]:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import io
 import re
 import shutil
-import socket
 import subprocess
 import sys
 import threading
@@ -29,6 +28,7 @@ from service.streams.network_camera import (
 from service.streams.payloads import H264Frames
 from service.streams.simulated_cameras import FileServer, RtspCamera, TcpCamera, h264_video
 from service.streams.tools import video_frames
+from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO
 
@@ -230,7 +230,7 @@ def test_a_camera_that_stays_away_is_tried_again_less_and_less_often(transport_s
 
 @pytest.mark.parametrize("scheme", sorted(STREAM_SCHEMES))
 def test_every_scheme_taken_for_a_camera_is_one_ffmpeg_reads(scheme):
-    port = unused_url().rsplit(":", 1)[1]
+    port = free_port()
     with pytest.raises(CameraUnavailable) as raised:  # nothing answers there
         CameraConnection(f"{scheme}://127.0.0.1:{port}/x", CameraSettings(1.0, 1.0), False)
     assert "Protocol not found" not in str(raised.value)
@@ -254,8 +254,7 @@ def test_what_is_not_a_camera_is_a_clear_error(files):
 
 def unused_url() -> str:
     """A loopback TCP URL where nothing listens (a port just freed)."""
-    with socket.create_server(("127.0.0.1", 0)) as server:
-        return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    return f"tcp://127.0.0.1:{free_port()}"
 
 
 def publish(*args: str) -> subprocess.CompletedProcess:

@@ -41,16 +41,11 @@ from service.streams.payloads import (
 )
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.worker import Incoming, LatestFrame, UpstreamBuffer
+from service.testing import free_port
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
 
 VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
