@@ -11,9 +11,13 @@ measured from its first frame to its last (opening the camera excluded); a subsc
 process receives the frames, so the transport's work is counted too. The camera sends as fast
 as the gateway reads, so CPU time per frame, not wall time, is the measure.
 
+First, the wait from connecting to the first frame, with the gateway's short stream study and
+with FFmpeg's own, on an RTSP camera and an MPEG-TS camera on a TCP port sending 480x360 at 10
+frames per second; and how many frames came at once with the first (read during the study).
+
 Usage::
 
-    python benchmarks/gateway.py [--frames 200] [--sizes 480x360,1920x1080] [--json]
+    python benchmarks/gateway.py [--frames 200] [--sizes 480x360,1920x1080] [--repeats 3] [--json]
 """
 
 from __future__ import annotations
@@ -25,10 +29,12 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from itertools import islice
 from pathlib import Path
 
 import cv2
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -37,7 +43,7 @@ from service.outputs.h264 import AccessUnitEncoder  # noqa: E402
 from service.streams.keys import StreamKeys  # noqa: E402
 from service.streams.network_camera import CameraSettings, NetworkCamera  # noqa: E402
 from service.streams.session import ZenohOptions, open_session  # noqa: E402
-from service.streams.simulated_cameras import RtspCamera  # noqa: E402
+from service.streams.simulated_cameras import RtspCamera, TcpCamera, h264_video  # noqa: E402
 from service.streams.tools import member_session, publish_frames, video_frames  # noqa: E402
 from service.testing import free_port  # noqa: E402
 
@@ -48,15 +54,41 @@ def shared_data() -> Path:
     return Path(os.environ.get("VTRACK_SHARED_DATA", REPO.parent / "shared" / "data"))
 
 
-def camera_units(frames: int, width: int, height: int) -> list[bytes]:
-    """The camera's H.264 access units: PETS frames at ``width`` x ``height``, 10 fps."""
+def camera_frames(frames: int, width: int, height: int) -> list[np.ndarray]:
+    """The first ``frames`` PETS frames (RGB) at ``width`` x ``height``."""
     source, _ = video_frames(str(shared_data() / "video" / "pets09_s2l1_480x360.avi"))
+    return [
+        cv2.resize(rgb, (width, height)) if rgb.shape[:2] != (height, width) else rgb
+        for rgb in islice(source, frames)
+    ]
+
+
+def camera_units(images: list[np.ndarray]) -> list[bytes]:
+    """The camera's H.264 access units of ``images`` at 10 fps."""
+    height, width = images[0].shape[:2]
     encoder = AccessUnitEncoder(width, height, "rgb24")
-    units = []
-    for index, rgb in enumerate(islice(source, frames)):
-        image = cv2.resize(rgb, (width, height)) if rgb.shape[:2] != (height, width) else rgb
-        units += [unit for _, unit in encoder.encode(image, index * 10**8)]
-    return units
+    return [unit for i, image in enumerate(images) for _, unit in encoder.encode(image, i * 10**8)]
+
+
+FFMPEG_STUDY = {"analyzeduration": "0", "fpsprobesize": "-1"}
+"""FFmpeg's own stream study (up to 5 s, frame rate estimated), against the gateway's
+:data:`~service.streams.network_camera.INPUT_DEFAULTS`."""
+
+
+def first_frame(camera_of: Callable[[], object], study: dict, repeats: int) -> dict:
+    """Seconds from connecting to the first frame, and frames that came with it (within 50 ms:
+    what arrived during the study), medians over ``repeats`` connections to a camera sending
+    at 10 fps."""
+    waits, bursts = [], []
+    for _ in range(repeats):
+        camera = camera_of()
+        started = time.perf_counter()
+        source = NetworkCamera(camera.url, CameraSettings(options=study), forward_h264=True)
+        arrivals = [time.perf_counter() - started for _ in islice(iter(source), 30)]
+        camera.close()
+        waits.append(arrivals[0])
+        bursts.append(sum(1 for t in arrivals if t - arrivals[0] < 0.05))
+    return {"seconds": float(np.median(waits)), "frames_at_once": int(np.median(bursts))}
 
 
 def gateway(hub: str, url: str, mode: str, frames: int, results: multiprocessing.Queue) -> None:
@@ -112,17 +144,44 @@ def measure(units: list[bytes], mode: str) -> dict:
     }
 
 
+def first_frames(repeats: int) -> dict:
+    """The wait for the first frame with the gateway's study and FFmpeg's, on an RTSP camera
+    and an MPEG-TS camera on a TCP port (480x360, 10 fps)."""
+    images = camera_frames(60, 480, 360)
+    units, transport_stream = camera_units(images), h264_video(images, "mpegts")
+    cameras = {
+        "rtsp": lambda: RtspCamera(units, fps=10),
+        "mpegts-tcp": lambda: TcpCamera(transport_stream, fps=10),
+    }
+    return {
+        name: {
+            "gateway": first_frame(camera_of, {}, repeats),
+            "ffmpeg_defaults": first_frame(camera_of, FFMPEG_STUDY, repeats),
+        }
+        for name, camera_of in cameras.items()
+    }
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--sizes", default="480x360,1920x1080")
     parser.add_argument("--modes", default=",".join(MODES))
+    parser.add_argument("--repeats", type=int, default=3, help="connections per first-frame row")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = {"frames": args.frames, "cpu_count": os.cpu_count(), "sizes": {}}
+    report["first_frame"] = first_frames(args.repeats)
+    if not args.json:
+        for name, rows in report["first_frame"].items():
+            for study, row in rows.items():
+                print(
+                    f"{name} first frame, {study} study: {row['seconds']:.2f} s, "
+                    f"{row['frames_at_once']} frames at once"
+                )
     for size in args.sizes.split(","):
         width, height = (int(side) for side in size.split("x"))
-        units = camera_units(args.frames, width, height)
+        units = camera_units(camera_frames(args.frames, width, height))
         rows = [measure(units, mode) for mode in args.modes.split(",")]
         report["sizes"][size] = rows
         if not args.json:

@@ -16,6 +16,7 @@ from tests.conftest import BENCHMARKS, REPO_ROOT
 @pytest.mark.slow
 def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
     command = [sys.executable, str(BENCHMARKS / "gateway.py"), "--json", "--frames", "12"]
+    command += ["--repeats", "1"]
     result = subprocess.run(
         [*command, "--sizes", "160x120"],
         cwd=REPO_ROOT,
@@ -33,3 +34,7 @@ def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
         assert row["cpu_ms_per_frame"] > 0
     assert rows["raw"]["kb_per_frame"] == pytest.approx(160 * 120 * 3 / 1000)
     assert rows["forward"]["kb_per_frame"] < rows["jpeg"]["kb_per_frame"]
+    for camera in ("rtsp", "mpegts-tcp"):
+        for study in ("gateway", "ffmpeg_defaults"):
+            row = report["first_frame"][camera][study]
+            assert row["seconds"] > 0 and 1 <= row["frames_at_once"] <= 30
