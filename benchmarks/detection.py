@@ -47,45 +47,29 @@ scored exactly), ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave) 
 ``default@<upscale>`` the same at a fixed enlargement. ``opencv-hog`` runs OpenCV's HOG at 1.5x,
 ``opencv-hog@<upscale>`` at another scale.
 
-The machine may be shared; timings are medians. ``--workers`` sets the DPM's level threads; with
-more than one the script runs BLAS single-threaded (set before numpy loads) so the two do not
-oversubscribe the cores. OpenCV uses its default thread count.
+The machine may be shared; timings are medians. ``--workers`` sets the DPM's level threads (its
+hot path makes no BLAS call, so BLAS's thread count does not matter to it; the report records
+``OPENBLAS_NUM_THREADS`` all the same). OpenCV uses its default thread count.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
+import math
 import os
+import re
+import statistics
 import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
 
+import cv2
+import numpy as np
 
-def _early_threads(argv: list[str]) -> None:
-    """Single-threaded BLAS when the DPM runs its own level threads (must precede numpy)."""
-    for i, arg in enumerate(argv):
-        value = arg.split("=", 1)[1] if arg.startswith("--workers=") else None
-        if arg == "--workers" and i + 1 < len(argv):
-            value = argv[i + 1]
-        if value is not None and value.isdigit() and int(value) > 1:
-            for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-                os.environ.setdefault(name, "1")
-
-
-if __name__ == "__main__":
-    _early_threads(sys.argv[1:])
-
-import dataclasses  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import re  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-from tracking.detection import (  # noqa: E402
+from tracking.detection import (
     DpmConfig,
     DpmDetector,
     HogPeopleConfig,
@@ -93,13 +77,13 @@ from tracking.detection import (  # noqa: E402
     MotDetections,
     MotSequence,
 )
-from tracking.detection.metrics import (  # noqa: E402
+from tracking.detection.metrics import (
     DetectionCurve,
     average_precision,
     detection_curve,
     log_average_miss_rate,
 )
-from tracking.types import Box  # noqa: E402
+from tracking.types import Box
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")

@@ -41,8 +41,8 @@ def single_threaded_blas() -> None:
     """Make processes spawned from now on start with one BLAS thread (unless the user set it).
 
     A spawned worker imports numpy afresh and reads these variables then. Workers already run
-    side by side on the cores, and the DPM engine scores pyramid levels on threads of its own:
-    BLAS threads on top oversubscribe the cores and made the DPM several times slower.
+    side by side on the cores: BLAS threads on top (the trackers' products) would oversubscribe
+    them.
     """
     for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(name, "1")

@@ -30,7 +30,7 @@ from tracking.detection.dpm.cascade_fit import (
 from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.dpm.kernels import kernel_filters
 from tracking.detection.dpm.model import load_dpm_model
-from tracking.detection.dpm.pyramid import level_features
+from tracking.detection.dpm.pyramid import level_features, pyramid_levels
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.metrics import match_frame
 from tracking.evaluation.otb import load_otb_sequence, read_frame
@@ -48,6 +48,20 @@ def test_pca_basis_is_orthonormal_and_keeps_most_filter_energy(inria_model):
     cells = np.concatenate([s.weights.reshape(-1, 32) for s in inria_model.components[0].symbols])
     kept = np.linalg.norm(cells @ basis) ** 2 / np.linalg.norm(cells) ** 2
     assert kept > 0.5  # 6 of 32 directions hold most of the filters' energy
+
+
+def test_projection_projects_every_cell_on_the_basis(inria_model, pets_frame):
+    projection = pca_projection(inria_model, dims=6)
+    levels = pyramid_levels((200, 300), 8, 10, extra_octave=True)
+    features = level_features(pets_frame[:200, :300], levels[:1], (5, 5))
+    (maps,) = features.values()
+    projected = projection.project(maps)
+    assert projected.shape == (*maps.shape[:2], 6) and projected.dtype == np.float32
+    expected = maps.astype(np.float64) @ projection.basis.astype(np.float64)
+    np.testing.assert_allclose(projected, expected, rtol=1e-4, atol=1e-5)
+    # a view (as a crop of a map) projects as its copy
+    view = maps[3:20, 5:40]
+    np.testing.assert_array_equal(projection.project(view), projection.project(view.copy()))
 
 
 def test_without_pruning_the_cascade_equals_exact_scoring(exact, inria_model, pets_frame):

@@ -40,6 +40,7 @@ from tracking.detection.dpm.kernels import (
     exact_component,
     flat,
     kernel_filters,
+    project_cells,
 )
 from tracking.detection.dpm.model import DpmComponent, DpmModel
 from tracking.detection.dpm.pyramid import PyramidLevel
@@ -79,9 +80,12 @@ class PcaProjection:
     parts: tuple[np.ndarray, ...]
 
     def project(self, features: np.ndarray) -> np.ndarray:
-        """``(H, W, 32)`` features -> ``(H, W, k)`` float32."""
+        """``(H, W, 32)`` features -> ``(H, W, k)`` float32: ``basis^T f`` per cell."""
         h, w, c = features.shape
-        return (features.reshape(-1, c) @ self.basis).reshape(h, w, -1)
+        out = np.empty((h * w, self.basis.shape[1]), dtype=np.float32)
+        cells = np.ascontiguousarray(features, dtype=np.float32).reshape(-1, c)
+        project_cells(cells, np.ascontiguousarray(self.basis.T), out)
+        return out.reshape(h, w, -1)
 
 
 def pca_projection(model: DpmModel, dims: int = DEFAULT_PCA_DIMS) -> PcaProjection:

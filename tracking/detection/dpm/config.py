@@ -56,10 +56,11 @@ class DpmConfig:
         Default window-height range for :meth:`DpmDetector.detect_region` and
         :meth:`DpmDetector.dense_scores`, as fractions of the region's height.
     workers:
-        Threads that compute pyramid levels concurrently (the compiled kernels, OpenCV and
-        BLAS release the GIL), from one pool per detector. Combine ``workers > 1`` with a
-        single-threaded BLAS (``OPENBLAS_NUM_THREADS=1``): both at once oversubscribe the
-        cores.
+        Threads that compute pyramid levels concurrently (the compiled kernels and OpenCV
+        release the GIL), from one pool per detector. The kernels make no BLAS call, so BLAS's
+        own threads cannot oversubscribe the cores under them; only a model the kernels cannot
+        score (``kernels_apply``) goes through BLAS products, and wants
+        ``OPENBLAS_NUM_THREADS=1`` with ``workers > 1``.
     calibration:
         JSON calibration file; ``None``: ``<model>.calibration.json`` beside the model if it
         exists, else the detector module's ``DEFAULT_DPM_CALIBRATION``.
