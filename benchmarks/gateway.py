@@ -14,10 +14,13 @@ as the gateway reads, so CPU time per frame, not wall time, is the measure.
 First, the wait from connecting to the first frame, with the gateway's short stream study and
 with FFmpeg's own, on an RTSP camera and an MPEG-TS camera on a TCP port sending 480x360 at 10
 frames per second; and how many frames came at once with the first (read during the study).
+Then how far the frames' stamps are from the times the camera took them on a congested network,
+stamped on arrival and with the camera's own times (:func:`capture_times`).
 
 Usage::
 
-    python benchmarks/gateway.py [--frames 200] [--sizes 480x360,1920x1080] [--repeats 3] [--json]
+    python benchmarks/gateway.py [--frames 200] [--sizes 480x360,1920x1080] [--repeats 3]
+        [--capture-seconds 60] [--json]
 """
 
 from __future__ import annotations
@@ -162,12 +165,56 @@ def first_frames(repeats: int) -> dict:
     }
 
 
+def capture_times(seconds: float, seed: int = 0) -> dict:
+    """How far the gateway's frame stamps are from the times the frames were taken, for a camera
+    at 10 fps (MPEG-TS over TCP, decoded as the default JPEG gateway does) on a congested
+    network: 30% of frames held back 0-300 ms, those behind them waiting in order. Two ways to
+    stamp the same frames: on arrival (the gateway before the capture clock) and with the
+    camera's presentation times (:class:`~service.streams.capture_clock.CaptureClock`, what
+    :class:`NetworkCamera` gives). Errors in milliseconds: of the spacing of consecutive
+    frames (what the tracker's motion model reads), and of the time itself minus the least
+    delay, after the first 15 s (what consumers read)."""
+    frames = round(seconds * 10)
+    sent = frames + 10  # the last frames of a stream come out early (the decoder is flushed)
+    rng = np.random.default_rng(seed)
+    delays = rng.uniform(0.0, 0.3, sent) * (rng.random(sent) < 0.3)
+    images = camera_frames(sent, 480, 360)
+    camera = TcpCamera(h264_video(images, "mpegts"), fps=10, delays=delays)
+    try:
+        source = NetworkCamera(camera.url)
+        received = np.array([(item.time, time.time()) for item in islice(source, frames)])
+    finally:
+        camera.close()
+    taken = np.array(camera.taken[:frames])
+    out = {"frames": frames}
+    for name, stamps in (("arrival", received[:, 1]), ("capture_clock", received[:, 0])):
+        spacing = np.abs(np.diff(stamps) - np.diff(taken)) * 1000
+        late = (stamps - taken) * 1000
+        settled = late[min(150, frames // 2) :] - late.min()  # 15 s, or half a short run
+        out[name] = {
+            "spacing_error_ms": {
+                "median": float(np.median(spacing)),
+                "p95": float(np.percentile(spacing, 95)),
+                "max": float(spacing.max()),
+            },
+            "frames_within_10ms_of_the_previous": int((np.diff(stamps) < 0.01).sum()),
+            "time_error_after_15s_ms": {
+                "median": float(np.median(settled)),
+                "max": float(settled.max()),
+            },
+        }
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--sizes", default="480x360,1920x1080")
     parser.add_argument("--modes", default=",".join(MODES))
     parser.add_argument("--repeats", type=int, default=3, help="connections per first-frame row")
+    parser.add_argument(
+        "--capture-seconds", type=float, default=60.0, help="stream length for the stamps' row"
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = {"frames": args.frames, "cpu_count": os.cpu_count(), "sizes": {}}
@@ -179,6 +226,18 @@ def main() -> int:
                     f"{name} first frame, {study} study: {row['seconds']:.2f} s, "
                     f"{row['frames_at_once']} frames at once"
                 )
+    report["capture_times"] = capture_times(args.capture_seconds)
+    if not args.json:
+        for name in ("arrival", "capture_clock"):
+            row = report["capture_times"][name]
+            spacing, settled = row["spacing_error_ms"], row["time_error_after_15s_ms"]
+            print(
+                f"stamps {name:13s}: spacing error median {spacing['median']:.1f} ms, p95 "
+                f"{spacing['p95']:.1f}, max {spacing['max']:.1f}; "
+                f"{row['frames_within_10ms_of_the_previous']} frames within 10 ms of the "
+                f"previous; time error after 15 s median {settled['median']:.1f} ms, max "
+                f"{settled['max']:.1f}"
+            )
     for size in args.sizes.split(","):
         width, height = (int(side) for side in size.split("x"))
         units = camera_units(camera_frames(args.frames, width, height))

@@ -16,7 +16,7 @@ from tests.conftest import BENCHMARKS, REPO_ROOT
 @pytest.mark.slow
 def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
     command = [sys.executable, str(BENCHMARKS / "gateway.py"), "--json", "--frames", "12"]
-    command += ["--repeats", "1"]
+    command += ["--repeats", "1", "--capture-seconds", "4"]
     result = subprocess.run(
         [*command, "--sizes", "160x120"],
         cwd=REPO_ROOT,
@@ -38,3 +38,9 @@ def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
         for study in ("gateway", "ffmpeg_defaults"):
             row = report["first_frame"][camera][study]
             assert row["seconds"] > 0 and 1 <= row["frames_at_once"] <= 30
+    stamps = report["capture_times"]
+    assert stamps["frames"] == 40
+    # the camera's times keep the spacing that congestion breaks up on arrival
+    assert stamps["capture_clock"]["frames_within_10ms_of_the_previous"] == 0
+    clock, arrival = stamps["capture_clock"], stamps["arrival"]
+    assert clock["spacing_error_ms"]["p95"] < arrival["spacing_error_ms"]["p95"]

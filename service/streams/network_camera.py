@@ -5,7 +5,9 @@ Surveillance cameras and their recorders serve video on such URLs; ``vtrack publ
 the gateway that puts one on Zenoh. The camera sets the pace, so what it sends is published
 as it arrives. H.264 without B-frames is forwarded as the camera encoded it when H.264 is asked
 for (no decoding or encoding on the gateway, and the camera's own quality); anything else is
-decoded into frames, which the publisher sends as JPEG, raw pixels, or H.264 again.
+decoded into frames, which the publisher sends as JPEG, raw pixels, or H.264 again. Each frame
+is stamped with the time the camera took it, from its presentation time
+(:mod:`.capture_clock`), not with the time it happened to arrive.
 
 A camera that cannot be reached at the start is an error, since a wrong URL should fail at
 once; one that drops or stalls later is connected to again, waiting longer after each failed
@@ -15,6 +17,7 @@ attempt (cameras reboot, networks come back).
 from __future__ import annotations
 
 import threading
+import time
 import urllib.parse
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -23,6 +26,7 @@ import av
 import numpy as np
 
 from service.outputs.h264 import IDR, SPS, nal_unit_types
+from service.streams.capture_clock import CaptureClock, Captured
 
 STREAM_SCHEMES = frozenset({"rtsp", "rtsps", "rtmp", "rtmps", "http", "https", "tcp", "udp", "rtp"})
 """URL schemes read as network cameras: the protocols for live video that PyAV's FFmpeg has."""
@@ -156,8 +160,9 @@ class CameraConnection:
             return f"no data for {self._read_timeout:g} s"
         return error.strerror or type(error).__name__
 
-    def items(self) -> Iterator[np.ndarray | bytes]:
-        """RGB frames (or, when :attr:`forwarding`, H.264 access units) until the stream ends.
+    def items(self) -> Iterator[tuple[np.ndarray | bytes, float | None]]:
+        """RGB frames (or, when :attr:`forwarding`, H.264 access units) until the stream ends,
+        each with its presentation time in seconds (``None`` when the stream has none).
 
         Raises :class:`CameraUnavailable` when it breaks off (an error, or no data for the
         read timeout). Closes the connection at the end.
@@ -173,16 +178,16 @@ class CameraConnection:
         finally:
             self._container.close()
 
-    def _frames(self) -> Iterator[np.ndarray]:
+    def _frames(self) -> Iterator[tuple[np.ndarray, float | None]]:
         for packet in self._container.demux(self._stream):
             try:
                 pictures = packet.decode()  # the last, empty packet flushes the decoder
             except av.InvalidDataError:
                 continue  # a damaged packet (lost data): the next key frame repairs the picture
             for picture in pictures:
-                yield picture.to_ndarray(format="rgb24")
+                yield picture.to_ndarray(format="rgb24"), picture.time
 
-    def _access_units(self) -> Iterator[bytes]:
+    def _access_units(self) -> Iterator[tuple[bytes, float | None]]:
         started, previous = False, None
         for packet in self._container.demux(self._stream):
             if packet.size == 0:
@@ -199,7 +204,7 @@ class CameraConnection:
                     if SPS not in types:  # the parameter sets came in the stream description
                         unit = self._parameter_sets + unit
                 if started:  # the service decodes from a key frame on; earlier units are waste
-                    yield unit
+                    yield unit, _seconds(packet)
 
 
 class NetworkCamera:
@@ -207,7 +212,8 @@ class NetworkCamera:
     connection in turn.
 
     Creating it connects (raising :class:`CameraUnavailable`). Iterating gives what
-    :meth:`CameraConnection.items` gives; when the stream ends or breaks off, ``tell`` says so
+    :meth:`CameraConnection.items` gives, as :class:`.Captured` items stamped with their capture
+    time (:class:`.CaptureClock`); when the stream ends or breaks off, ``tell`` says so
     and the camera is connected to again, after :data:`FIRST_RETRY_SECONDS`, doubling up to
     :data:`LAST_RETRY_SECONDS` while it cannot be reached. Iteration ends only when ``stop`` is
     set.
@@ -229,15 +235,17 @@ class NetworkCamera:
         self._stop = stop or threading.Event()
         self.connection = self._connect()
         self.connections = 1
+        self._clock = CaptureClock()
 
     def _connect(self) -> CameraConnection:
         return CameraConnection(self.url, self._settings, self._forward)
 
-    def __iter__(self) -> Iterator[np.ndarray | bytes]:
+    def __iter__(self) -> Iterator[Captured]:
         name = redacted(self.url)
         while True:
             try:
-                yield from self.connection.items()
+                for item, position in self.connection.items():
+                    yield Captured(item, self._clock.stamp(position, time.time()))
                 what = "the stream ended"
             except ReorderedFrames:
                 self._forward = False
@@ -256,4 +264,13 @@ class NetworkCamera:
             else:
                 return
             self.connections += 1
+            self._clock.restart()
             self._tell(f"{name}: connected again ({self.connection.description})")
+
+
+def _seconds(packet: av.Packet) -> float | None:
+    """A packet's presentation time in seconds (its decoding time if it has none)."""
+    stamp = packet.pts if packet.pts is not None else packet.dts
+    if stamp is None or packet.time_base is None:
+        return None
+    return float(stamp * packet.time_base)

@@ -17,7 +17,7 @@ import socket
 import struct
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import av
@@ -89,15 +89,27 @@ class TcpCamera(_Listener):
 
     Each connection plays the next entry of ``plan`` (the last one repeats): ``"whole"`` sends
     the stream and hangs up, ``"drop"`` hangs up after three quarters of it, ``"stall"`` sends
-    three quarters and then nothing until the camera is closed.
+    three quarters and then nothing until the camera is closed. ``delays`` (seconds, one per
+    frame, cycled) hold frames back after they are taken, as a congested network does; frames
+    stay in order, so a delayed frame holds back those behind it. :attr:`taken` lists when the
+    latest connection's frames were taken (Unix time), the truth a gateway's stamps are
+    measured against.
     """
 
     VIDEO_PID = 0x100  # FFmpeg's MPEG-TS muxer puts the first stream there
 
-    def __init__(self, stream: bytes, plan: Iterable[str] = ("whole",), fps: float = 0) -> None:
+    def __init__(
+        self,
+        stream: bytes,
+        plan: Iterable[str] = ("whole",),
+        fps: float = 0,
+        delays: Sequence[float] = (0.0,),
+    ) -> None:
         self._frames = self._split(stream)
         self._plan = list(plan)
         self._period = 1.0 / fps if fps else 0.0
+        self._delays = list(delays)
+        self.taken: list[float] = []
         super().__init__("tcp://127.0.0.1:{port}")
 
     @classmethod
@@ -115,10 +127,14 @@ class TcpCamera(_Listener):
     def _serve(self, connection: socket.socket, number: int) -> None:
         plan = self._plan[min(number, len(self._plan) - 1)]
         frames = self._frames if plan == "whole" else self._frames[: len(self._frames) * 3 // 4]
+        self.taken = taken = []
+        start = time.time()
         try:
-            for frame in frames:
+            for index, frame in enumerate(frames):
+                taken.append(start + index * self._period)
+                delay = self._delays[index % len(self._delays)]
+                time.sleep(max(taken[-1] + delay - time.time(), 0.0))
                 connection.sendall(frame)
-                time.sleep(self._period)
             if plan == "stall":
                 self._closed.wait()
         except OSError:

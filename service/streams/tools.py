@@ -21,6 +21,7 @@ import zenoh
 from api_schemas.streams import StreamTracksMessage, UpstreamDetection, UpstreamDetections
 from service.frames import capture_frames, open_frames
 from service.outputs.h264 import AccessUnitEncoder
+from service.streams.capture_clock import Captured
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions, open_session
@@ -54,7 +55,7 @@ def video_frames(source: str) -> tuple[Iterator[np.ndarray], float | None]:
 def publish_frames(
     session: zenoh.Session,
     keys: StreamKeys,
-    frames: Iterator[np.ndarray | bytes],
+    frames: Iterator[np.ndarray | bytes | Captured],
     fps: float | None,
     *,
     payload: Literal["jpeg", "raw", "h264"] = "jpeg",
@@ -71,9 +72,11 @@ def publish_frames(
     """Publish ``frames`` on ``keys.frames`` at ``fps`` frames per second (as fast as possible
     when ``None``), as a camera does: ``payload`` JPEG, raw ``rgb8`` pixels, or H.264 (one
     Annex B access unit per frame, a key frame every second: what a camera's encoder sends),
-    with sequence number and capture time (Unix time) in the attachment. An item of
-    ``frames`` that is ``bytes`` is an H.264 access unit a camera encoded itself
-    (:class:`~service.streams.network_camera.NetworkCamera`), published as it is.
+    with sequence number and capture time (Unix time) in the attachment: the time it is sent,
+    or for a :class:`.Captured` item the time it carries (a network camera's frame,
+    :class:`~service.streams.network_camera.NetworkCamera`). An item (or a ``Captured`` item's
+    data) that is ``bytes`` is an H.264 access unit a camera encoded itself, published as it
+    is.
 
     ``detections(i)``, when given, supplies the detections of the ``i``-th frame, published on
     ``keys.detections`` right after the frame (an upstream detector), its boxes multiplied by
@@ -113,6 +116,8 @@ def publish_frames(
                 late += 1
             sequence = first_sequence + index
             stamp = time.time()
+            if isinstance(frame, Captured):
+                frame, stamp = frame.data, frame.time
             extra = {}
             if isinstance(frame, bytes):
                 data, encoding = frame, zenoh.Encoding.VIDEO_H264

@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 import threading
+import time
 from itertools import islice
 
 import av
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 
 from service.outputs.h264 import IDR, PPS, SPS, AccessUnitEncoder, nal_unit_types
+from service.streams.capture_clock import SLEW
 from service.streams.network_camera import (
     STREAM_SCHEMES,
     CameraConnection,
@@ -89,20 +91,23 @@ def test_a_tcp_camera_gives_the_frames_it_sends(camera, transport_stream):
     connection = CameraConnection(camera.url, CameraSettings(), forward_h264=False)
     assert not connection.forwarding
     assert connection.description == "h264 480x360"
-    frames = list(connection.items())
+    frames, positions = zip(*connection.items(), strict=True)
     expected = decoded(transport_stream)
     assert len(frames) == len(expected) == FRAMES
     assert all(np.array_equal(f, e) for f, e in zip(frames, expected, strict=True))
+    # with their presentation times: the camera's 10 frames a second
+    np.testing.assert_allclose(np.diff(positions), 0.1, atol=1e-6)
 
 
 def test_h264_without_b_frames_is_forwarded_as_the_camera_encoded_it(camera, transport_stream):
     connection = CameraConnection(camera.url, CameraSettings(), forward_h264=True)
     assert connection.forwarding
     assert connection.description.endswith("forwarded as the camera encoded it")
-    units = list(connection.items())
+    units, positions = map(list, zip(*connection.items(), strict=True))
     with av.open(io.BytesIO(transport_stream)) as container:
-        packets = [bytes(p) for p in container.demux(video=0) if p.size]
-    assert units == packets  # byte for byte: nothing decoded or encoded on the way
+        packets = [p for p in container.demux(video=0) if p.size]
+    assert units == [bytes(p) for p in packets]  # byte for byte: nothing decoded or encoded
+    assert positions == [float(p.pts * p.time_base) for p in packets]
     # The service's live decoder turns each unit into its frame, as a file decoder does.
     service = H264Frames()
     expected = decoded(transport_stream)
@@ -118,8 +123,9 @@ def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(
     try:
         connection = CameraConnection(camera.url, CameraSettings(), forward_h264=True)
         assert connection.description == "h264 480x360, forwarded as the camera encoded it"
-        forwarded = list(connection.items())
-        frames = list(CameraConnection(camera.url, CameraSettings(), forward_h264=False).items())
+        forwarded = [unit for unit, _ in connection.items()]
+        decoding = CameraConnection(camera.url, CameraSettings(), forward_h264=False)
+        frames = [frame for frame, _ in decoding.items()]
     finally:
         camera.close()
     assert len(forwarded) == len(frames) == FRAMES
@@ -133,10 +139,30 @@ def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(
         assert np.abs(picture.astype(np.int16) - sent.astype(np.int16)).mean() < 6
 
 
+def test_frames_are_stamped_with_the_time_the_camera_took_them(pets):
+    # FFmpeg studies an RTSP stream for up to a second before the first frame, then hands over
+    # what came meanwhile at once: stamped on arrival, those frames would be one instant.
+    encoder = AccessUnitEncoder(480, 360, "rgb24")
+    units = [u for i, f in enumerate(pets) for _, u in encoder.encode(f, i * 5 * 10**7)]
+    camera = RtspCamera(units, fps=20)
+    try:
+        source = NetworkCamera(camera.url)
+        received = np.array([(item.time, time.time()) for item in islice(source, FRAMES)])
+    finally:
+        camera.close()
+    stamps, arrivals = received.T
+    assert np.diff(arrivals).min() < 0.005  # the burst
+    # FFmpeg gives the first RTP packet no time (a frame without one is stamped on arrival);
+    # from the second on, the camera's 20 frames a second
+    spacing = np.diff(stamps[1:])
+    assert spacing.min() > 0.05 * (1 - SLEW) - 1e-6 and spacing.max() < 0.05 * (1 + SLEW) + 1e-6
+    assert abs(stamps[-1] - arrivals[-1]) < 1.0
+
+
 def test_an_mp4_over_http_is_forwarded_in_annex_b_form(files, pets):
     connection = CameraConnection(files.url("camera.mp4"), CameraSettings(), forward_h264=True)
     assert connection.forwarding
-    units = list(connection.items())
+    units = [unit for unit, _ in connection.items()]
     assert len(units) == 30
     assert all(u.startswith((b"\x00\x00\x00\x01", b"\x00\x00\x01")) for u in units)
     first = nal_unit_types(units[0])
@@ -152,7 +178,7 @@ def test_h264_with_b_frames_is_decoded_into_frames_instead(files, pets):
     assert not connection.forwarding
     assert "B-frames" in connection.description
     items = connection.items()
-    frames = list(islice(items, 5))
+    frames = [frame for frame, _ in islice(items, 5)]
     items.close()
     assert all(np.array_equal(f, p) for f, p in zip(frames, pets, strict=False))
 
@@ -167,7 +193,7 @@ def test_b_frames_found_while_forwarding_are_decoded_from_the_next_connection(pe
     try:
         source = NetworkCamera(camera.url, settings, forward_h264=True, tell=news.append)
         assert source.connection.forwarding
-        items = list(islice(source, 10))
+        items = [item.data for item in islice(source, 10)]
     finally:
         camera.close()
     assert news[0] == (
@@ -188,7 +214,7 @@ def test_b_frames_found_while_forwarding_are_decoded_from_the_next_connection(pe
 def test_a_camera_that_drops_is_connected_to_again(camera):
     news: list[str] = []
     source = NetworkCamera(camera.url, forward_h264=True, tell=news.append)
-    units = list(islice(source, FRAMES + 5))  # half a stream, then the whole one
+    units = [item.data for item in islice(source, FRAMES + 5)]  # half a stream, then all
     assert source.connections == 2 and camera.connections == 2
     assert news[0] == f"{camera.url}: the stream ended; connecting again in 1 s"
     assert news[1].startswith(f"{camera.url}: connected again (h264 480x360")
@@ -221,7 +247,7 @@ def test_a_camera_that_stays_away_is_tried_again_less_and_less_often(transport_s
 
     source = NetworkCamera(camera.url, forward_h264=True, tell=tell, stop=stop)
     camera.close()  # the camera goes away after its first half stream
-    units = list(source)  # ends when stopped
+    units = [item.data for item in source]  # ends when stopped
     assert units and IDR in nal_unit_types(units[0])
     assert news[0].endswith("the stream ended; connecting again in 1 s")
     assert news[1] == f"cannot open {camera.url}: Connection refused; trying again in 2 s"

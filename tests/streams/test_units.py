@@ -26,6 +26,7 @@ from api_schemas.streams import (
 from api_schemas.tracks import FrameTracksMessage
 from service.outputs.h264 import AccessUnitEncoder
 from service.streams import tools
+from service.streams.capture_clock import Captured
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
     JPEG,
@@ -631,10 +632,13 @@ def test_publish_frames_round_trip():
             sender.put(keys.detections, PROBE)
             time.sleep(0.02)
 
+        # a network camera's frame carries the time it was taken (CaptureClock)
+        taken = time.time() + 100.0
+        items = [*frames[:2], Captured(frames[2], taken)]
         report = tools.publish_frames(
             sender,
             keys,
-            iter(frames),
+            iter(items),
             None,
             detections=detections,
             detections_scale=0.5,
@@ -671,6 +675,7 @@ def test_publish_frames_round_trip():
         assert image.shape == frames[index].shape
     stamps = [parse_attachment(a).timestamp for _, _, a in got_frames]
     assert stamps == sorted(stamps)
+    assert stamps[2] == taken and stamps[1] < taken - 99  # the others: when they were sent
 
     messages = [parse_detections(body) for body in got_detections]
     assert [m.sequence for m in messages] == [10, 11, 12]
