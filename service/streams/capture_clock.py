@@ -10,7 +10,11 @@ clock: ``capture = offset + position``, with the offset the smallest ``arrival -
 lately (the least-delayed frame: its delay is the network's floor, not a burst's). The offset
 moves towards that estimate at a bounded rate, so stamps stay in order and their spacing stays
 within :data:`SLEW` of the camera's. A frame without a presentation time (FFmpeg gives an RTSP
-stream's first packet none) is stamped on arrival.
+stream's first packet none) is stamped on arrival. A connection whose times drift
+:data:`JUMP_SECONDS` away from real time a little at a time (FFmpeg makes up 25 frames a second
+for a raw H.264 or MJPEG stream, whatever the camera's rate) is not on the camera's clock: its
+frames are stamped on arrival from then on, the stamps moving to the arrival times at the same
+bounded rate.
 """
 
 from __future__ import annotations
@@ -33,9 +37,11 @@ SLEW = 0.1
 camera's spacing while the offset settles (about 7 s after a second-long opening burst)."""
 
 JUMP_SECONDS = 10.0
-"""A frame whose stamp would be this far from its arrival time is a break in the camera's clock
-(a restart, a wrap-around): the clock starts over from that frame. Longer than the gateway's
-read timeout (5 s by default), after which a silent camera is connected to again anyway."""
+"""A frame whose time moved this much more (or less) than real time since the previous frame is
+a break in the camera's clock (a restart, a wrap-around): the clock starts over from that frame.
+Longer than the gateway's read timeout (5 s by default), after which a silent camera is
+connected to again anyway. Stamps that drift this far from arrival times without such a break
+are not on the camera's clock."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,14 +66,29 @@ class CaptureClock:
     def restart(self) -> None:
         """Forget the stream's origin: the next frame comes from a new connection."""
         self._offset: float | None = None
-        self._position: float | None = None
+        self._position = self._arrival = 0.0
         self._lags: deque[tuple[float, float]] = deque()  # (arrival, lag), lags increasing
+        self.trusted = True
+        """Whether the stream's times are used (else frames are stamped on arrival)."""
 
     def stamp(self, position: float | None, arrival: float) -> float:
         """The capture time of a frame at ``position`` seconds of the stream (``None``: the
         stream has no times) that arrived at ``arrival``."""
         if position is None:
             return self._in_order(arrival)
+        if self._offset is not None and self.trusted:
+            drift = self._offset + position - arrival
+            mismatch = (position - self._position) - (arrival - self._arrival)
+            if abs(mismatch) > JUMP_SECONDS:
+                self._offset = None  # a break: start over from this frame
+            elif abs(drift) > JUMP_SECONDS:
+                # not the camera's clock: go on from the last stamp (never back) on arrival times
+                self.trusted = False
+                self._offset = max(self._last - self._arrival, 0.0)
+                self._position = arrival
+                self._lags.clear()
+        if not self.trusted:
+            position = arrival
         lag = arrival - position
         # the minimum over the window, kept as an increasing run (sliding-window minimum)
         while self._lags and self._lags[-1][1] >= lag:
@@ -76,14 +97,14 @@ class CaptureClock:
         while self._lags[0][0] < arrival - WINDOW_SECONDS:
             self._lags.popleft()
         floor = self._lags[0][1]
-        if self._offset is None or abs(self._offset + position - arrival) > JUMP_SECONDS:
+        if self._offset is None:
             self._lags.clear()
             self._lags.append((arrival, lag))
             self._offset = lag
         else:
             step = SLEW * max(position - self._position, 0.0)
             self._offset += min(max(floor - self._offset, -step), step)
-        self._position = position
+        self._position, self._arrival = position, arrival
         return self._in_order(self._offset + position)
 
     def _in_order(self, time: float) -> float:

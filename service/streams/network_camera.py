@@ -40,6 +40,10 @@ of 21-28, on the simulated cameras of benchmarks/gateway.py."""
 RTSP_DEFAULTS = {"rtsp_transport": "tcp"}
 """RTSP over TCP: FFmpeg's first choice, UDP, loses packets on a busy network and the frames
 then decode smeared; recorders use TCP for the same reason."""
+UNTIMED = (
+    "the stream's frame times do not keep pace with the clock (made up by FFmpeg?): "
+    "stamping frames as they arrive"
+)
 FIRST_RETRY_SECONDS = 1.0
 LAST_RETRY_SECONDS = 30.0
 """Waits between attempts to reach a camera that dropped: doubling from the first to the last."""
@@ -245,7 +249,11 @@ class NetworkCamera:
         while True:
             try:
                 for item, position in self.connection.items():
-                    yield Captured(item, self._clock.stamp(position, time.time()))
+                    trusted = self._clock.trusted
+                    stamp = self._clock.stamp(position, time.time())
+                    if trusted and not self._clock.trusted:
+                        self._tell(f"{name}: {UNTIMED}")
+                    yield Captured(item, stamp)
                 what = "the stream ended"
             except ReorderedFrames:
                 self._forward = False

@@ -89,3 +89,19 @@ def test_a_break_in_the_camera_clock_starts_it_over_and_stamps_stay_in_order():
 def test_a_stream_without_times_is_stamped_on_arrival_in_order():
     clock = CaptureClock()
     assert [clock.stamp(None, t) for t in (5.0, 5.2, 5.1, 5.3)] == [5.0, 5.2, 5.2, 5.3]
+
+
+@pytest.mark.parametrize("rate", [2.5, 0.4])  # FFmpeg's made-up 25 fps, a camera's 10 or 62.5
+def test_times_that_do_not_keep_pace_with_real_time_are_given_up_for_arrival_times(rate):
+    _, positions, arrivals = camera_run(2000, burst=1, rate=rate)
+    clock = CaptureClock()
+    stamps = stamps_of(clock, positions, arrivals)
+    assert not clock.trusted
+    spacing = np.diff(stamps)
+    assert np.all(spacing >= 0) and np.all(spacing[np.diff(arrivals) > 0] > 0)  # never frozen
+    # stamps end up on the arrival times, spaced as the frames arrived
+    np.testing.assert_allclose(stamps[-300:], arrivals[-300:], atol=1e-6)
+    # and were never further than the drift allowed from them
+    assert np.abs(stamps - arrivals).max() <= JUMP_SECONDS + PERIOD * rate
+    clock.restart()  # a new connection is trusted again
+    assert clock.trusted

@@ -20,6 +20,7 @@ from service.outputs.h264 import IDR, PPS, SPS, AccessUnitEncoder, nal_unit_type
 from service.streams.capture_clock import SLEW
 from service.streams.network_camera import (
     STREAM_SCHEMES,
+    UNTIMED,
     CameraConnection,
     CameraSettings,
     CameraUnavailable,
@@ -157,6 +158,22 @@ def test_frames_are_stamped_with_the_time_the_camera_took_them(pets):
     spacing = np.diff(stamps[1:])
     assert spacing.min() > 0.05 * (1 - SLEW) - 1e-6 and spacing.max() < 0.05 * (1 + SLEW) + 1e-6
     assert abs(stamps[-1] - arrivals[-1]) < 1.0
+
+
+def test_a_stream_whose_times_do_not_keep_pace_is_stamped_on_arrival():
+    # The stream says 25 frames a second; the camera sends 250.
+    frames = [np.full((48, 64, 3), i % 256, np.uint8) for i in range(700)]
+    camera = TcpCamera(h264_video(frames, "mpegts", fps=25), fps=250)
+    news: list[str] = []
+    try:
+        source = NetworkCamera(camera.url, tell=news.append)
+        received = np.array([(item.time, time.time()) for item in islice(source, 650)])
+    finally:
+        camera.close()
+    assert news == [f"{camera.url}: {UNTIMED}"]
+    stamps, arrivals = received.T
+    # spaced as they arrived (less the clock's slew back to arrival times), not 40 ms apart
+    assert np.all(np.diff(stamps[-100:]) <= np.diff(arrivals[-100:]) + 1e-3)
 
 
 def test_an_mp4_over_http_is_forwarded_in_annex_b_form(files, pets):
