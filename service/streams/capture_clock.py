@@ -34,7 +34,7 @@ fraction ``r`` makes the delays grow, and stamps then run early by up to ``WINDO
 
 SLEW = 0.1
 """Largest correction of the offset per second of stream: stamps are spaced within 10% of the
-camera's spacing while the offset settles (about 7 s after a second-long opening burst)."""
+camera's spacing while the offset settles (about 10 s after a second-long opening burst)."""
 
 JUMP_SECONDS = 10.0
 """A frame whose time moved this much more (or less) than real time since the previous frame is
@@ -57,6 +57,12 @@ class CaptureClock:
 
     Stamps never go back, across :meth:`restart` (a new connection) included: the tracker takes
     a time that goes back for a camera that restarted and starts over.
+
+    Attributes
+    ----------
+    trusted:
+        Whether this connection's times are used; ``False`` once they drifted away from real
+        time (its frames are then stamped on arrival).
     """
 
     def __init__(self) -> None:
@@ -69,7 +75,6 @@ class CaptureClock:
         self._position = self._arrival = 0.0
         self._lags: deque[tuple[float, float]] = deque()  # (arrival, lag), lags increasing
         self.trusted = True
-        """Whether the stream's times are used (else frames are stamped on arrival)."""
 
     def stamp(self, position: float | None, arrival: float) -> float:
         """The capture time of a frame at ``position`` seconds of the stream (``None``: the
