@@ -40,14 +40,15 @@ def h264_unavailable() -> str | None:
     return None
 
 
+def nal_units(unit: bytes) -> list[bytes]:
+    """The NAL units of an Annex B byte stream, in order: what follows each 00 00 01 start code,
+    without the zero bytes before the next (trailing zeros, a 4-byte start code's first)."""
+    return [nal for piece in unit.split(b"\x00\x00\x01")[1:] if (nal := piece.rstrip(b"\x00"))]
+
+
 def nal_unit_types(unit: bytes) -> list[int]:
-    """The NAL unit types of an Annex B byte stream, in order (each after a 00 00 01 start
-    code; 5: IDR slice, 7: SPS, 8: PPS)."""
-    types, start = [], unit.find(b"\x00\x00\x01")
-    while start >= 0 and start + 3 < len(unit):
-        types.append(unit[start + 3] & 0x1F)
-        start = unit.find(b"\x00\x00\x01", start + 3)
-    return types
+    """The NAL unit types of an Annex B byte stream, in order (5: IDR slice, 7: SPS, 8: PPS)."""
+    return [nal[0] & 0x1F for nal in nal_units(unit)]
 
 
 def even_sides(image: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from pathlib import Path
 import av
 import numpy as np
 
-from service.outputs.h264 import PPS, SPS
+from service.outputs.h264 import PPS, SPS, nal_units
 
 DELIMITER = 9
 """NAL unit type of an access unit delimiter."""
@@ -178,7 +178,7 @@ class RtspCamera(_Listener):
     MTU = 1400
 
     def __init__(self, units: list[bytes], fps: float = 10.0, path: str = "stream1") -> None:
-        self._nals = [_nal_units(unit) for unit in units]
+        self._nals = [nal_units(unit) for unit in units]
         sets = {nal[0] & 0x1F: nal for nal in self._nals[0] if nal[0] & 0x1F in (SPS, PPS)}
         self._sprop = ",".join(base64.b64encode(sets[kind]).decode() for kind in (SPS, PPS))
         self._period = 1.0 / fps
@@ -286,8 +286,3 @@ class RtspCamera(_Listener):
             + piece
             for i, piece in enumerate(pieces)
         ]
-
-
-def _nal_units(unit: bytes) -> list[bytes]:
-    """The NAL units of an Annex B access unit, without their start codes."""
-    return [nal.strip(b"\x00") for nal in unit.split(b"\x00\x00\x01") if nal.strip(b"\x00")]
