@@ -14,13 +14,15 @@ as the gateway reads, so CPU time per frame, not wall time, is the measure.
 First, the wait from connecting to the first frame, with the gateway's short stream study and
 with FFmpeg's own, on an RTSP camera and an MPEG-TS camera on a TCP port sending 480x360 at 10
 frames per second; and how many frames came at once with the first (read during the study).
-Then how far the frames' stamps are from the times the camera took them on a congested network,
+Then how long after the camera sends a frame the gateway has it, on the MPEG-TS camera read
+packet by packet and with FFmpeg's parser, and on the RTSP camera (:func:`frame_delays`). Then
+how far the frames' stamps are from the times the camera took them on a congested network,
 stamped on arrival and with the camera's own times (:func:`capture_times`).
 
 Usage::
 
     python benchmarks/gateway.py [--frames 200] [--sizes 480x360,1920x1080] [--repeats 3]
-        [--capture-seconds 60] [--json]
+        [--delay-frames 60] [--capture-seconds 60] [--json]
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ sys.path.insert(0, str(REPO))
 
 from service.outputs.h264 import AccessUnitEncoder  # noqa: E402
 from service.streams.keys import StreamKeys  # noqa: E402
-from service.streams.network_camera import CameraSettings, NetworkCamera  # noqa: E402
+from service.streams.network_camera import CameraConnection, CameraSettings, NetworkCamera  # noqa: E402
 from service.streams.session import ZenohOptions, open_session  # noqa: E402
 from service.streams.simulated_cameras import RtspCamera, TcpCamera, h264_video  # noqa: E402
 from service.streams.tools import member_session, publish_frames, video_frames  # noqa: E402
@@ -165,6 +167,36 @@ def first_frames(repeats: int) -> dict:
     }
 
 
+def frame_delays(frames: int) -> dict:
+    """How long after the camera sends a frame the gateway has it, decoded and forwarded: the
+    MPEG-TS camera on a TCP port read packet by packet (the gateway,
+    :attr:`CameraConnection.whole_frames`) and with FFmpeg's parser, which holds a frame until
+    the next one starts, and the RTSP camera (read with the parser), both at 10 fps.
+    Milliseconds, median and maximum over the frames after the first 10 (the stream study's)
+    and before the last 3 (the stream's end flushes them)."""
+    images = camera_frames(frames, 480, 360)
+    units, transport_stream = camera_units(images), h264_video(images, "mpegts")
+    readings = {
+        "mpegts-tcp, packet by packet": (lambda: TcpCamera(transport_stream, fps=10), False),
+        "mpegts-tcp, parser": (lambda: TcpCamera(transport_stream, fps=10), True),
+        "rtsp": (lambda: RtspCamera(units, fps=10), False),
+    }
+    out = {}
+    for name, (camera_of, parse) in readings.items():
+        for forward in (False, True):
+            camera = camera_of()
+            connection = CameraConnection(camera.url, CameraSettings(), forward, parse)
+            arrivals = [time.time() for _ in connection.items()]
+            camera.close()
+            sent = camera.taken if isinstance(camera, TcpCamera) else camera.sent
+            delays = 1000 * (np.array(arrivals) - sent[: len(arrivals)])[10:-3]
+            out[f"{name}, {'forwarded' if forward else 'decoded'}"] = {
+                "median": float(np.median(delays)),
+                "max": float(delays.max()),
+            }
+    return out
+
+
 def capture_times(seconds: float, seed: int = 0) -> dict:
     """How far the gateway's frame stamps are from the times the frames were taken, for a camera
     at 10 fps (MPEG-TS over TCP, decoded as the default JPEG gateway does) on a congested
@@ -215,6 +247,9 @@ def main() -> int:
     parser.add_argument(
         "--capture-seconds", type=float, default=60.0, help="stream length for the stamps' row"
     )
+    parser.add_argument(
+        "--delay-frames", type=int, default=60, help="stream length for the frame-delay rows"
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     report = {"frames": args.frames, "cpu_count": os.cpu_count(), "sizes": {}}
@@ -226,6 +261,10 @@ def main() -> int:
                     f"{name} first frame, {study} study: {row['seconds']:.2f} s, "
                     f"{row['frames_at_once']} frames at once"
                 )
+    report["frame_delay_ms"] = frame_delays(args.delay_frames)
+    if not args.json:
+        for name, row in report["frame_delay_ms"].items():
+            print(f"frame delay, {name}: {row['median']:.0f} ms, max {row['max']:.0f}")
     report["capture_times"] = capture_times(args.capture_seconds)
     if not args.json:
         for name in ("arrival", "capture_clock"):

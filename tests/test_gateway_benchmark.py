@@ -16,7 +16,7 @@ from tests.conftest import BENCHMARKS, REPO_ROOT
 @pytest.mark.slow
 def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
     command = [sys.executable, str(BENCHMARKS / "gateway.py"), "--json", "--frames", "12"]
-    command += ["--repeats", "1", "--capture-seconds", "4"]
+    command += ["--repeats", "1", "--delay-frames", "20", "--capture-seconds", "4"]
     result = subprocess.run(
         [*command, "--sizes", "160x120"],
         cwd=REPO_ROOT,
@@ -38,6 +38,14 @@ def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
         for study in ("gateway", "ffmpeg_defaults"):
             row = report["first_frame"][camera][study]
             assert row["seconds"] > 0 and 1 <= row["frames_at_once"] <= 30
+    delays = report["frame_delay_ms"]
+    for mode in ("decoded", "forwarded"):
+        # the parser holds each frame until the next one starts: 100 ms at 10 fps
+        whole, parsed = (
+            delays[f"mpegts-tcp, {way}, {mode}"] for way in ("packet by packet", "parser")
+        )
+        assert 0 < whole["median"] < parsed["median"]
+        assert delays[f"rtsp, {mode}"]["median"] > 0
     stamps = report["capture_times"]
     assert stamps["frames"] == 40
     # the camera's times keep the spacing that congestion breaks up on arrival

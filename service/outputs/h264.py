@@ -19,8 +19,9 @@ H264_OPTIONS = {"preset": "veryfast", "crf": "23"}
 of OpenCV's ``mp4v``; ``crf`` 23 is x264's default quality."""
 MILLISECOND = Fraction(1, 1000)
 """Time base of the encoders' frames: presentation times in milliseconds."""
-IDR = 5
-"""NAL unit type of an H.264 key frame's slices, where decoding can start."""
+SLICE, IDR = 1, 5
+"""NAL unit types of an H.264 frame's slices: other frames', and a key frame's, where decoding
+can start."""
 SPS, PPS = 7, 8
 """NAL unit types of the sequence and picture parameter sets, which a decoder needs before
 the first frame."""
@@ -49,6 +50,13 @@ def nal_units(unit: bytes) -> list[bytes]:
 def nal_unit_types(unit: bytes) -> list[int]:
     """The NAL unit types of an Annex B byte stream, in order (5: IDR slice, 7: SPS, 8: PPS)."""
     return [nal[0] & 0x1F for nal in nal_units(unit)]
+
+
+def picture_count(unit: bytes) -> int:
+    """How many pictures start in an Annex B byte stream: slices whose ``first_mb_in_slice`` is 0
+    (the slice header's first field, Exp-Golomb coded, is then the single bit 1)."""
+    slices = (nal for nal in nal_units(unit) if nal[0] & 0x1F in (SLICE, IDR) and len(nal) > 1)
+    return sum(nal[1] >> 7 for nal in slices)
 
 
 def even_sides(image: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import av
 import numpy as np
 
-from service.outputs.h264 import IDR, SPS, nal_unit_types
+from service.outputs.h264 import IDR, SPS, nal_unit_types, picture_count
 from service.streams.capture_clock import CaptureClock, Captured
 
 STREAM_SCHEMES = frozenset({"rtsp", "rtsps", "rtmp", "rtmps", "http", "https", "tcp", "udp", "rtp"})
@@ -40,6 +40,14 @@ of 21-28, on the simulated cameras of benchmarks/gateway.py."""
 RTSP_DEFAULTS = {"rtsp_transport": "tcp"}
 """RTSP over TCP: FFmpeg's first choice, UDP, loses packets on a busy network and the frames
 then decode smeared; recorders use TCP for the same reason."""
+WHOLE_FRAME_SCHEMES = frozenset({"tcp", "udp", "http", "https"})
+"""Where cameras and encoders send MPEG-TS, whose packets (PES) carry a frame each. FFmpeg's
+parser holds every frame back until the next one starts, to find where it ends; for MPEG-TS
+with H.264 it is left out (``fflags=+noparse``), so each frame reaches the gateway a frame
+interval sooner (100 ms at 10 fps). A stream on such a URL that turns out to be something else
+is opened again with the parser."""
+NOPARSE = {"fflags": "+noparse"}
+SEVERAL_FRAMES = "the stream packs several frames in one packet"
 UNTIMED = (
     "the stream's frame times do not keep pace with the clock (made up by FFmpeg?): "
     "stamping frames as they arrive"
@@ -63,6 +71,10 @@ class CameraUnavailable(ConnectionError):
 
 class ReorderedFrames(CameraUnavailable):
     """H.264 forwarded as units turned out to have B-frames (frames out of order)."""
+
+
+class SeveralFrames(CameraUnavailable):
+    """A stream read without FFmpeg's parser turned out to carry several frames in a packet."""
 
 
 def is_stream_url(source: str) -> bool:
@@ -109,27 +121,34 @@ class CameraConnection:
     forwarding:
         Whether :meth:`items` gives the camera's H.264 access units (Annex B, one frame each,
         starting at a key frame) instead of decoded frames.
+    whole_frames:
+        Whether the stream's packets are taken as whole frames, without FFmpeg's parser
+        (:data:`WHOLE_FRAME_SCHEMES`): MPEG-TS with H.264 on such a URL, unless ``parse`` was
+        asked for or the user set ``fflags``.
     description:
         What the camera sends and how it is passed on, for the user.
     """
 
-    def __init__(self, url: str, settings: CameraSettings, forward_h264: bool) -> None:
+    def __init__(
+        self, url: str, settings: CameraSettings, forward_h264: bool, parse: bool = False
+    ) -> None:
         self._url = url
-        self._read_timeout = settings.read_timeout
-        defaults = INPUT_DEFAULTS | (RTSP_DEFAULTS if url.lower().startswith("rtsp") else {})
+        self._settings = settings
+        scheme = url.partition("://")[0].lower()
+        defaults = INPUT_DEFAULTS | (RTSP_DEFAULTS if scheme.startswith("rtsp") else {})
         options = defaults | dict(settings.options)
-        try:
-            self._container = av.open(
-                url, options=options, timeout=(settings.open_timeout, settings.read_timeout)
-            )
-        except av.FFmpegError as error:
-            raise CameraUnavailable(f"cannot open {redacted(url)}: {self._reason(error)}") from None
-        # FFmpeg renders text files (its "tty" format) as video: a camera's error page is not.
-        if not self._container.streams.video or self._container.format.name == "tty":
-            self._container.close()
-            raise CameraUnavailable(f"{redacted(url)} sends no video")
+        self.whole_frames = (
+            not parse and scheme in WHOLE_FRAME_SCHEMES and "fflags" not in settings.options
+        )
+        self._container = self._open(options | NOPARSE if self.whole_frames else options)
         self._stream = self._container.streams.video[0]
         context = self._stream.codec_context
+        if self.whole_frames and (self._container.format.name, context.name) != ("mpegts", "h264"):
+            self._container.close()
+            self.whole_frames = False
+            self._container = self._open(options)
+            self._stream = self._container.streams.video[0]
+            context = self._stream.codec_context
         not_forwarded = self._not_forwarded(context) if forward_h264 else None
         self.forwarding = forward_h264 and not_forwarded is None
         rate = self._stream.average_rate
@@ -150,6 +169,20 @@ class CameraConnection:
         elif self.forwarding:
             self._parameter_sets = extradata
 
+    def _open(self, options: dict[str, str]):
+        """The camera's container, opened with FFmpeg ``options``; it has a video stream."""
+        timeout = (self._settings.open_timeout, self._settings.read_timeout)
+        try:
+            container = av.open(self._url, options=options, timeout=timeout)
+        except av.FFmpegError as error:
+            reason = self._reason(error)
+            raise CameraUnavailable(f"cannot open {redacted(self._url)}: {reason}") from None
+        # FFmpeg renders text files (its "tty" format) as video: a camera's error page is not.
+        if not container.streams.video or container.format.name == "tty":
+            container.close()
+            raise CameraUnavailable(f"{redacted(self._url)} sends no video")
+        return container
+
     @staticmethod
     def _not_forwarded(context) -> str | None:
         """Why the camera's stream cannot be forwarded as H.264 units, or None."""
@@ -161,7 +194,7 @@ class CameraConnection:
 
     def _reason(self, error: av.FFmpegError) -> str:
         if isinstance(error, av.ExitError):  # FFmpeg's interrupt: the timeout ran out
-            return f"no data for {self._read_timeout:g} s"
+            return f"no data for {self._settings.read_timeout:g} s"
         return error.strerror or type(error).__name__
 
     def items(self) -> Iterator[tuple[np.ndarray | bytes, float | None]]:
@@ -182,8 +215,16 @@ class CameraConnection:
         finally:
             self._container.close()
 
-    def _frames(self) -> Iterator[tuple[np.ndarray, float | None]]:
+    def _packets(self) -> Iterator[av.Packet]:
+        """The video stream's packets; without the parser, each checked to hold one frame at
+        most (a decoder would drop the others, and forwarding would send them as one)."""
         for packet in self._container.demux(self._stream):
+            if self.whole_frames and packet.size and picture_count(bytes(packet)) > 1:
+                raise SeveralFrames(f"{redacted(self._url)}: {SEVERAL_FRAMES}")
+            yield packet
+
+    def _frames(self) -> Iterator[tuple[np.ndarray, float | None]]:
+        for packet in self._packets():
             try:
                 pictures = packet.decode()  # the last, empty packet flushes the decoder
             except av.InvalidDataError:
@@ -192,8 +233,8 @@ class CameraConnection:
                 yield picture.to_ndarray(format="rgb24"), picture.time
 
     def _access_units(self) -> Iterator[tuple[bytes, float | None]]:
-        started, previous = False, None
-        for packet in self._container.demux(self._stream):
+        started, previous, held = False, None, b""
+        for packet in self._packets():
             if packet.size == 0:
                 continue
             # A stream joined between key frames may not show its B-frames when it is opened.
@@ -201,7 +242,13 @@ class CameraConnection:
                 raise ReorderedFrames(f"{redacted(self._url)}: {B_FRAMES}")
             previous = packet.pts if packet.pts is not None else previous
             for unit_packet in self._to_annex_b.filter(packet) if self._to_annex_b else [packet]:
-                unit = bytes(unit_packet)
+                unit = held + bytes(unit_packet)
+                # Without the parser, parameter sets or SEI may come in a packet of their own:
+                # they belong to the next frame's unit.
+                if self.whole_frames and not picture_count(unit):
+                    held = unit
+                    continue
+                held = b""
                 types = nal_unit_types(unit)
                 if IDR in types:
                     started = True
@@ -235,6 +282,7 @@ class NetworkCamera:
         self.url = url
         self._settings = settings or CameraSettings()
         self._forward = forward_h264
+        self._parse = False
         self._tell = tell
         self._stop = stop or threading.Event()
         self.connection = self._connect()
@@ -242,7 +290,7 @@ class NetworkCamera:
         self._clock = CaptureClock()
 
     def _connect(self) -> CameraConnection:
-        return CameraConnection(self.url, self._settings, self._forward)
+        return CameraConnection(self.url, self._settings, self._forward, self._parse)
 
     def __iter__(self) -> Iterator[Captured]:
         name = redacted(self.url)
@@ -258,6 +306,9 @@ class NetworkCamera:
             except ReorderedFrames:
                 self._forward = False
                 what = f"{B_FRAMES}: decoding it instead"
+            except SeveralFrames:
+                self._parse = True
+                what = f"{SEVERAL_FRAMES}: reading it with FFmpeg's parser (a frame later)"
             except CameraUnavailable as error:
                 what = f"the stream broke off ({error.reason})"
             delay = FIRST_RETRY_SECONDS

@@ -171,7 +171,8 @@ class RtspCamera(_Listener):
 
     Like many cameras it states its parameter sets (SPS, PPS) only in the session description,
     not before each key frame. It sends ``units`` (Annex B access units, one frame each) at
-    ``fps`` and hangs up after the last.
+    ``fps`` and hangs up after the last. :attr:`sent` lists when the latest connection's
+    frames went out whole (Unix time).
     """
 
     PAYLOAD_TYPE = 96
@@ -182,6 +183,7 @@ class RtspCamera(_Listener):
         sets = {nal[0] & 0x1F: nal for nal in self._nals[0] if nal[0] & 0x1F in (SPS, PPS)}
         self._sprop = ",".join(base64.b64encode(sets[kind]).decode() for kind in (SPS, PPS))
         self._period = 1.0 / fps
+        self.sent: list[float] = []
         super().__init__(f"rtsp://127.0.0.1:{{port}}/{path}")
 
     def _serve(self, connection: socket.socket, number: int) -> None:
@@ -242,6 +244,7 @@ class RtspCamera(_Listener):
 
     def _play(self, connection: socket.socket) -> None:
         sequence = 0
+        self.sent = sent = []
         try:
             for index, nals in enumerate(self._nals):
                 stamp = index * round(90000 * self._period)
@@ -261,6 +264,7 @@ class RtspCamera(_Listener):
                     packet = header + payload
                     connection.sendall(b"$\x00" + struct.pack("!H", len(packet)) + packet)
                     sequence = (sequence + 1) & 0xFFFF
+                sent.append(time.time())
                 time.sleep(self._period)
             connection.shutdown(socket.SHUT_RDWR)
         except OSError:

@@ -10,15 +10,25 @@ import subprocess
 import sys
 import threading
 import time
+from fractions import Fraction
 from itertools import islice
 
 import av
 import numpy as np
 import pytest
 
-from service.outputs.h264 import IDR, PPS, SPS, AccessUnitEncoder, nal_unit_types
+from service.outputs.h264 import (
+    IDR,
+    PPS,
+    SPS,
+    AccessUnitEncoder,
+    nal_unit_types,
+    nal_units,
+    picture_count,
+)
 from service.streams.capture_clock import SLEW
 from service.streams.network_camera import (
+    SEVERAL_FRAMES,
     STREAM_SCHEMES,
     UNTIMED,
     CameraConnection,
@@ -90,7 +100,7 @@ def test_stream_urls_are_told_from_paths_and_passwords_are_hidden():
 
 def test_a_tcp_camera_gives_the_frames_it_sends(camera, transport_stream):
     connection = CameraConnection(camera.url, CameraSettings(), forward_h264=False)
-    assert not connection.forwarding
+    assert not connection.forwarding and connection.whole_frames
     assert connection.description == "h264 480x360"
     frames, positions = zip(*connection.items(), strict=True)
     expected = decoded(transport_stream)
@@ -113,6 +123,92 @@ def test_h264_without_b_frames_is_forwarded_as_the_camera_encoded_it(camera, tra
     service = H264Frames()
     expected = decoded(transport_stream)
     assert all(np.array_equal(service.decode(u), e) for u, e in zip(units, expected, strict=True))
+
+
+@pytest.fixture(scope="module")
+def camera_units(pets) -> list[bytes]:
+    """The PETS frames as a camera's H.264 access units (Annex B), 10 frames a second."""
+    encoder = AccessUnitEncoder(480, 360, "rgb24")
+    return [u for i, f in enumerate(pets) for _, u in encoder.encode(f, i * 10**8)]
+
+
+def transport_stream_of(packets: list[tuple[bytes, int]]) -> bytes:
+    """MPEG-TS with one PES packet per ``(payload, time in 1/90000 s)``, as given: a muxer
+    that packs frames as it likes."""
+    buffer = io.BytesIO()
+    with av.open(buffer, "w", format="mpegts") as output:
+        stream = output.add_stream("libx264", rate=10)
+        stream.width, stream.height = 480, 360
+        for payload, pts in packets:
+            packet = av.Packet(payload)
+            packet.pts = packet.dts = pts
+            packet.time_base, packet.stream = Fraction(1, 90000), stream
+            output.mux(packet)
+    return buffer.getvalue()
+
+
+@pytest.mark.parametrize("forward", [False, True])
+def test_an_mpegts_frame_comes_out_once_the_next_one_starts(pets, forward):
+    # FFmpeg's parser would hold a frame until the frame after it starts: a frame later.
+    camera = TcpCamera(h264_video(pets[:30], "mpegts"), fps=20)
+    try:
+        connection = CameraConnection(camera.url, CameraSettings(), forward_h264=forward)
+        assert connection.whole_frames and connection.forwarding == forward
+        sent = [len(camera.taken) - index for index, _ in enumerate(connection.items())]
+    finally:
+        camera.close()
+    assert len(sent) == 30
+    # Frame k (from 0) is out once frame k + 1 has been sent, as the demuxer sees where a
+    # frame's packet ends when the next one begins: the camera has then taken k + 3 frames
+    # (frame k + 2 waits for its time), and k + 4 with the parser. The first frames come out
+    # after the stream study, the last when the stream ends.
+    assert np.median(sent[5:-3]) == 3
+
+
+def test_a_stream_with_several_frames_in_a_packet_is_read_with_the_parser(camera_units, pets):
+    # Read packet by packet, the decoder would give only a packet's first frame.
+    pairs = [(b"".join(camera_units[i : i + 2]), i * 9000) for i in range(0, FRAMES, 2)]
+    camera = TcpCamera(transport_stream_of(pairs))
+    news: list[str] = []
+    try:
+        source = NetworkCamera(camera.url, tell=news.append)
+        frames = [item.data for item in islice(source, FRAMES)]
+    finally:
+        camera.close()
+    assert news[0] == (
+        f"{camera.url}: {SEVERAL_FRAMES}: reading it with FFmpeg's parser (a frame later); "
+        "connecting again in 1 s"
+    )
+    assert source.connections == 2 and not source.connection.whole_frames
+    assert all(np.abs(f.astype(np.int16) - p).mean() < 6 for f, p in zip(frames, pets, strict=True))
+
+
+def test_parameter_sets_in_a_packet_of_their_own_are_forwarded_with_their_frame(camera_units):
+    def pieces(unit: bytes) -> list[bytes]:  # the NAL units before the first slice, the rest
+        nals = nal_units(unit)
+        first = next(i for i, nal in enumerate(nals) if picture_count(b"\0\0\1" + nal))
+        pieces = [nals[:first], nals[first:]]
+        return [b"".join(b"\0\0\0\1" + nal for nal in piece) for piece in pieces if piece]
+
+    packets = []
+    for i, unit in enumerate(camera_units):
+        split = pieces(unit)
+        packets += [(piece, i * 9000 - len(split) + 1 + j) for j, piece in enumerate(split)]
+    assert len(packets) == FRAMES + 4  # four key frames
+    camera = TcpCamera(transport_stream_of(packets))
+    try:
+        connection = CameraConnection(camera.url, CameraSettings(), forward_h264=True)
+        assert connection.whole_frames
+        units = [unit for unit, _ in connection.items()]
+    finally:
+        camera.close()
+    assert len(units) == FRAMES and all(picture_count(u) == 1 for u in units)
+    keys = [types for u in units if IDR in (types := nal_unit_types(u))]
+    assert len(keys) == 4 and all(SPS in types and PPS in types for types in keys)
+    service = H264Frames()
+    reference = H264Frames()
+    for unit, original in zip(units, camera_units, strict=True):
+        assert np.array_equal(service.decode(unit), reference.decode(original))
 
 
 def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(pets):
@@ -179,6 +275,7 @@ def test_a_stream_whose_times_do_not_keep_pace_is_stamped_on_arrival():
 def test_an_mp4_over_http_is_forwarded_in_annex_b_form(files, pets):
     connection = CameraConnection(files.url("camera.mp4"), CameraSettings(), forward_h264=True)
     assert connection.forwarding
+    assert not connection.whole_frames  # opened again with the parser: not MPEG-TS
     units = [unit for unit, _ in connection.items()]
     assert len(units) == 30
     assert all(u.startswith((b"\x00\x00\x00\x01", b"\x00\x00\x01")) for u in units)
