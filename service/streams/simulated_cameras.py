@@ -105,7 +105,7 @@ class TcpCamera(_Listener):
         fps: float = 0,
         delays: Sequence[float] = (0.0,),
     ) -> None:
-        self._frames = self._split(stream)
+        self._frames = self.split(stream)
         self._plan = list(plan)
         self._period = 1.0 / fps if fps else 0.0
         self._delays = list(delays)
@@ -113,7 +113,7 @@ class TcpCamera(_Listener):
         super().__init__("tcp://127.0.0.1:{port}")
 
     @classmethod
-    def _split(cls, stream: bytes) -> list[bytes]:
+    def split(cls, stream: bytes) -> list[bytes]:
         """The stream cut before each TS packet that starts a video frame (its PES packet)."""
         starts = [
             at

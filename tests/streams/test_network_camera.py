@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import threading
@@ -108,6 +109,32 @@ def test_a_tcp_camera_gives_the_frames_it_sends(camera, transport_stream):
     assert all(np.array_equal(f, e) for f, e in zip(frames, expected, strict=True))
     # with their presentation times: the camera's 10 frames a second
     np.testing.assert_allclose(np.diff(positions), 0.1, atol=1e-6)
+
+
+def test_an_mpegts_camera_over_udp_gives_the_frames_it_sends(transport_stream):
+    # As an encoder sends MPEG-TS to udp://host:port: seven TS packets per datagram, 10 fps.
+    port = free_port()
+    frames = TcpCamera.split(transport_stream)
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            time.sleep(0.3)  # the gateway is listening by then
+            for frame in frames:
+                for at in range(0, len(frame), 7 * 188):
+                    sender.sendto(frame[at : at + 7 * 188], ("127.0.0.1", port))
+                time.sleep(0.1)
+
+    threading.Thread(target=send, daemon=True).start()
+    connection = CameraConnection(f"udp://127.0.0.1:{port}", CameraSettings(5.0, 1.0), False)
+    assert connection.whole_frames and connection.description == "h264 480x360"
+    received = []
+    with pytest.raises(CameraUnavailable, match="no data for 1 s"):  # the encoder stopped
+        for frame, position in connection.items():
+            received.append((frame, position))
+    assert len(received) == FRAMES
+    expected = decoded(transport_stream)
+    assert all(np.array_equal(f, e) for (f, _), e in zip(received, expected, strict=True))
+    np.testing.assert_allclose(np.diff([p for _, p in received]), 0.1, atol=1e-6)
 
 
 def test_h264_without_b_frames_is_forwarded_as_the_camera_encoded_it(camera, transport_stream):
