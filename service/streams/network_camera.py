@@ -35,7 +35,7 @@ INPUT_DEFAULTS = {"analyzeduration": "1000000", "fpsprobesize": "0"}
 gives the first one; a second is enough to learn a camera's codec and size (RTSP states them in
 its session description), and the gateway needs no rate since the camera sets the pace. What
 arrives meanwhile comes out at once, so a short study also means a small burst after each
-connection: 0.2-0.8 s to the first frame instead of 2.2-2.8 s, and 1-8 frames at once instead
+connection: 0.1-0.8 s to the first frame instead of 2.1-2.8 s, and 1-8 frames at once instead
 of 21-28, on the simulated cameras of benchmarks/gateway.py."""
 RTSP_DEFAULTS = {"rtsp_transport": "tcp"}
 """RTSP over TCP: FFmpeg's first choice, UDP, loses packets on a busy network and the frames
