@@ -44,11 +44,15 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from service.outputs.h264 import AccessUnitEncoder  # noqa: E402
 from service.streams.keys import StreamKeys  # noqa: E402
 from service.streams.network_camera import CameraConnection, CameraSettings, NetworkCamera  # noqa: E402
 from service.streams.session import ZenohOptions, open_session  # noqa: E402
-from service.streams.simulated_cameras import RtspCamera, TcpCamera, h264_video  # noqa: E402
+from service.streams.simulated_cameras import (  # noqa: E402
+    RtspCamera,
+    TcpCamera,
+    access_units,
+    h264_video,
+)
 from service.streams.tools import member_session, publish_frames, video_frames  # noqa: E402
 from service.testing import free_port  # noqa: E402
 
@@ -66,13 +70,6 @@ def camera_frames(frames: int, width: int, height: int) -> list[np.ndarray]:
         cv2.resize(rgb, (width, height)) if rgb.shape[:2] != (height, width) else rgb
         for rgb in islice(source, frames)
     ]
-
-
-def camera_units(images: list[np.ndarray]) -> list[bytes]:
-    """The camera's H.264 access units of ``images`` at 10 fps."""
-    height, width = images[0].shape[:2]
-    encoder = AccessUnitEncoder(width, height, "rgb24")
-    return [unit for i, image in enumerate(images) for _, unit in encoder.encode(image, i * 10**8)]
 
 
 FFMPEG_STUDY = {"analyzeduration": "0", "fpsprobesize": "-1"}
@@ -153,7 +150,7 @@ def first_frames(repeats: int) -> dict:
     """The wait for the first frame with the gateway's study and FFmpeg's, on an RTSP camera
     and an MPEG-TS camera on a TCP port (480x360, 10 fps)."""
     images = camera_frames(60, 480, 360)
-    units, transport_stream = camera_units(images), h264_video(images, "mpegts")
+    units, transport_stream = access_units(images), h264_video(images, "mpegts")
     cameras = {
         "rtsp": lambda: RtspCamera(units, fps=10),
         "mpegts-tcp": lambda: TcpCamera(transport_stream, fps=10),
@@ -175,7 +172,7 @@ def frame_delays(frames: int) -> dict:
     Milliseconds, median and maximum over the frames after the first 10 (the stream study's)
     and before the last 3 (the stream's end flushes them)."""
     images = camera_frames(frames, 480, 360)
-    units, transport_stream = camera_units(images), h264_video(images, "mpegts")
+    units, transport_stream = access_units(images), h264_video(images, "mpegts")
     readings = {
         "mpegts-tcp, packet by packet": (lambda: TcpCamera(transport_stream, fps=10), False),
         "mpegts-tcp, parser": (lambda: TcpCamera(transport_stream, fps=10), True),
@@ -279,7 +276,7 @@ def main() -> int:
             )
     for size in args.sizes.split(","):
         width, height = (int(side) for side in size.split("x"))
-        units = camera_units(camera_frames(args.frames, width, height))
+        units = access_units(camera_frames(args.frames, width, height))
         rows = [measure(units, mode) for mode in args.modes.split(",")]
         report["sizes"][size] = rows
         if not args.json:

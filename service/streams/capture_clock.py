@@ -95,20 +95,19 @@ class CaptureClock:
         if not self.trusted:
             position = arrival
         lag = arrival - position
+        if self._offset is None:
+            self._lags.clear()  # lags from before a break are on another origin
         # the minimum over the window, kept as an increasing run (sliding-window minimum)
         while self._lags and self._lags[-1][1] >= lag:
             self._lags.pop()
         self._lags.append((arrival, lag))
         while self._lags[0][0] < arrival - WINDOW_SECONDS:
             self._lags.popleft()
-        floor = self._lags[0][1]
         if self._offset is None:
-            self._lags.clear()
-            self._lags.append((arrival, lag))
             self._offset = lag
         else:
             step = SLEW * max(position - self._position, 0.0)
-            self._offset += min(max(floor - self._offset, -step), step)
+            self._offset += min(max(self._lags[0][1] - self._offset, -step), step)
         self._position, self._arrival = position, arrival
         return self._in_order(self._offset + position)
 

@@ -215,16 +215,18 @@ class CameraConnection:
         finally:
             self._container.close()
 
-    def _packets(self) -> Iterator[av.Packet]:
-        """The video stream's packets; without the parser, each checked to hold one frame at
-        most (a decoder would drop the others, and forwarding would send them as one)."""
+    def _packets(self) -> Iterator[tuple[av.Packet, int | None]]:
+        """The video stream's packets, each with the number of pictures that start in it when
+        read without the parser (``None`` otherwise). More than one ends the connection: a
+        decoder would drop the others, and forwarding would send them as one unit."""
         for packet in self._container.demux(self._stream):
-            if self.whole_frames and packet.size and picture_count(bytes(packet)) > 1:
+            pictures = picture_count(bytes(packet)) if self.whole_frames and packet.size else None
+            if pictures is not None and pictures > 1:
                 raise SeveralFrames(f"{redacted(self._url)}: {SEVERAL_FRAMES}")
-            yield packet
+            yield packet, pictures
 
     def _frames(self) -> Iterator[tuple[np.ndarray, float | None]]:
-        for packet in self._packets():
+        for packet, _ in self._packets():
             try:
                 pictures = packet.decode()  # the last, empty packet flushes the decoder
             except av.InvalidDataError:
@@ -234,7 +236,7 @@ class CameraConnection:
 
     def _access_units(self) -> Iterator[tuple[bytes, float | None]]:
         started, previous, held = False, None, b""
-        for packet in self._packets():
+        for packet, pictures in self._packets():
             if packet.size == 0:
                 continue
             # A stream joined between key frames may not show its B-frames when it is opened.
@@ -245,7 +247,7 @@ class CameraConnection:
                 unit = held + bytes(unit_packet)
                 # Without the parser, parameter sets or SEI may come in a packet of their own:
                 # they belong to the next frame's unit.
-                if self.whole_frames and not picture_count(unit):
+                if pictures == 0:
                     held = unit
                     continue
                 held = b""

@@ -23,7 +23,7 @@ from pathlib import Path
 import av
 import numpy as np
 
-from service.outputs.h264 import PPS, SPS, nal_units
+from service.outputs.h264 import PPS, SPS, AccessUnitEncoder, nal_units
 
 DELIMITER = 9
 """NAL unit type of an access unit delimiter."""
@@ -50,6 +50,15 @@ def h264_video(
     output.mux(stream.encode())
     output.close()
     return Path(target).read_bytes() if target else buffer.getvalue()
+
+
+def access_units(frames: Sequence[np.ndarray], fps: float = 10.0) -> list[bytes]:
+    """RGB ``frames`` as a camera's H.264 access units, ``fps`` frames a second: Annex B, one
+    unit per frame, no B-frames, a key frame every second (:class:`AccessUnitEncoder`)."""
+    height, width = frames[0].shape[:2]
+    encoder = AccessUnitEncoder(width, height, "rgb24")
+    period = round(1e9 / fps)
+    return [unit for i, image in enumerate(frames) for _, unit in encoder.encode(image, i * period)]
 
 
 class _Listener:

@@ -20,11 +20,10 @@ import zenoh
 from mcap.reader import make_reader
 
 from api_schemas.streams import StreamTracksMessage
-from service.outputs.h264 import AccessUnitEncoder
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions
-from service.streams.simulated_cameras import RtspCamera
+from service.streams.simulated_cameras import RtspCamera, access_units
 from service.streams.tools import (
     current_tracks,
     follow_tracks,
@@ -231,10 +230,7 @@ def test_an_h264_camera_is_tracked_from_its_next_key_frame(server, session, pets
     # A camera that sends its encoder's units (no transcoding to JPEG), joined mid-stream.
     camera = "h264"
     keys = StreamKeys("vtrack", camera)
-    encoder = AccessUnitEncoder(480, 360, "rgb24")
-    units = [
-        unit for i, f in enumerate(pets_frames[:30]) for _, unit in encoder.encode(f, i * 10**8)
-    ]
+    units = access_units(pets_frames[:30])
     start = time.time()
     with server.client() as client:
         start_stream(client, session, camera)
@@ -262,8 +258,7 @@ def test_a_network_camera_is_published_by_vtrack_publish(server, session, pets_f
     # the camera's H.264 as it is.
     camera = "network"
     keys = StreamKeys("vtrack", camera)
-    encoder = AccessUnitEncoder(480, 360, "rgb24")
-    units = [u for i, f in enumerate(pets_frames[:40]) for _, u in encoder.encode(f, i * 10**8)]
+    units = access_units(pets_frames[:40])
     source = RtspCamera(units, fps=10)
     with server.client() as client:
         start_stream(client, session, camera)

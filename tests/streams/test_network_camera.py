@@ -22,7 +22,6 @@ from service.outputs.h264 import (
     IDR,
     PPS,
     SPS,
-    AccessUnitEncoder,
     nal_unit_types,
     nal_units,
     picture_count,
@@ -40,7 +39,13 @@ from service.streams.network_camera import (
     redacted,
 )
 from service.streams.payloads import H264Frames
-from service.streams.simulated_cameras import FileServer, RtspCamera, TcpCamera, h264_video
+from service.streams.simulated_cameras import (
+    FileServer,
+    RtspCamera,
+    TcpCamera,
+    access_units,
+    h264_video,
+)
 from service.streams.tools import video_frames
 from service.testing import free_port
 from tests.conftest import REPO_ROOT
@@ -155,8 +160,7 @@ def test_h264_without_b_frames_is_forwarded_as_the_camera_encoded_it(camera, tra
 @pytest.fixture(scope="module")
 def camera_units(pets) -> list[bytes]:
     """The PETS frames as a camera's H.264 access units (Annex B), 10 frames a second."""
-    encoder = AccessUnitEncoder(480, 360, "rgb24")
-    return [u for i, f in enumerate(pets) for _, u in encoder.encode(f, i * 10**8)]
+    return access_units(pets)
 
 
 def transport_stream_of(packets: list[tuple[bytes, int]]) -> bytes:
@@ -238,12 +242,10 @@ def test_parameter_sets_in_a_packet_of_their_own_are_forwarded_with_their_frame(
         assert np.array_equal(service.decode(unit), reference.decode(original))
 
 
-def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(pets):
+def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(camera_units, pets):
     # The camera states SPS and PPS in its session description only; the service's decoder
     # needs them in the stream, before the first key frame.
-    encoder = AccessUnitEncoder(480, 360, "rgb24")
-    units = [u for i, f in enumerate(pets) for _, u in encoder.encode(f, i * 10**8)]
-    camera = RtspCamera(units, fps=20)
+    camera = RtspCamera(camera_units, fps=20)
     try:
         connection = CameraConnection(camera.url, CameraSettings(), forward_h264=True)
         assert connection.description == "h264 480x360, forwarded as the camera encoded it"
@@ -266,9 +268,7 @@ def test_an_rtsp_camera_is_forwarded_with_the_parameter_sets_of_its_description(
 def test_frames_are_stamped_with_the_time_the_camera_took_them(pets):
     # FFmpeg studies an RTSP stream for up to a second before the first frame, then hands over
     # what came meanwhile at once: stamped on arrival, those frames would be one instant.
-    encoder = AccessUnitEncoder(480, 360, "rgb24")
-    units = [u for i, f in enumerate(pets) for _, u in encoder.encode(f, i * 5 * 10**7)]
-    camera = RtspCamera(units, fps=20)
+    camera = RtspCamera(access_units(pets, fps=20), fps=20)
     try:
         source = NetworkCamera(camera.url)
         received = np.array([(item.time, time.time()) for item in islice(source, FRAMES)])

@@ -24,7 +24,6 @@ from api_schemas.streams import (
     UpstreamDetections,
 )
 from api_schemas.tracks import FrameTracksMessage
-from service.outputs.h264 import AccessUnitEncoder
 from service.streams import tools
 from service.streams.capture_clock import Captured
 from service.streams.keys import StreamKeys
@@ -41,6 +40,7 @@ from service.streams.payloads import (
     to_detections,
 )
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from service.streams.simulated_cameras import access_units
 from service.streams.worker import Incoming, LatestFrame, UpstreamBuffer
 from service.testing import free_port
 from tracking.detection.base import Detections
@@ -114,9 +114,7 @@ def h264_units(shared_data: Path) -> tuple[list[np.ndarray], list[bytes]]:
     capture = cv2.VideoCapture(str(shared_data / VIDEO))
     frames = [cv2.cvtColor(capture.read()[1], cv2.COLOR_BGR2RGB) for _ in range(30)]
     capture.release()
-    encoder = AccessUnitEncoder(480, 360, "rgb24")
-    units = [unit for i, f in enumerate(frames) for _, unit in encoder.encode(f, i * 10**8)]
-    return frames, units
+    return frames, access_units(frames)
 
 
 def test_h264_units_decode_to_their_frames(h264_units):
