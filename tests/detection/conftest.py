@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -40,3 +41,11 @@ def tud(shared_data: Path) -> MotSequence:
 def pets_frame(pets: MotSequence) -> np.ndarray:
     """Frame 1 of PETS09-S2L1 (0-based index 0): three people, 75-89 px tall."""
     return pets.read_frame(0)
+
+
+@pytest.fixture
+def opencv_threads():
+    """Sets OpenCV's thread count for a test and restores it afterwards."""
+    before = cv2.getNumThreads()
+    yield cv2.setNumThreads
+    cv2.setNumThreads(before)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import cv2
 import numpy as np
@@ -282,6 +283,24 @@ def test_threads_give_the_same_detections(inria_model, pets_frame):
     np.testing.assert_array_equal(one.scores, two.scores)
     np.testing.assert_array_equal(one.parts, two.parts)
     assert len(one) >= 1
+
+
+def _level_threads() -> set[threading.Thread]:
+    return {t for t in threading.enumerate() if t.name.startswith("dpm-level")}
+
+
+def test_the_detector_uses_opencvs_thread_count_unless_told(
+    inria_model, pets_frame, opencv_threads
+):
+    # a job or `vtrack analyze` builds the detector with the default config: on a 2-core machine
+    # one thread left a core idle (a DPM job took 1.5x as long as with two threads)
+    opencv_threads(3)
+    crop = pets_frame[100:400, 100:500]
+    before = _level_threads()
+    DpmDetector(inria_model, DpmConfig(workers=1)).detect(crop)
+    assert _level_threads() - before == set()
+    DpmDetector(inria_model).detect(crop)
+    assert 2 <= len(_level_threads() - before) <= 3
 
 
 def test_a_model_with_parts_of_several_sizes_is_scored_without_the_kernels(

@@ -104,14 +104,6 @@ def test_default_upscale_follows_the_frame_height():
         HogPeopleConfig(max_upscale=0.0)
 
 
-@pytest.fixture
-def opencv_threads():
-    """Sets OpenCV's thread count for a test and restores it afterwards."""
-    before = cv2.getNumThreads()
-    yield cv2.setNumThreads
-    cv2.setNumThreads(before)
-
-
 def test_the_same_frame_gives_the_same_detections_on_any_number_of_threads(
     pets_frame, opencv_threads
 ):

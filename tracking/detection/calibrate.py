@@ -84,7 +84,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--step", type=int, default=1, help="use every N-th frame (default 1)")
     parser.add_argument("--threshold", type=float, help="detection threshold while fitting")
     parser.add_argument("--upscale", type=float, help="detector upscale (default: its own)")
-    parser.add_argument("--workers", type=int, default=1, help="DPM level threads (default 1)")
+    parser.add_argument(
+        "--workers", type=int, help="DPM level threads (default: OpenCV's thread count)"
+    )
     return parser
 
 

@@ -57,7 +57,10 @@ class DpmConfig:
         :meth:`DpmDetector.dense_scores`, as fractions of the region's height.
     workers:
         Threads that compute pyramid levels concurrently (the compiled kernels and OpenCV
-        release the GIL), from one pool per detector. The kernels make no BLAS call, so BLAS's
+        release the GIL), from one pool per detector; ``None`` (default): OpenCV's thread
+        count (``cv2.getNumThreads()``, the cores unless ``cv2.setNumThreads`` or
+        ``OPENCV_FOR_THREADS_NUM`` says otherwise), as the embedded detector does. The
+        detections are the same whatever the count. The kernels make no BLAS call, so BLAS's
         own threads cannot oversubscribe the cores under them; only a model the kernels cannot
         score (``kernels_apply``) goes through BLAS products, and wants
         ``OPENBLAS_NUM_THREADS=1`` with ``workers > 1``.
@@ -88,7 +91,7 @@ class DpmConfig:
     bbox_prediction: bool = True
     max_candidates: int = 5000
     region_heights: tuple[float, float] = (0.4, 1.0)
-    workers: int = 1
+    workers: int | None = None
     calibration: Path | None = None
     cascade: bool = True
     cascade_thresholds: Path | None = None
@@ -126,8 +129,8 @@ class DpmConfig:
             raise ValueError(
                 f"nms_criterion must be one of {NMS_CRITERIA}, got {self.nms_criterion!r}"
             )
-        if not is_int(self.workers) or self.workers < 1:
-            raise ValueError(f"workers must be a positive int, got {self.workers}")
+        if self.workers is not None and (not is_int(self.workers) or self.workers < 1):
+            raise ValueError(f"workers must be a positive int or None, got {self.workers}")
         if self.max_candidates < 1:
             raise ValueError(f"max_candidates must be positive, got {self.max_candidates}")
         low, high = self.region_heights

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
+import cv2
 import numpy as np
 
 from tracking.detection.base import DenseScores, Detections
@@ -162,7 +163,7 @@ class DpmDetector:
         kernels = kernels_apply(self.model)
         # one pool for the detector's life (its threads start on first use and end with it):
         # starting threads per call cost a region of interest about a tenth of its time
-        workers = self.config.workers
+        workers = self.config.workers or cv2.getNumThreads()
         self._pool = ThreadPoolExecutor(workers, "dpm-level") if workers > 1 else None
         self._cascade = None
         projection = None
