@@ -142,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
+    if args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
     figures = run(args.video, args.options, args.workers, args.dpm_model, args.jobs)
     if args.json:
         print(json.dumps(figures))
