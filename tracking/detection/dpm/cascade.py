@@ -28,7 +28,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -78,13 +78,20 @@ class PcaProjection:
     basis: np.ndarray
     roots: tuple[np.ndarray, ...]
     parts: tuple[np.ndarray, ...]
+    _directions: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # the basis's columns as contiguous rows, as project_cells reads them: made once, not
+        # per pyramid level
+        directions = np.ascontiguousarray(self.basis.T, dtype=np.float32)
+        object.__setattr__(self, "_directions", directions)
 
     def project(self, features: np.ndarray) -> np.ndarray:
         """``(H, W, 32)`` features -> ``(H, W, k)`` float32: ``basis^T f`` per cell."""
         h, w, c = features.shape
         out = np.empty((h * w, self.basis.shape[1]), dtype=np.float32)
         cells = np.ascontiguousarray(features, dtype=np.float32).reshape(-1, c)
-        project_cells(cells, np.ascontiguousarray(self.basis.T), out)
+        project_cells(cells, self._directions, out)
         return out.reshape(h, w, -1)
 
 
