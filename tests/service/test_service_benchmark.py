@@ -34,3 +34,12 @@ def test_a_refused_upload_says_why(pets_short):
     result = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
     assert result.returncode != 0
     assert "VTRACK_DPM_MODEL" in result.stderr
+
+
+def test_fewer_than_one_job_is_refused(pets_short):
+    command = [sys.executable, str(BENCHMARKS / "service.py"), "--video", str(pets_short)]
+    result = subprocess.run(
+        [*command, "--jobs", "0"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 2
+    assert "--jobs must be at least 1, got 0" in result.stderr
