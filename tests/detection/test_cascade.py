@@ -34,6 +34,7 @@ from tracking.detection.dpm.pyramid import level_features, pyramid_levels
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.metrics import match_frame
 from tracking.evaluation.otb import load_otb_sequence, read_frame
+from tracking.types import Box
 
 
 @pytest.fixture(scope="module")
@@ -199,6 +200,29 @@ def test_cascade_keeps_the_exact_detections_of_pets_frames(inria_model, exact, p
             if same.any():
                 assert reference.scores[same][0] == pytest.approx(score, abs=1e-4)
     assert total >= 15
+    assert kept / total >= 0.9, f"the cascade kept {kept} of {total} detections"
+
+
+def test_regions_keep_the_exact_detections_of_their_people(inria_model, pets):
+    # Regions of interest are pruned by the cascade too (the tracker searches them between
+    # full searches, at the threshold of DPM_TRACKING_CONFIG); dense scores stay exact.
+    exact = DpmDetector(inria_model, DpmConfig(threshold=-0.7, cascade=False))
+    cascade = DpmDetector(inria_model, DpmConfig(threshold=-0.7))
+    kept = total = 0
+    for i in (0, 200, 400):
+        frame = pets.read_frame(i)
+        for x, y, w, h in pets.gt[i]:
+            region = Box(x - h / 2, y - h / 2, w + h, 2 * h)
+            heights = (0.8 * h, 1.25 * h)
+            reference = exact.detect_region(frame, region, heights)
+            found = cascade.detect_region(frame, region, heights)
+            total += len(reference)
+            kept += int(match_frame(found.boxes, found.scores, reference.boxes).sum())
+            for box, score in zip(found.boxes, found.scores, strict=True):
+                same = np.all(np.abs(reference.boxes - box) < 1e-6, axis=1)
+                if same.any():
+                    assert reference.scores[same][0] == pytest.approx(score, abs=1e-4)
+    assert total >= 10
     assert kept / total >= 0.9, f"the cascade kept {kept} of {total} detections"
 
 

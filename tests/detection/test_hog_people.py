@@ -60,6 +60,29 @@ def test_dense_scores_agree_with_the_detection(detector, pets, pets_frame):
     assert match_frame(roi.boxes, roi.scores, gt[None]).any()
 
 
+def test_a_region_scans_only_the_levels_of_its_heights(pets, pets_frame):
+    # Every level of the crop's pyramid costs a tracker that searches regions between full
+    # searches more than the whole frame's search; only those of the heights asked for are
+    # scanned.
+    scales = []
+
+    class Recording(HogPeopleDetector):
+        def _level_windows(self, image, scale):
+            scales.append(scale)
+            return super()._level_windows(image, scale)
+
+    recording = Recording()
+    x, y, w, h = pets.gt[0][1]
+    heights = (0.8 * h, 1.25 * h)
+    found = recording.detect_region(pets_frame, Box(x - h / 2, y - h / 2, w + h, 2 * h), heights)
+    u = recording.config.upscale_for(pets_frame.shape[0])
+    person = recording.config.box_scale[1] * 128 * np.array(scales) / u
+    assert len(scales) >= 3
+    assert np.all((person >= heights[0]) & (person <= heights[1]))
+    assert match_frame(found.boxes, found.scores, pets.gt[0][1][None]).any()
+    assert np.all((found.boxes[:, 3] >= heights[0]) & (found.boxes[:, 3] <= heights[1]))
+
+
 def test_outside_regions_and_small_frames(detector, pets_frame):
     assert len(detector.detect_region(pets_frame, Box(2000, 0, 10, 10))) == 0
     assert detector.dense_scores(pets_frame, Box(2000, 0, 10, 10)) is None

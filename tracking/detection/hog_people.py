@@ -185,11 +185,17 @@ class HogPeopleDetector:
         workers = self.config.workers or cv2.getNumThreads()
         self._pool = ThreadPoolExecutor(workers, "hog-level") if workers > 1 else None
 
-    def _windows(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _windows(
+        self, image: np.ndarray, heights: tuple[float, float] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Windows above the hit threshold (image coordinates) and their raw scores, in the
         order of the levels (largest first): what ``detectMultiScale`` with grouping disabled
-        returns on one thread, whatever the number of threads here."""
+        returns on one thread, whatever the number of threads here. With ``heights`` (person
+        heights in pixels of ``image``), only the levels whose person height is in that range."""
         scales = _pyramid_scales(image.shape, self.config.scale_step)
+        if heights is not None:
+            person = self.config.box_scale[1] * _WINDOW[1]
+            scales = [s for s in scales if heights[0] <= person * s <= heights[1]]
         if not scales:
             return np.zeros((0, 4)), np.zeros(0)
         if self._pool is None:
@@ -238,10 +244,15 @@ class HogPeopleDetector:
         )
 
     def _run(
-        self, image: np.ndarray, offset: tuple[float, float], u: float
+        self,
+        image: np.ndarray,
+        offset: tuple[float, float],
+        u: float,
+        heights: tuple[float, float] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         big = image if u == 1.0 else cv2.resize(image, None, fx=u, fy=u)
-        windows, scores = self._windows(np.ascontiguousarray(big))
+        big_heights = None if heights is None else (heights[0] * u, heights[1] * u)
+        windows, scores = self._windows(np.ascontiguousarray(big), big_heights)
         windows = windows / u
         windows[:, 0] += offset[0]
         windows[:, 1] += offset[1]
@@ -278,9 +289,11 @@ class HogPeopleDetector:
             heights = tuple(f * clipped.h for f in self.config.region_heights)
         heights = checked_heights(heights)
         crop, x0, y0 = self._crop(image, clipped, heights[1])
-        # The factor follows the whole frame, so a region sees people as the full frame does.
+        # The factor follows the whole frame, so a region sees people as the full frame does;
+        # only the levels whose people fit ``heights`` are scanned (all of them cost more than
+        # the whole frame's search when the region is large).
         u = self.config.upscale_for(image.shape[0])
-        boxes, scores = self._run(crop, (x0, y0), u)
+        boxes, scores = self._run(crop, (x0, y0), u, heights)
         cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
         inside = (
             (cx >= clipped.x)

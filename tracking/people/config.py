@@ -154,9 +154,16 @@ class PeopleTrackerConfig:
         frame on this machine (measured on the PETS09 video).
     full_detection_interval:
         Seconds between full-frame detections when the tracker runs its own detector; in
-        between, only regions around the tracks are searched.
+        between, only regions around the tracks are searched
+        (:func:`tracking.people.scheduling.search_regions`), at a fifth to a half of a full
+        search's cost. People who enter are found at the next full search. 0 (default): every
+        frame in full (docs/benchmarks.md measures 0.2 and 0.5 against it).
     region_margin:
         Margin, in heights, around a track's box when searching a region of interest.
+    region_heights:
+        Heights of the people a region of interest is searched for, as fractions of the
+        track's predicted height (0.8-1.25: six pyramid levels of the DPM, five of the
+        embedded detector).
     seed:
         Seed of the particle filter's random generator (runs are reproducible).
     """
@@ -199,6 +206,7 @@ class PeopleTrackerConfig:
     dense_likelihood: bool = False
     full_detection_interval: float = 0.0
     region_margin: float = 0.5
+    region_heights: tuple[float, float] = (0.8, 1.25)
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -230,5 +238,8 @@ class PeopleTrackerConfig:
             raise ValueError(f"velocity_damping must be in [0, 1], got {self.velocity_damping}")
         if self.confirm_hits < 1:
             raise ValueError(f"confirm_hits must be >= 1, got {self.confirm_hits}")
+        low, high = self.region_heights
+        if not 0 < low <= high:
+            raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")
         if self.max_missing < 0 or self.occluded_max_missing < self.max_missing:
             raise ValueError("need 0 <= max_missing <= occluded_max_missing")

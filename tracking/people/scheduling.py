@@ -16,8 +16,8 @@ class DetectionScheduler:
 
     The full frame is searched when ``full_detection_interval`` seconds have passed since the
     last full search (every frame when it is 0) or nobody is tracked; otherwise only the
-    regions around the predicted boxes, widened by ``region_margin`` heights, which costs a
-    fraction of a full search and is what keeps the tracker real-time.
+    regions around the predicted boxes (:func:`search_regions`), for people of about the
+    predicted heights, which costs a fraction of a full search.
     """
 
     def __init__(self, detector: Detector, config: PeopleTrackerConfig) -> None:
@@ -34,16 +34,60 @@ class DetectionScheduler:
         if due or len(predicted) == 0:
             self._last_full = timestamp
             return self._detector.detect(frame)
-        height, width = frame.shape[:2]
-        found = []
-        for x, y, w, h in predicted:
-            m = c.region_margin * h
-            x0, y0 = max(x - m, 0.0), max(y - m, 0.0)
-            x1, y1 = min(x + w + m, width), min(y + h + m, height)
-            if x1 - x0 < 2 or y1 - y0 < 2:
-                continue
-            found.append(self._detector.detect_region(frame, Box(x0, y0, x1 - x0, y1 - y0)))
+        regions = search_regions(predicted, frame.shape, c.region_margin, c.region_heights)
+        found = [self._detector.detect_region(frame, box, heights) for box, heights in regions]
         return merge(found, self._detector.part_names)
+
+
+def search_regions(
+    predicted: np.ndarray,
+    shape: tuple[int, ...],
+    margin: float,
+    heights: tuple[float, float],
+) -> list[tuple[Box, tuple[float, float]]]:
+    """Where to look for the people of ``predicted`` boxes ``(N, 4)`` in a frame of ``shape``.
+
+    Each box widened by ``margin`` of its height on every side and clipped to the frame,
+    searched for people ``heights[0] .. heights[1]`` times its height. A search costs about
+    its area over the square of the smallest height it looks for (the pixels of the finest
+    pyramid level it scans), so regions are merged, pair by pair, into the box around them
+    while that costs less than searching them apart: the overlapping regions of a group of
+    people become one search instead of one per person.
+    """
+    boxes = np.asarray(predicted, dtype=np.float64).reshape(-1, 4)
+    height, width = shape[:2]
+    m = margin * boxes[:, 3:4]
+    corners = np.hstack([boxes[:, :2] - m, boxes[:, :2] + boxes[:, 2:] + m])
+    corners = np.clip(corners, 0.0, [width, height, width, height])
+    ranges = boxes[:, 3:4] * np.asarray(heights, dtype=np.float64)
+    keep = (corners[:, 2] - corners[:, 0] >= 2) & (corners[:, 3] - corners[:, 1] >= 2)
+    corners, ranges = corners[keep], ranges[keep]
+    while len(corners) > 1:
+        cost = _area(corners) / ranges[:, 0] ** 2
+        union = np.concatenate(
+            [
+                np.minimum(corners[:, None, :2], corners[None, :, :2]),
+                np.maximum(corners[:, None, 2:], corners[None, :, 2:]),
+            ],
+            axis=2,
+        )
+        low = np.minimum(ranges[:, None, 0], ranges[None, :, 0])
+        saving = cost[:, None] + cost[None, :] - _area(union) / low**2
+        np.fill_diagonal(saving, -np.inf)
+        i, j = np.unravel_index(np.argmax(saving), saving.shape)
+        if saving[i, j] <= 0:
+            break
+        corners[i] = union[i, j]
+        ranges[i] = (low[i, j], max(ranges[i, 1], ranges[j, 1]))
+        corners, ranges = np.delete(corners, j, axis=0), np.delete(ranges, j, axis=0)
+    return [
+        (Box(x0, y0, x1 - x0, y1 - y0), (lo, hi))
+        for (x0, y0, x1, y1), (lo, hi) in zip(corners.tolist(), ranges.tolist(), strict=True)
+    ]
+
+
+def _area(corners: np.ndarray) -> np.ndarray:
+    return (corners[..., 2] - corners[..., 0]) * (corners[..., 3] - corners[..., 1])
 
 
 def merge(parts: list[Detections], part_names: tuple[str, ...]) -> Detections:

@@ -190,7 +190,8 @@ class DpmDetector:
 
     @property
     def cascade(self) -> CascadeThresholds | None:
-        """The star-cascade thresholds ``detect`` prunes with; ``None``: it scores exactly."""
+        """The star-cascade thresholds ``detect`` and ``detect_region`` prune with; ``None``:
+        they score exactly."""
         return None if self._cascade is None else self._cascade[0]
 
     @property
@@ -233,13 +234,14 @@ class DpmDetector:
     ) -> list[tuple]:
         """Score the plans; ``shared``: one image for all plans, features computed once.
 
-        ``cascade`` (with ``shared`` and cascade thresholds): score with the star cascade.
+        ``cascade`` (with cascade thresholds): score with the star cascade; otherwise every
+        root exactly (dense scores need them all).
         With ``shared``, one job per halving chain of root levels (:func:`level_chains`)
         computes the chain's features and scores its levels: a root level's part level is in
         the same chain (one octave finer: the same image, or the one it was halved from), so
         the jobs are independent and no thread waits for the others' features.
         """
-        cascade_setup = self._cascade if cascade and shared is not None else None
+        cascade_setup = self._cascade if cascade else None
         projection = cascade_setup[1] if cascade_setup is not None else None
 
         def score(
@@ -420,7 +422,7 @@ class DpmDetector:
         clipped, plans = setup
         found = candidates(
             self.model,
-            self._run(plans),
+            self._run(plans, cascade=True),
             self.pad,
             self.threshold,
             region=clipped,

@@ -1,0 +1,97 @@
+"""Detector scheduling: full searches now and then, cheap searches around the tracks between."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracking.detection import MotSequence
+from tracking.detection.hog_people import HogPeopleDetector
+from tracking.people import MultiPersonTracker, PeopleTrackerConfig
+from tracking.people.scheduling import search_regions
+from tracking.types import Box
+
+SHAPE = (480, 640, 3)
+
+
+def test_a_lone_person_is_searched_around_their_box_at_their_height():
+    [(region, heights)] = search_regions(np.array([[300, 100, 40, 100]]), SHAPE, 0.5, (0.8, 1.25))
+    assert region == Box(250, 50, 140, 200)
+    assert heights == pytest.approx((80, 125))
+
+
+def test_a_group_is_one_search_and_people_apart_are_searched_apart():
+    group = [[100, 100, 40, 100], [130, 105, 40, 100], [160, 95, 40, 100]]
+    apart = [[500, 300, 40, 100]]
+    regions = search_regions(np.array(group + apart), SHAPE, 0.5, (0.8, 1.25))
+    assert len(regions) == 2
+    (together, heights), (alone, _) = sorted(regions, key=lambda r: r[0].x)
+    # the box around the three regions, for the heights of all three
+    assert together == Box(50, 45, 200, 210)
+    assert heights == pytest.approx((80, 125))
+    assert alone == Box(450, 250, 140, 200)
+
+
+def test_a_near_and_a_far_person_overlapping_are_searched_apart():
+    # One search of the box around both would scan the near person's large region at the far
+    # person's small scale: far more pixels than the two searches.
+    near, far = [200, 100, 120, 300], [300, 150, 12, 30]
+    regions = search_regions(np.array([near, far]), SHAPE, 0.5, (0.8, 1.25))
+    assert sorted(h for _, (_, h) in regions) == pytest.approx([37.5, 375])
+
+
+def test_regions_are_clipped_to_the_frame_and_those_outside_dropped():
+    boxes = np.array([[-30, -20, 40, 100], [700, 100, 40, 100], [620, 400, 40, 100]])
+    regions = search_regions(boxes, SHAPE, 0.5, (0.8, 1.25))
+    assert [r for r, _ in regions] == [Box(0, 0, 60, 130), Box(570, 350, 70, 130)]
+    assert search_regions(np.zeros((0, 4)), SHAPE, 0.5, (0.8, 1.25)) == []
+
+
+@pytest.mark.parametrize("heights", [(0.0, 1.0), (1.3, 1.2)])
+def test_bad_region_heights_are_refused(heights):
+    with pytest.raises(ValueError, match="region_heights"):
+        PeopleTrackerConfig(region_heights=heights)
+
+
+class _CountingDetector(HogPeopleDetector):
+    """The embedded detector, adding up the pixels of the pyramid levels it scans."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.pixels = 0.0
+        self.full_searches = 0
+
+    def _level_windows(self, image, scale):
+        self.pixels += image.shape[0] * image.shape[1] / scale**2
+        return super()._level_windows(image, scale)
+
+    def detect(self, frame):
+        self.full_searches += 1
+        return super().detect(frame)
+
+
+@pytest.mark.slow
+def test_between_full_searches_the_tracker_searches_less_and_keeps_the_people(shared_data):
+    """TUD-Stadtmitte (25 fps, a group of people), a full search every 0.4 s.
+
+    On the frames between full searches the regions around the tracks scan at most half the
+    pixels of a full search (a quarter here; before regions were restricted to the tracks'
+    heights and merged, they scanned more than the whole frame), and the people stay tracked:
+    as many boxes as on the full-search frames, to within a fifth.
+    """
+    sequence = MotSequence.open(shared_data / "mot" / "TUD-Stadtmitte")
+    detector = _CountingDetector()
+    tracker = MultiPersonTracker(
+        PeopleTrackerConfig(full_detection_interval=0.4), detector=detector
+    )
+    frames = {True: [], False: []}  # full search or not: (pixels scanned, boxes reported)
+    for index in range(60):
+        searches, detector.pixels = detector.full_searches, 0.0
+        tracks = tracker.update(sequence.read_frame(index), index / 25.0)
+        frames[detector.full_searches > searches].append((detector.pixels, len(tracks)))
+    full, between = np.array(frames[True]), np.array(frames[False])
+    assert len(full) == 6  # frames 0, 10, 20...
+    assert between[:, 0].mean() <= 0.5 * full[:, 0].mean()
+    # once the tracks are confirmed (from frame 20)
+    assert full[2:, 1].mean() >= 3
+    assert between[18:, 1].mean() >= 0.8 * full[2:, 1].mean()
