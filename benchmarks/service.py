@@ -16,6 +16,12 @@ With ``--jobs N`` the video is uploaded N times at once (jobs side by side, one 
 process): the time runs to the last result of the last job, tracking is the slowest job's, and
 ``job_tracking_s`` lists each job's.
 
+With ground truth (by default, for the default video: PETS09-S2L1's annotations scaled by 0.625
+from 768x576 to the video's 480x360; ``--ground-truth`` and ``--gt-scale`` for another video),
+the tracks of the ``mot`` result are scored (``hota``, ``det_a``, ``ass_a``, percent;
+``tracking.evaluation.hota``): what the user downloads, frames the job skipped counting as
+frames where nobody was found. With ``--jobs N``, the first job's.
+
 One job uses one worker process; ``--workers`` only sets how many the server starts.
 ``--dpm-model`` configures the server with a voc-release5 model (``VTRACK_DPM_MODEL``), for jobs
 with ``{"detector": {"name": "dpm"}}``.
@@ -34,6 +40,7 @@ from pathlib import Path
 
 import cv2
 import httpx
+import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run as a script, benchmarks/ comes first on sys.path and this file would shadow the service
@@ -41,9 +48,14 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
 from service.testing import Server, wait_for  # noqa: E402
+from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows  # noqa: E402
+from tracking.evaluation.hota import hota  # noqa: E402
 
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
+DEFAULT_GROUND_TRUTH = SHARED_DATA / "mot" / "PETS09-S2L1" / "gt" / "gt.txt"
+DEFAULT_GT_SCALE = 0.625
+"""PETS09-S2L1's annotations are in 768x576 pixels; the video is 480x360."""
 
 
 def _video_seconds(path: Path) -> tuple[int, float, float]:
@@ -54,12 +66,30 @@ def _video_seconds(path: Path) -> tuple[int, float, float]:
     return frames, fps, frames / fps
 
 
+def score(mot_text: str, ground_truth: Path, scale: float, frames: int) -> dict:
+    """HOTA (percent) of a ``mot`` result against MOTChallenge ground truth scaled by ``scale``,
+    over the video's first ``frames`` frames."""
+    gt = read_mot_rows(ground_truth, min_columns=6)
+    gt = gt[gt[:, 0] <= frames]
+    gt_rows = np.column_stack([gt[:, :2], mot_to_image_boxes(gt[:, 2:6]) * scale])
+    lines = [line for line in mot_text.splitlines() if line.strip()]
+    ours = np.array([line.split(",")[:6] for line in lines], dtype=np.float64).reshape(-1, 6)
+    ours[:, 2:6] = mot_to_image_boxes(ours[:, 2:6])
+    scores = hota(gt_rows, ours)
+    return {
+        "hota": round(100 * scores.hota, 1),
+        "det_a": round(100 * scores.det_a, 1),
+        "ass_a": round(100 * scores.ass_a, 1),
+    }
+
+
 def run(
     video: Path,
     options: dict | None,
     workers: int | None,
     dpm_model: Path | None = None,
     jobs: int = 1,
+    ground_truth: tuple[Path, float] | None = None,
 ) -> dict:
     frames, fps, duration = _video_seconds(video)
     settings = {"dpm_model": str(dpm_model.resolve())} if dpm_model else {}
@@ -90,12 +120,16 @@ def run(
                     for job_id in job_ids
                 ]
                 done = time.perf_counter()
-                sizes = {}
+                sizes, results = {}, []
                 for status in statuses:
                     if status["state"] != "succeeded":
                         raise RuntimeError(f"a job {status['state']}: {status['error']}")
-                    for fmt, link in status["links"]["results"].items():
-                        sizes[fmt] = len(client.get(link).content)
+                    contents = {
+                        fmt: client.get(link).content
+                        for fmt, link in status["links"]["results"].items()
+                    }
+                    sizes = {fmt: len(content) for fmt, content in contents.items()}
+                    results.append(contents)
                 end = time.perf_counter()
         finally:
             server.stop()
@@ -109,6 +143,9 @@ def run(
     job_tracking_s = [round(seconds(s, "started_at", "finished_at"), 2) for s in statuses]
     tracking_s = max(job_tracking_s)
     total = end - start
+    accuracy = {}
+    if ground_truth is not None and "mot" in results[0]:
+        accuracy = score(results[0]["mot"].decode(), *ground_truth, frames)
     return {
         "video": video.name,
         "frames": frames,
@@ -125,6 +162,7 @@ def run(
         "tracking_fps": round(frames / tracking_s, 2),
         "poll_to_download_s": round(end - done, 2),
         "result_bytes": sizes,
+        **accuracy,
         "cpu_count": os.cpu_count(),
     }
 
@@ -140,11 +178,35 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--jobs", type=int, default=1, help="upload the video this many times at once"
     )
+    parser.add_argument(
+        "--ground-truth",
+        type=Path,
+        help="MOTChallenge gt.txt of the video's frames, to score the tracks (default: "
+        "PETS09-S2L1's for the default video)",
+    )
+    parser.add_argument(
+        "--gt-scale",
+        type=float,
+        help="factor from the ground truth's pixels to the video's (default 0.625 for the "
+        "default video, else 1)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    figures = run(args.video, args.options, args.workers, args.dpm_model, args.jobs)
+    default_video = args.video == DEFAULT_VIDEO
+    gt = args.ground_truth or (DEFAULT_GROUND_TRUTH if default_video else None)
+    if gt is not None and not gt.is_file():
+        parser.error(f"--ground-truth: no file {gt}")
+    scale = args.gt_scale or (DEFAULT_GT_SCALE if default_video and not args.ground_truth else 1.0)
+    figures = run(
+        args.video,
+        args.options,
+        args.workers,
+        args.dpm_model,
+        args.jobs,
+        None if gt is None else (gt, scale),
+    )
     if args.json:
         print(json.dumps(figures))
         return 0
@@ -158,6 +220,9 @@ def main(argv: list[str] | None = None) -> int:
         ("  tracking", f"{figures['tracking_s']:.1f} s ({figures['tracking_fps']:.1f} frames/s)"),
         ("  downloads", f"{figures['poll_to_download_s']:.1f} s"),
     ]
+    if "hota" in figures:
+        accuracy = f"{figures['hota']} (DetA {figures['det_a']}, AssA {figures['ass_a']})"
+        rows.append(("HOTA", accuracy))
     for name, value in rows:
         print(f"{name:<22}{value}")
     return 0

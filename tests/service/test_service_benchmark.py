@@ -17,6 +17,8 @@ def test_times_jobs_side_by_side_with_the_dpm(shared_data, pets_short):
     command = [sys.executable, str(BENCHMARKS / "service.py"), "--video", str(pets_short)]
     command += ["--options", json.dumps(options), "--jobs", "2", "--json"]
     command += ["--dpm-model", str(shared_data / "dpm" / "INRIA" / "inriaperson_final.mat")]
+    gt = shared_data / "mot" / "PETS09-S2L1" / "gt" / "gt.txt"
+    command += ["--ground-truth", str(gt), "--gt-scale", "0.625"]
     result = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
@@ -25,6 +27,17 @@ def test_times_jobs_side_by_side_with_the_dpm(shared_data, pets_short):
     assert report["tracking_s"] == max(report["job_tracking_s"]) > 0
     assert set(report["result_bytes"]) == {"json", "mot"}
     assert report["upload_to_result_s"] >= report["tracking_s"]
+    # the downloaded tracks scored against the clip's 8 frames of ground truth: tracks are
+    # confirmed after 3 detections, so the first frames find nobody and HOTA stays low
+    assert 0 < report["det_a"] <= 100 and 0 < report["hota"] <= 100
+
+
+def test_missing_ground_truth_is_refused(pets_short, tmp_path):
+    command = [sys.executable, str(BENCHMARKS / "service.py"), "--video", str(pets_short)]
+    command += ["--ground-truth", str(tmp_path / "gt.txt")]
+    result = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert "--ground-truth: no file" in result.stderr
 
 
 def test_a_refused_upload_says_why(pets_short):
