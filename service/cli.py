@@ -293,7 +293,9 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument(
         "--detection-interval",
         type=float,
-        help="seconds between full-frame detections (regions around tracks in between)",
+        help="seconds between full-frame detections, regions around the tracks in between "
+        "(default 0: every frame in full; 0.2 tracked 25 fps video 1.3-2.6x as fast in our "
+        "benchmarks)",
     )
     analyze.add_argument("--frame-step", type=int, default=1, help="track every N-th frame")
     analyze.add_argument(

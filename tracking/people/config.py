@@ -162,7 +162,7 @@ class PeopleTrackerConfig:
         Margin, in heights, around a track's box when searching a region of interest.
     region_heights:
         Heights of the people a region of interest is searched for, as fractions of the
-        track's predicted height (0.8-1.25: six pyramid levels of the DPM, five of the
+        track's predicted height (0.8-1.25: about six pyramid levels of the DPM, five of the
         embedded detector).
     seed:
         Seed of the particle filter's random generator (runs are reproducible).
