@@ -68,11 +68,12 @@ class DpmConfig:
         JSON calibration file; ``None``: ``<model>.calibration.json`` beside the model if it
         exists, else the detector module's ``DEFAULT_DPM_CALIBRATION``.
     cascade:
-        Score whole frames and regions of interest with the star cascade (:mod:`.cascade`)
-        when thresholds fitted for the model and for a detection threshold at or below
-        ``threshold`` exist: the same scores for the roots it keeps, several times faster, but a
-        person scoring lower at some stage than every positive the thresholds were fitted on is
-        lost. Needs a bounded ``deformation_window``. Dense scores always score exactly.
+        Score whole frames and regions of interest (their levels with 225 root positions or
+        more) with the star cascade (:mod:`.cascade`) when thresholds fitted for the model and
+        for a detection threshold at or below ``threshold`` exist: the same scores for the
+        roots it keeps, several times faster, but a person scoring lower at some stage than
+        every positive the thresholds were fitted on is lost. Needs a bounded
+        ``deformation_window``. Dense scores always score exactly.
     cascade_thresholds:
         JSON thresholds file (``python -m tracking.detection.dpm.cascade_fit``); ``None``:
         ``<model>.cascade.json`` beside the model if it exists, else the thresholds shipped for
