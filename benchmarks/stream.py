@@ -17,6 +17,8 @@ tracks with :func:`service.streams.tools.follow_tracks` in this process. Configu
   (scaled by 0.625 from 768x576) on the detections key, as an upstream detector would.
 * ``service_detector_1_5x`` (only when asked for): the embedded detector with ``upscale`` 1.5,
   cheaper, but it misses most people of this video (40-60 px tall).
+* ``service_detector_regions`` (only when asked for): the embedded detector on the full frame
+  every 0.2 s and on regions around the tracks in between (``full_detection_interval``).
 
 Figures per configuration: frames published, tracks messages received, the stream's counters
 (REST, at the end), the share of frames skipped (``frames_skipped / frames_in``, goal: under
@@ -76,6 +78,7 @@ CONFIGS = {
     "service_detector": {},
     "upstream_detections": {},
     "service_detector_1_5x": {"detector": {"upscale": 1.5}},
+    "service_detector_regions": {"tracker": {"full_detection_interval": 0.2}},
 }
 """Stream options (the body of ``POST /v1/streams`` besides the camera) per configuration."""
 DEFAULT_CONFIGS = ("service_detector", "upstream_detections")
