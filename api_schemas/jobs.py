@@ -82,7 +82,7 @@ class PeopleTrackerOptions(BaseModel):
         ge=0,
         le=60,
         description="Seconds between full-frame detections; in between only regions around "
-        "the tracks are searched, at a fifth to a half of the cost. 0: every tracked frame is "
+        "the tracks are searched, at a fraction of the cost. 0: every tracked frame is "
         "searched in full. 0.2 tracked 25 fps video 1.3-2.6x as fast in our benchmarks.",
     )
     region_margin: float | None = Field(

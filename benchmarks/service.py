@@ -194,6 +194,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    if args.gt_scale is not None and not args.gt_scale > 0:
+        parser.error(f"--gt-scale must be positive, got {args.gt_scale}")
     default_video = args.video == DEFAULT_VIDEO
     gt = args.ground_truth or (DEFAULT_GROUND_TRUTH if default_video else None)
     if gt is not None and not gt.is_file():

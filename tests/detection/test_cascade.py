@@ -190,17 +190,20 @@ def test_cascade_keeps_the_exact_detections_of_pets_frames(inria_model, exact, p
     kept = total = 0
     for i in (0, 200, 400, 600):
         frame = pets.read_frame(i)
-        reference, found = exact.detect(frame), cascade.detect(frame)
-        total += len(reference)
-        matched = match_frame(found.boxes, found.scores, reference.boxes)
-        kept += int(matched.sum())
-        # the boxes it keeps carry their exact scores
-        for box, score in zip(found.boxes, found.scores, strict=True):
-            same = np.all(np.abs(reference.boxes - box) < 1e-6, axis=1)
-            if same.any():
-                assert reference.scores[same][0] == pytest.approx(score, abs=1e-4)
+        kept, total = _count_kept(exact.detect(frame), cascade.detect(frame), kept, total)
     assert total >= 15
     assert kept / total >= 0.9, f"the cascade kept {kept} of {total} detections"
+
+
+def _count_kept(reference, found, kept: int, total: int) -> tuple[int, int]:
+    """``kept`` and ``total`` plus the exact detections ``found`` keeps and those there are;
+    the boxes it keeps must carry their exact scores."""
+    for box, score in zip(found.boxes, found.scores, strict=True):
+        same = np.all(np.abs(reference.boxes - box) < 1e-6, axis=1)
+        if same.any():
+            assert reference.scores[same][0] == pytest.approx(score, abs=1e-4)
+    matched = match_frame(found.boxes, found.scores, reference.boxes)
+    return kept + int(matched.sum()), total + len(reference)
 
 
 def test_regions_keep_the_exact_detections_of_their_people(inria_model, pets):
@@ -216,12 +219,7 @@ def test_regions_keep_the_exact_detections_of_their_people(inria_model, pets):
             heights = (0.8 * h, 1.25 * h)
             reference = exact.detect_region(frame, region, heights)
             found = cascade.detect_region(frame, region, heights)
-            total += len(reference)
-            kept += int(match_frame(found.boxes, found.scores, reference.boxes).sum())
-            for box, score in zip(found.boxes, found.scores, strict=True):
-                same = np.all(np.abs(reference.boxes - box) < 1e-6, axis=1)
-                if same.any():
-                    assert reference.scores[same][0] == pytest.approx(score, abs=1e-4)
+            kept, total = _count_kept(reference, found, kept, total)
     assert total >= 10
     assert kept / total >= 0.9, f"the cascade kept {kept} of {total} detections"
 

@@ -75,7 +75,7 @@ def test_between_full_searches_the_tracker_searches_less_and_keeps_the_people(sh
     """TUD-Stadtmitte (25 fps, a group of people), a full search every 0.4 s.
 
     On the frames between full searches the regions around the tracks scan at most half the
-    pixels of a full search (a quarter here; before regions were restricted to the tracks'
+    pixels of a full search (a sixth here; before regions were restricted to the tracks'
     heights and merged, they scanned more than the whole frame), and the people stay tracked:
     as many boxes as on the full-search frames, to within a fifth.
     """

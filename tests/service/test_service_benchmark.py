@@ -32,12 +32,20 @@ def test_times_jobs_side_by_side_with_the_dpm(shared_data, pets_short):
     assert 0 < report["det_a"] <= 100 and 0 < report["hota"] <= 100
 
 
-def test_missing_ground_truth_is_refused(pets_short, tmp_path):
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--ground-truth", "missing/gt.txt"], "--ground-truth: no file"),
+        (["--gt-scale", "0"], "--gt-scale must be positive, got 0.0"),
+    ],
+)
+def test_bad_ground_truth_options_are_refused(pets_short, arguments, message):
     command = [sys.executable, str(BENCHMARKS / "service.py"), "--video", str(pets_short)]
-    command += ["--ground-truth", str(tmp_path / "gt.txt")]
-    result = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        command + arguments, cwd=REPO_ROOT, capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 2
-    assert "--ground-truth: no file" in result.stderr
+    assert message in result.stderr
 
 
 def test_a_refused_upload_says_why(pets_short):

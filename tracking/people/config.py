@@ -155,7 +155,7 @@ class PeopleTrackerConfig:
     full_detection_interval:
         Seconds between full-frame detections when the tracker runs its own detector; in
         between, only regions around the tracks are searched
-        (:func:`tracking.people.scheduling.search_regions`), at a fifth to a half of a full
+        (:func:`tracking.people.scheduling.search_regions`), at a fraction of a full
         search's cost. People who enter are found at the next full search. 0 (default): every
         frame in full (docs/benchmarks.md measures 0.2 and 0.5 against it).
     region_margin:
