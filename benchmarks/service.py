@@ -48,8 +48,8 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
 from service.testing import Server, wait_for  # noqa: E402
-from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows  # noqa: E402
 from tracking.evaluation.hota import hota  # noqa: E402
+from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes  # noqa: E402
 
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
@@ -69,18 +69,10 @@ def _video_seconds(path: Path) -> tuple[int, float, float]:
 def score(mot_text: str, ground_truth: Path, scale: float, frames: int) -> dict:
     """HOTA (percent) of a ``mot`` result against MOTChallenge ground truth scaled by ``scale``,
     over the video's first ``frames`` frames."""
-    gt = read_mot_rows(ground_truth, min_columns=6)
-    gt = gt[gt[:, 0] <= frames]
-    gt_rows = np.column_stack([gt[:, :2], mot_to_image_boxes(gt[:, 2:6]) * scale])
     lines = [line for line in mot_text.splitlines() if line.strip()]
     ours = np.array([line.split(",")[:6] for line in lines], dtype=np.float64).reshape(-1, 6)
     ours[:, 2:6] = mot_to_image_boxes(ours[:, 2:6])
-    scores = hota(gt_rows, ours)
-    return {
-        "hota": round(100 * scores.hota, 1),
-        "det_a": round(100 * scores.det_a, 1),
-        "ass_a": round(100 * scores.ass_a, 1),
-    }
+    return hota(ground_truth_rows(ground_truth, scale, frames), ours).percent()
 
 
 def run(

@@ -63,8 +63,8 @@ from service.streams.tools import (
 )
 from service.testing import Server, wait_for
 from tracking.detection import MotDetections
-from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows
 from tracking.evaluation.hota import hota
+from tracking.evaluation.mot import ground_truth_rows
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
@@ -155,20 +155,13 @@ class MemorySampler(threading.Thread):
 
 def stream_hota(messages: list[StreamTracksMessage], gt_path: Path, frames: int) -> dict:
     """HOTA of the streamed tracks against the ground truth of the published frames."""
-    gt = read_mot_rows(gt_path, min_columns=6)
-    gt = gt[gt[:, 0] <= frames]
-    gt_rows = np.column_stack([gt[:, :2], mot_to_image_boxes(gt[:, 2:6]) * SCALE])
     rows = [
         (m.sequence + 1, t.track_id, t.box.x, t.box.y, t.box.w, t.box.h)
         for m in messages
         for t in m.tracks
     ]
-    scores = hota(gt_rows, np.array(rows, dtype=np.float64).reshape(-1, 6))
-    return {
-        "hota": round(100 * scores.hota, 1),
-        "det_a": round(100 * scores.det_a, 1),
-        "ass_a": round(100 * scores.ass_a, 1),
-    }
+    tracks = np.array(rows, dtype=np.float64).reshape(-1, 6)
+    return hota(ground_truth_rows(gt_path, SCALE, frames), tracks).percent()
 
 
 def run_config(

@@ -47,3 +47,9 @@ def test_localisation_counts_only_above_each_threshold():
     scores = hota(gt, tracks)
     assert scores.det_a == pytest.approx(10 / 19)
     assert scores.loc_a == pytest.approx((10 * 0.5 + 9 * 1.0) / 19)
+
+
+def test_scores_in_percent_as_the_benchmarks_report_them():
+    rows = np.array([[1, 1, 0, 0, 10, 20], [2, 1, 1, 0, 10, 20]], dtype=float)
+    assert hota(rows, rows).percent() == {"hota": 100.0, "det_a": 100.0, "ass_a": 100.0}
+    assert hota(rows, rows[:0]).percent() == {"hota": 0.0, "det_a": 0.0, "ass_a": 0.0}

@@ -15,6 +15,7 @@ from tracking.evaluation.mot import (
     estimates_to_rows,
     find_mot_sequences,
     format_mot_rows,
+    ground_truth_rows,
     image_to_mot_boxes,
     limit_frames,
     mot_to_image_boxes,
@@ -251,3 +252,11 @@ def test_the_shared_sequences(shared_data, name):
     assert gt[:, 0].min() == 1 and gt[:, 0].max() <= frames
     assert np.all((det[:, 6] >= 0.5) & (det[:, 6] <= 1.0))
     assert np.all(det[:, 1] == -1)
+
+
+def test_ground_truth_rows_are_0_based_scaled_and_cut_to_the_frames(tmp_path):
+    path = tmp_path / "gt.txt"
+    path.write_text("1,1,11,21,40,100,1,1,1\n2,1,13,21,40,100,1,1,1\n3,2,101,1,8,16,1,1,1\n")
+    rows = ground_truth_rows(path, scale=0.5, frames=2)
+    np.testing.assert_array_equal(rows, [[1, 1, 5, 10, 20, 50], [2, 1, 6, 10, 20, 50]])
+    assert len(ground_truth_rows(path)) == 3

@@ -28,6 +28,14 @@ class HotaScores:
     ass_a: float
     loc_a: float
 
+    def percent(self) -> dict[str, float]:
+        """HOTA, DetA and AssA in percent to one decimal, as the benchmarks report them."""
+        return {
+            "hota": round(100 * self.hota, 1),
+            "det_a": round(100 * self.det_a, 1),
+            "ass_a": round(100 * self.ass_a, 1),
+        }
+
 
 def hota(ground_truth: np.ndarray, tracks: np.ndarray) -> HotaScores:
     """Score ``tracks`` against ``ground_truth``.

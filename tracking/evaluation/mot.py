@@ -56,6 +56,7 @@ __all__ = [
     "estimates_to_rows",
     "find_mot_sequences",
     "format_mot_rows",
+    "ground_truth_rows",
     "image_to_mot_boxes",
     "limit_frames",
     "mot_to_image_boxes",
@@ -186,6 +187,18 @@ def find_mot_sequences(root: str | os.PathLike[str]) -> list[Path]:
 def limit_frames(rows: np.ndarray, frames: int) -> np.ndarray:
     """The rows of the first ``frames`` frames (column 0 is the 1-based frame)."""
     return rows[rows[:, 0] <= frames]
+
+
+def ground_truth_rows(
+    path: str | os.PathLike[str], scale: float = 1.0, frames: int | None = None
+) -> np.ndarray:
+    """``frame, id, x, y, w, h`` rows of a MOTChallenge ``gt.txt`` with 0-based boxes scaled by
+    ``scale`` (to a video made from the sequence at another size), of the first ``frames``
+    frames (all when None)."""
+    gt = read_mot_rows(path, min_columns=6)
+    if frames is not None:
+        gt = limit_frames(gt, frames)
+    return np.column_stack([gt[:, :2], mot_to_image_boxes(gt[:, 2:6]) * scale])
 
 
 def track_rows(

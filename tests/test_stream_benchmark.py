@@ -1,0 +1,23 @@
+"""``benchmarks/stream.py``: a real service and Zenoh camera on loopback, one JSON object."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from tests.conftest import BENCHMARKS, REPO_ROOT
+
+
+@pytest.mark.slow
+def test_a_camera_with_full_searches_every_0_2_s_is_tracked_and_scored(shared_data):
+    command = [sys.executable, str(BENCHMARKS / "stream.py"), "--data", str(shared_data)]
+    command += ["--frames", "20", "--configs", "service_detector_regions", "--json"]
+    result = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)["configs"]["service_detector_regions"]
+    assert figures["frames_in"] == 20 and figures["messages"] >= 19
+    # scored against PETS09-S2L1's ground truth of the 20 frames published
+    assert 0 < figures["det_a"] <= 100 and 0 < figures["hota"] <= 100
