@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from tracking.detection import MotSequence
+from tracking.detection.base import Detections
 from tracking.detection.hog_people import HogPeopleDetector
 from tracking.people import MultiPersonTracker, PeopleTrackerConfig
-from tracking.people.scheduling import search_regions
+from tracking.people.scheduling import DetectionScheduler, search_regions
 from tracking.types import Box
 
 SHAPE = (480, 640, 3)
@@ -68,6 +69,44 @@ class _CountingDetector(HogPeopleDetector):
     def detect(self, frame):
         self.full_searches += 1
         return super().detect(frame)
+
+
+class _Searches:
+    """A detector that finds nobody and notes which frames it searched in full."""
+
+    part_names = ()
+
+    def __init__(self) -> None:
+        self.full: list[int] = []
+        self.frame = 0
+
+    def detect(self, frame):
+        self.full.append(self.frame)
+        return Detections.empty(())
+
+    def detect_region(self, frame, region, heights=None):
+        return Detections.empty(())
+
+
+@pytest.mark.parametrize(
+    ("fps", "interval", "jitter", "expected"),
+    [
+        (25.0, 0.2, 0.0, list(range(0, 60, 5))),  # 0.6 - 0.4 < 0.2 in floating point
+        (25.0, 0.2, 0.003, list(range(0, 60, 5))),  # a camera clock's jitter
+        (7.0, 0.2, 0.0, list(range(0, 60, 2))),  # the first frame 0.2 s on
+        (30.0, 0.5, 0.002, list(range(0, 60, 15))),
+    ],
+)
+def test_full_searches_fall_on_the_frame_the_interval_reaches(fps, interval, jitter, expected):
+    detector = _Searches()
+    scheduler = DetectionScheduler(detector, PeopleTrackerConfig(full_detection_interval=interval))
+    frame = np.zeros(SHAPE, dtype=np.uint8)
+    predicted = np.array([[100.0, 100.0, 40.0, 100.0]])
+    jitters = np.random.default_rng(0).uniform(-jitter, jitter, 60)
+    for index in range(60):
+        detector.frame = index
+        scheduler.detect(frame, index / fps + jitters[index], predicted)
+    assert detector.full == expected
 
 
 @pytest.mark.slow
