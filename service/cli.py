@@ -100,13 +100,56 @@ def _formats(text: str) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+def _job_options(text: str) -> dict:
+    """``--options``: a JSON object of job options, as the service's ``options`` part."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise argparse.ArgumentTypeError(f"not JSON: {error}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"a JSON object of job options, got {text!r}")
+    return value
+
+
 # The command-line option behind each JobOptions field that `analyze` fills in.
 _ANALYZE_OPTIONS = {
+    ("formats",): "--format",
+    ("mcap_images",): "--mcap-images",
     ("frame_step",): "--frame-step",
     ("first_box",): "--box",
+    ("preset",): "--preset",
+    ("detector", "name"): "--dpm-model",
     ("detector", "upscale"): "--upscale",
     ("tracker", "full_detection_interval"): "--detection-interval",
 }
+
+
+def _analyze_options(args: argparse.Namespace) -> tuple[dict, set[tuple[str, ...]]]:
+    """The job options of ``args``: ``--options`` with the other flags given over it, and the
+    fields those flags set."""
+    box = args.box
+    flags = {
+        ("formats",): args.format,
+        ("mcap_images",): args.mcap_images,
+        ("frame_step",): args.frame_step,
+        ("mode",): None if box is None else "single_target",
+        ("first_box",): None if box is None else {"x": box.x, "y": box.y, "w": box.w, "h": box.h},
+        ("preset",): args.preset,
+        ("detector", "name"): "dpm" if args.dpm_model else None,
+        ("detector", "upscale"): args.upscale,
+        ("tracker", "full_detection_interval"): args.detection_interval,
+    }
+    raw = json.loads(json.dumps(args.options or {}))  # a deep copy
+    given = {key for key, value in flags.items() if value is not None}
+    for key in given:
+        *parents, name = key
+        section = raw
+        for parent in parents:
+            if not isinstance(section.get(parent), dict):
+                section[parent] = {}
+            section = section[parent]
+        section[name] = flags[key]
+    return raw, given
 
 
 def _analyze(args: argparse.Namespace) -> int:
@@ -115,30 +158,19 @@ def _analyze(args: argparse.Namespace) -> int:
     from api_schemas.jobs import JobOptions
     from service.analysis import OptionsError, PipelineResources, analyze, publish
 
-    raw: dict = {
-        "formats": args.format,
-        "frame_step": args.frame_step,
-        "mcap_images": args.mcap_images,
-    }
-    if args.box is not None:
-        box = args.box
-        raw.update(
-            mode="single_target",
-            first_box={"x": box.x, "y": box.y, "w": box.w, "h": box.h},
-            preset=args.preset,
-        )
-    else:
-        detector: dict = {"name": "dpm" if args.dpm_model else "default"}
-        if args.upscale is not None:
-            detector["upscale"] = args.upscale
-        raw["detector"] = detector
-        if args.detection_interval is not None:
-            raw["tracker"] = {"full_detection_interval": args.detection_interval}
+    raw, given = _analyze_options(args)
     try:
         options = JobOptions.model_validate(raw)
     except ValidationError as error:
         first = error.errors()[0]
-        where = [flag for key, flag in _ANALYZE_OPTIONS.items() if first["loc"][: len(key)] == key]
+        loc = tuple(str(part) for part in first["loc"])
+        where = [
+            flag
+            for key, flag in _ANALYZE_OPTIONS.items()
+            if key in given and loc[: len(key)] == key
+        ]
+        if not where and loc:
+            where = [f"--options: {'.'.join(loc)}"]
         message = first["msg"].removeprefix("Value error, ")
         print(f"vtrack: {': '.join([*where, message])}", file=sys.stderr)
         return 2
@@ -270,13 +302,11 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument(
         "--format",
         type=_formats,
-        default=["json", "mcap", "mot", "mp4"],
         help="comma-separated results to write: json,mcap,mot,mp4 (default: all)",
     )
     analyze.add_argument(
         "--mcap-images",
         choices=("h264", "jpeg"),
-        default="h264",
         help="frames in the MCAP as H.264 video (default) or JPEG images (for tools that read "
         "foxglove.CompressedImage only)",
     )
@@ -297,12 +327,18 @@ def build_parser() -> argparse.ArgumentParser:
         "(default 0: every frame in full; 0.2 tracked 25 fps video 1.3-2.6x as fast in our "
         "benchmarks)",
     )
-    analyze.add_argument("--frame-step", type=int, default=1, help="track every N-th frame")
+    analyze.add_argument("--frame-step", type=int, help="track every N-th frame (default 1)")
     analyze.add_argument(
         "--box", type=_parse_box, help="follow one object from this first box x,y,w,h instead"
     )
     analyze.add_argument(
-        "--preset", default="hog_cn_scale", choices=sorted(PRESETS), help="tracker for --box"
+        "--preset", choices=sorted(PRESETS), help="tracker for --box (default hog_cn_scale)"
+    )
+    analyze.add_argument(
+        "--options",
+        type=_job_options,
+        help="job options as JSON, the service's `options` part (for example "
+        '\'{"tracker": {"report_missing": 0.15}}\'); the flags above win over it',
     )
     analyze.add_argument("--w2c", type=Path, help="van de Weijer w2c.mat Color Names table")
     analyze.add_argument("--quiet", action="store_true", help="no progress bar")

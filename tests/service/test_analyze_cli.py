@@ -83,6 +83,18 @@ def test_analyze_follows_one_box_every_other_frame(pets_short, tmp_path):
     assert track["frames"][0]["box"] == {"x": 150.0, "y": 130.0, "w": 28.0, "h": 65.0}
 
 
+def test_analyze_takes_the_service_job_options_with_its_flags_over_them(pets_short, tmp_path):
+    out = tmp_path / "out"
+    options = {"frame_step": 2, "formats": ["json", "mot"], "tracker": {"report_missing": 0.15}}
+    arguments = ["--options", json.dumps(options), "--format", "json", "--quiet"]
+    result = vtrack("analyze", pets_short, "--out-dir", out, *arguments)
+    assert result.returncode == 0, result.stderr
+    assert [p.name for p in out.iterdir()] == ["trajectories.json"]  # --format won
+    document = json.loads((out / "trajectories.json").read_text())
+    assert document["frames_processed"] == 4  # every other frame of 8, from --options
+    assert document["mode"] == "people"
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -91,6 +103,17 @@ def test_analyze_follows_one_box_every_other_frame(pets_short, tmp_path):
         (["--upscale", "-1"], "--upscale: Input should be greater than 0"),
         (["--box", "1,1,-5,3"], "--box: Input should be greater than 0"),
         (["--box", "900,10,20,20"], "outside"),  # first box outside the frame
+        (["--options", "{"], "--options: not JSON"),
+        (["--options", "[1]"], "--options: a JSON object of job options"),
+        (["--options", '{"trackr": {}}'], "--options: trackr: Extra inputs are not permitted"),
+        (
+            ["--options", '{"tracker": {"report_missing": -1}}'],
+            "--options: tracker.report_missing: Input should be greater than or equal to 0",
+        ),
+        (  # the flag's value is the one refused, so the flag is named
+            ["--options", '{"frame_step": 2}', "--frame-step", "0"],
+            "--frame-step: Input should be greater than or equal to 1",
+        ),
     ],
 )
 def test_analyze_rejects_bad_arguments(pets_short, tmp_path, args, message):
