@@ -40,7 +40,6 @@ from pathlib import Path
 
 import cv2
 import httpx
-import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run as a script, benchmarks/ comes first on sys.path and this file would shadow the service
@@ -48,6 +47,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
 from service.testing import Server, wait_for  # noqa: E402
+from tracking.detection.sequences import parse_mot_rows  # noqa: E402
 from tracking.evaluation.hota import hota  # noqa: E402
 from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes  # noqa: E402
 
@@ -69,8 +69,7 @@ def _video_seconds(path: Path) -> tuple[int, float, float]:
 def score(mot_text: str, ground_truth: Path, scale: float, frames: int) -> dict:
     """HOTA (percent) of a ``mot`` result against MOTChallenge ground truth scaled by ``scale``,
     over the video's first ``frames`` frames."""
-    lines = [line for line in mot_text.splitlines() if line.strip()]
-    ours = np.array([line.split(",")[:6] for line in lines], dtype=np.float64).reshape(-1, 6)
+    ours = parse_mot_rows(mot_text, min_columns=6, source="the mot result")[:, :6]
     ours[:, 2:6] = mot_to_image_boxes(ours[:, 2:6])
     return hota(ground_truth_rows(ground_truth, scale, frames), ours).percent()
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import json
 import sys
@@ -111,44 +112,37 @@ def _job_options(text: str) -> dict:
     return value
 
 
-# The command-line option behind each JobOptions field that `analyze` fills in.
-_ANALYZE_OPTIONS = {
-    ("formats",): "--format",
-    ("mcap_images",): "--mcap-images",
-    ("frame_step",): "--frame-step",
-    ("first_box",): "--box",
-    ("preset",): "--preset",
-    ("detector", "name"): "--dpm-model",
-    ("detector", "upscale"): "--upscale",
-    ("tracker", "full_detection_interval"): "--detection-interval",
-}
-
-
-def _analyze_options(args: argparse.Namespace) -> tuple[dict, set[tuple[str, ...]]]:
+def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ...], str]]:
     """The job options of ``args``: ``--options`` with the other flags given over it, and the
-    fields those flags set."""
+    flag behind each field those flags set (to name it in errors)."""
     box = args.box
     flags = {
-        ("formats",): args.format,
-        ("mcap_images",): args.mcap_images,
-        ("frame_step",): args.frame_step,
-        ("mode",): None if box is None else "single_target",
-        ("first_box",): None if box is None else {"x": box.x, "y": box.y, "w": box.w, "h": box.h},
-        ("preset",): args.preset,
-        ("detector", "name"): "dpm" if args.dpm_model else None,
-        ("detector", "upscale"): args.upscale,
-        ("tracker", "full_detection_interval"): args.detection_interval,
+        ("formats",): ("--format", args.format),
+        ("mcap_images",): ("--mcap-images", args.mcap_images),
+        ("frame_step",): ("--frame-step", args.frame_step),
+        ("mode",): ("--box", None if box is None else "single_target"),
+        ("first_box",): (
+            "--box",
+            None if box is None else {"x": box.x, "y": box.y, "w": box.w, "h": box.h},
+        ),
+        ("preset",): ("--preset", args.preset),
+        ("detector", "name"): ("--dpm-model", "dpm" if args.dpm_model else None),
+        ("detector", "upscale"): ("--upscale", args.upscale),
+        ("tracker", "full_detection_interval"): ("--detection-interval", args.detection_interval),
     }
-    raw = json.loads(json.dumps(args.options or {}))  # a deep copy
-    given = {key for key, value in flags.items() if value is not None}
-    for key in given:
+    raw = copy.deepcopy(args.options or {})
+    given = {}
+    for key, (flag, value) in flags.items():
+        if value is None:
+            continue
+        given[key] = flag
         *parents, name = key
         section = raw
         for parent in parents:
             if not isinstance(section.get(parent), dict):
                 section[parent] = {}
             section = section[parent]
-        section[name] = flags[key]
+        section[name] = value
     return raw, given
 
 
@@ -164,11 +158,7 @@ def _analyze(args: argparse.Namespace) -> int:
     except ValidationError as error:
         first = error.errors()[0]
         loc = tuple(str(part) for part in first["loc"])
-        where = [
-            flag
-            for key, flag in _ANALYZE_OPTIONS.items()
-            if key in given and loc[: len(key)] == key
-        ]
+        where = [flag for key, flag in given.items() if loc[: len(key)] == key]
         if not where and loc:
             where = [f"--options: {'.'.join(loc)}"]
         message = first["msg"].removeprefix("Value error, ")

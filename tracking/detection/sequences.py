@@ -43,6 +43,7 @@ __all__ = [
     "MotSequence",
     "image_to_mot_boxes",
     "mot_to_image_boxes",
+    "parse_mot_rows",
     "read_mot_rows",
 ]
 
@@ -75,6 +76,12 @@ def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndar
         raise MotFormatError(f"MOT file not found: {path}") from None
     except (OSError, UnicodeDecodeError) as error:
         raise MotFormatError(f"cannot read {path}: {error}") from error
+    return parse_mot_rows(text, min_columns, source=str(path))
+
+
+def parse_mot_rows(text: str, min_columns: int = 7, source: str = "<text>") -> np.ndarray:
+    """:func:`read_mot_rows` of MOTChallenge text already in memory (a downloaded result);
+    ``source`` names it in errors."""
     rows: list[list[float]] = []
     width = None
     for number, line in enumerate(text.splitlines(), start=1):
@@ -86,14 +93,14 @@ def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndar
             values = [float(v) for v in fields]
         except ValueError:
             raise MotFormatError(
-                f"{path}:{number}: expected numbers 'frame,id,x,y,w,h,conf,...', got {stripped!r}"
+                f"{source}:{number}: expected numbers 'frame,id,x,y,w,h,conf,...', got {stripped!r}"
             ) from None
         if len(values) < min_columns:
             raise MotFormatError(
-                f"{path}:{number}: expected at least {min_columns} columns, got {len(values)}"
+                f"{source}:{number}: expected at least {min_columns} columns, got {len(values)}"
             )
         if not all(np.isfinite(values[:min_columns])):
-            raise MotFormatError(f"{path}:{number}: non-finite value in {stripped!r}")
+            raise MotFormatError(f"{source}:{number}: non-finite value in {stripped!r}")
         width = len(values) if width is None else min(width, len(values))
         rows.append(values)
     if not rows:

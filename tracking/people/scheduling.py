@@ -65,12 +65,8 @@ def search_regions(
     people become one search instead of one per person.
     """
     boxes = np.asarray(predicted, dtype=np.float64).reshape(-1, 4)
-    height, width = shape[:2]
-    m = margin * boxes[:, 3:4]
-    corners = np.hstack([boxes[:, :2] - m, boxes[:, :2] + boxes[:, 2:] + m])
-    corners = np.clip(corners, 0.0, [width, height, width, height])
+    corners, keep = widened(boxes, shape, margin)
     ranges = boxes[:, 3:4] * np.asarray(heights, dtype=np.float64)
-    keep = (corners[:, 2] - corners[:, 0] >= 2) & (corners[:, 3] - corners[:, 1] >= 2)
     corners, ranges = corners[keep], ranges[keep]
     while len(corners) > 1:
         cost = _area(corners) / ranges[:, 0] ** 2
@@ -94,6 +90,21 @@ def search_regions(
         (Box(x0, y0, x1 - x0, y1 - y0), (lo, hi))
         for (x0, y0, x1, y1), (lo, hi) in zip(corners.tolist(), ranges.tolist(), strict=True)
     ]
+
+
+def widened(
+    boxes: np.ndarray, shape: tuple[int, ...], margin: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(N, 4)`` boxes widened by ``margin`` of their height on every side and clipped to a
+    frame of ``shape``, as corners ``x0, y0, x1, y1``; and which of them are at least 2 px wide
+    and tall (the others lie outside the frame)."""
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    height, width = shape[:2]
+    m = margin * boxes[:, 3:4]
+    corners = np.hstack([boxes[:, :2] - m, boxes[:, :2] + boxes[:, 2:] + m])
+    corners = np.clip(corners, 0.0, [width, height, width, height])
+    usable = (corners[:, 2] - corners[:, 0] >= 2) & (corners[:, 3] - corners[:, 1] >= 2)
+    return corners, usable
 
 
 def _area(corners: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ from tracking.people.likelihoods import (
 from tracking.people.motion import CX, CY, LOG_H, ROOT_DIM, VX, VY, boxes_from_roots, propagate
 from tracking.people.occlusion import covered_share, hidden_points, occluders
 from tracking.people.part_trackers import PartTrackers
-from tracking.people.scheduling import DetectionScheduler
+from tracking.people.scheduling import DetectionScheduler, widened
 from tracking.tracks import PartEstimate, TrackEstimate
 from tracking.types import Box, validate_frame
 
@@ -349,13 +349,9 @@ class MultiPersonTracker:
         calibration = getattr(self._detector, "calibration", None)
         if not c.dense_likelihood or self._detector is None or calibration is None:
             return out
-        height, width = current.image.shape[:2]
-        for i, (x, y, w, h) in enumerate(current.predicted):
-            m = c.region_margin * h
-            x0, y0 = max(x - m, 0.0), max(y - m, 0.0)
-            x1, y1 = min(x + w + m, width), min(y + h + m, height)
-            if x1 - x0 < 2 or y1 - y0 < 2:
-                continue
+        corners, usable = widened(current.predicted, current.image.shape, c.region_margin)
+        for i in np.flatnonzero(usable):
+            x0, y0, x1, y1 = corners[i].tolist()
             dense = self._detector.dense_scores(current.image, Box(x0, y0, x1 - x0, y1 - y0))
             if dense is None:
                 continue
