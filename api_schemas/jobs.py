@@ -155,11 +155,24 @@ class JobOptions(BaseModel):
         description="Track every frame_step-th frame (1: all). The tracker works in seconds, "
         "so it follows people across skipped frames; outputs hold the tracked frames only.",
     )
+    fill_gaps: float = Field(
+        default=0,
+        ge=0,
+        le=10,
+        description="people only: seconds. When a person the tracker stopped reporting is "
+        "reported again at most this long after the last frame they were seen in, the json and "
+        "mot results also hold them in the tracked frames between, their box and parts moved "
+        "linearly in time and marked interpolated (mcap and mp4 show the frames as tracked). "
+        "0: off. 0.5-1 joins trajectories broken by brief occlusions; see docs/benchmarks.md "
+        "for what it does to the scores.",
+    )
 
     @model_validator(mode="after")
     def _mode_fields(self) -> JobOptions:
         if self.mode == "single_target" and self.first_box is None:
             raise ValueError("mode 'single_target' needs first_box: the object's first box")
+        if self.mode == "single_target" and self.fill_gaps:
+            raise ValueError("fill_gaps is for mode 'people': a single target is never dropped")
         if self.mode == "people" and self.first_box is not None:
             raise ValueError("first_box is for mode 'single_target'; set mode or drop first_box")
         if len(set(self.formats)) != len(self.formats):

@@ -40,6 +40,12 @@ class TrackState(BaseModel):
     score: float = Field(ge=0, le=1, description="Confidence that the box holds the object.")
     occluded: bool = Field(description="True while another, nearer object covers it.")
     parts: list[PartState] = Field(default_factory=list)
+    interpolated: bool = Field(
+        default=False,
+        description="True when the tracker did not report the object in this frame: the "
+        "estimate was filled in afterwards, linearly in time between the frames before and "
+        "after the gap (job option fill_gaps).",
+    )
 
 
 class FrameTracksMessage(BaseModel):
@@ -63,6 +69,12 @@ class TrajectoryPoint(BaseModel):
     score: float = Field(ge=0, le=1)
     occluded: bool
     parts: list[PartState] = Field(default_factory=list)
+    interpolated: bool = Field(
+        default=False,
+        description="True when the tracker did not report the object in this frame: the "
+        "estimate was filled in afterwards, linearly in time between the frames before and "
+        "after the gap (job option fill_gaps).",
+    )
 
 
 class Trajectory(BaseModel):

@@ -233,6 +233,7 @@ class OurTracker:
     factory: Callable[[], object]
     public: bool  # fed the public detections (else it runs its own detector)
     details: dict[str, object]
+    fill_gaps: float = 0.0  # seconds; the service's job option of that name
 
 
 def _frame_key(frame: np.ndarray) -> bytes:
@@ -293,6 +294,7 @@ def build_ours(
     dpm_config: object | None = None,
     hog_config: object | None = None,
     tracker_config: object | None = None,
+    fill_gaps: float = 0.0,
 ) -> dict[str, OurTracker]:
     """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
     detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``). With ``seeds``
@@ -303,7 +305,8 @@ def build_ours(
     ``hog_config``: a ``DpmConfig`` for ``ours_dpm`` (default: ``DPM_TRACKING_CONFIG``, the
     DPM's operating point for tracking) and a ``HogPeopleConfig`` for ``ours_hog`` (default:
     the embedded defaults); ``tracker_config``: a ``PeopleTrackerConfig`` for all of ours
-    (default: the defaults).
+    (default: the defaults); ``fill_gaps``: seconds of the results' gaps to fill
+    (:class:`tracking.gap_filling.GapFiller`, the service's ``fill_gaps``; 0: none).
 
     ``tracking.people`` and ``tracking.detection`` are imported here, not at module level, so
     the harness also runs with the peers only while they are missing.
@@ -317,7 +320,7 @@ def build_ours(
     from tracking.people import MultiPersonTracker, PeopleTrackerConfig
 
     config = tracker_config or PeopleTrackerConfig()
-    recorded = {"config": dataclasses.asdict(config)}
+    recorded = {"config": dataclasses.asdict(config), "fill_gaps": fill_gaps}
     sources = {
         OURS: (None, None, {"detections": "public"}),
         "ours_hog": (
@@ -348,6 +351,7 @@ def build_ours(
                 lambda c=seeded, d=detector: MultiPersonTracker(c, detector=d),
                 source is None,
                 {**details, "seed": seed} if seed else details,
+                fill_gaps,
             )
     return out
 
@@ -374,8 +378,12 @@ def track_ours(
     keep_estimates: bool,
 ) -> tuple[np.ndarray, float, list[tuple[TrackEstimate, ...]] | None]:
     """One run of a fresh tracker: result rows, seconds in ``update``, estimates if kept."""
+    from tracking.gap_filling import GapFiller
+    from tracking.tracks import FrameTracks
+
     detections = public_detections(sequence) if ours.public else None
     tracker = ours.factory()
+    filler = GapFiller(ours.fill_gaps) if ours.fill_gaps > 0 else None
     rows = []
     estimates: list[tuple[TrackEstimate, ...]] | None = [] if keep_estimates else None
     seconds = 0.0
@@ -385,8 +393,11 @@ def track_ours(
         timestamp = sequence.timestamp(index)
         start = time.perf_counter()
         tracks = tracker.update(frame, timestamp, current)
+        # filled frames' rows come after later frames' rows: TrackEval groups rows by frame
+        filled = filler.push(FrameTracks(index, timestamp, tuple(tracks))) if filler else []
         seconds += time.perf_counter() - start
         rows.append(estimates_to_rows(index, tracks)[:, :7])
+        rows += [estimates_to_rows(f.frame_index, f.tracks)[:, :7] for f in filled]
         if estimates is not None:
             estimates.append(tuple(tracks))
         progress.update(1)
@@ -842,6 +853,14 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "(default: the tracker defaults)",
     )
     parser.add_argument(
+        "--fill-gaps",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="fill our tracks' gaps of at most this long in the results, as the service's "
+        "fill_gaps job option does (default 0: none)",
+    )
+    parser.add_argument(
         "--end-to-end",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -969,6 +988,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 args.dpm_config,
                 args.hog_config,
                 args.tracker_config,
+                args.fill_gaps,
             )
             if ours_names
             else {}

@@ -28,6 +28,7 @@ from tracking.detection.base import Detector
 from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
 from tracking.detection.factory import make_detector
 from tracking.detection.hog_people import HogPeopleConfig
+from tracking.gap_filling import GapFiller
 from tracking.people import PeopleTrackerConfig
 from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
 from tracking.types import Box, validate_box
@@ -189,11 +190,18 @@ def analyze(
         mcap_images=options.mcap_images,
     )
     writers = open_writers(list(options.formats), scratch, info)
+    filler = GapFiller(options.fill_gaps) if options.fill_gaps > 0 else None
     processed = frames_read = 0
     try:
         last_report = time.perf_counter()
         for frame in source.timed(options.frame_step):
             tracks = pipeline.process(frame.image, frame.timestamp)
+            if filler is not None:
+                # numbered by video frame, as the messages are
+                for filled in filler.push(dataclasses.replace(tracks, frame_index=frame.index)):
+                    late = frame_message(filled.frame_index, filled.timestamp, filled.tracks)
+                    for writer in writers.values():
+                        writer.write_filled(late)
             message = frame_message(frame.index, frame.timestamp, tracks.tracks)
             for writer in writers.values():
                 writer.write(frame, message)

@@ -120,6 +120,7 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
         ("formats",): ("--format", args.format),
         ("mcap_images",): ("--mcap-images", args.mcap_images),
         ("frame_step",): ("--frame-step", args.frame_step),
+        ("fill_gaps",): ("--fill-gaps", args.fill_gaps),
         ("mode",): ("--box", None if box is None else "single_target"),
         ("first_box",): (
             "--box",
@@ -318,6 +319,14 @@ def build_parser() -> argparse.ArgumentParser:
         "benchmarks)",
     )
     analyze.add_argument("--frame-step", type=int, help="track every N-th frame (default 1)")
+    analyze.add_argument(
+        "--fill-gaps",
+        type=float,
+        metavar="SECONDS",
+        help="fill a person's frames in the json and mot results when the tracker loses them "
+        "for at most this long and finds them again (linear in time, marked interpolated; "
+        "default 0: off)",
+    )
     analyze.add_argument(
         "--box", type=_parse_box, help="follow one object from this first box x,y,w,h instead"
     )

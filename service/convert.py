@@ -36,6 +36,7 @@ def track_state(track: TrackEstimate) -> TrackState:
         score=_unit(track.score),
         occluded=track.occluded,
         parts=[part_state(p) for p in track.parts],
+        interpolated=track.interpolated,
     )
 
 

@@ -92,3 +92,25 @@ def test_config_options_are_checked(mot) -> None:
             mot.parse_args(["--tracker-config", bad])
     with pytest.raises(SystemExit):
         mot.parse_args(["--dpm-config", '{"nms_criterion": "area"}'])
+
+
+@pytest.mark.slow
+def test_filled_gaps_add_rows_and_keep_the_tracked_ones(mot, shared_data: Path) -> None:
+    from tqdm import tqdm
+
+    from tracking.evaluation.mot import check_unique_ids, read_sequence_info
+
+    sequence = read_sequence_info(shared_data / "mot" / "PETS09-S2L1")
+    rows = {}
+    for fill in (0.0, 1.0):
+        (ours,) = mot.build_ours(["ours"], Path("none.mat"), fill_gaps=fill).values()
+        assert ours.details["fill_gaps"] == fill
+        with tqdm(disable=True) as bar:
+            rows[fill], _, _ = mot.track_ours(ours, sequence, 60, bar, False)
+    check_unique_ids(rows[1.0])
+    tracked = {tuple(r) for r in rows[0.0]}
+    filled = [r for r in rows[1.0] if tuple(r) not in tracked]
+    assert tracked <= {tuple(r) for r in rows[1.0]}
+    # on the public detections of these 60 frames (7 fps) tracks break and come back
+    assert len(filled) >= 3
+    assert all(r[0] < 60 for r in filled)

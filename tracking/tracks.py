@@ -48,6 +48,10 @@ class TrackEstimate:
         ``True`` while another, nearer object covers it.
     parts:
         Body parts, empty for trackers without parts.
+    interpolated:
+        ``True`` when the tracker did not report the object in this frame and the estimate
+        was filled in afterwards between two frames where it did
+        (:mod:`tracking.gap_filling`).
     """
 
     track_id: int
@@ -55,6 +59,7 @@ class TrackEstimate:
     score: float
     occluded: bool
     parts: tuple[PartEstimate, ...] = ()
+    interpolated: bool = False
 
 
 @dataclass(frozen=True, slots=True)

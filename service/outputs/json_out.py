@@ -31,6 +31,10 @@ class JsonWriter:
         self._index: dict[int, tuple[array, array]] = {}
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
+        self.write_filled(message)
+
+    def write_filled(self, message: FrameTracksMessage) -> None:
+        # a track's filled points come before the point that closed its gap: still in order
         for track in message.tracks:
             point = TrajectoryPoint(
                 frame_index=message.frame_index,
@@ -39,6 +43,7 @@ class JsonWriter:
                 score=track.score,
                 occluded=track.occluded,
                 parts=track.parts,
+                interpolated=track.interpolated,
             ).model_dump_json()
             data = point.encode()
             self._points.write(data)

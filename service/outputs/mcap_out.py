@@ -175,6 +175,9 @@ class McapWriter:
         )
         self._sequences[topic] += 1
 
+    def write_filled(self, message: FrameTracksMessage) -> None:
+        pass  # the recording shows each frame as it was tracked
+
     def close(self, summary: RunSummary) -> None:
         if self._encoder is not None:
             self._add_video(self._encoder.flush())

@@ -155,6 +155,9 @@ class VideoWriter:
             bgr = cv2.resize(bgr, self._size)
         self._encoder.write(self._drawer.draw(bgr, message), frame.timestamp)
 
+    def write_filled(self, message: FrameTracksMessage) -> None:
+        pass  # the frame is encoded already; the video shows frames as they were tracked
+
     def close(self, summary: RunSummary) -> None:
         self._encoder.close()
 

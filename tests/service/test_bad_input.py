@@ -77,6 +77,18 @@ def _write(path, data):
             422,
             "unknown preset",
         ),
+        # Gaps filled longer than the option allows, and for a single target (never dropped).
+        (lambda d, v: v, {"fill_gaps": 30}, 422, "fill_gaps"),
+        (
+            lambda d, v: v,
+            {
+                "mode": "single_target",
+                "first_box": {"x": 9, "y": 9, "w": 9, "h": 9},
+                "fill_gaps": 1,
+            },
+            422,
+            "fill_gaps is for mode 'people'",
+        ),
         # The DPM detector on a service without a model.
         (lambda d, v: v, {"detector": {"name": "dpm"}}, 422, "VTRACK_DPM_MODEL"),
     ],
