@@ -28,15 +28,17 @@ def resources(settings: Settings) -> PipelineResources:
     return PipelineResources(dpm_model=settings.dpm_model, color_names=settings.color_names)
 
 
-def describe_validation(error: ValidationError, prefix: str = "") -> str:
-    """One sentence for a pydantic error: each field and what was wrong with it."""
+def describe_validation(error: ValidationError) -> str:
+    """One sentence for a pydantic error: each field and what was wrong with it (rules across
+    fields, which belong to no one field, say what is wrong on their own)."""
     problems = []
     for item in error.errors():
-        where = ".".join(str(part) for part in item["loc"]) or "options"
+        where = ".".join(str(part) for part in item["loc"])
+        message = item["msg"].removeprefix("Value error, ")
         if item["type"] == "extra_forbidden":
-            problems.append(f"unknown option '{prefix}{where}'")
+            problems.append(f"unknown option '{where}'")
         else:
-            problems.append(f"{prefix}{where}: {item['msg']}")
+            problems.append(f"{where}: {message}" if where else message)
     return "; ".join(problems)
 
 

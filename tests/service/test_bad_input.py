@@ -99,6 +99,12 @@ def test_bad_upload(client, tmp_path, pets_short, make_video, options, status, m
     assert message in response.json()["detail"]
 
 
+def test_a_rule_across_options_is_stated_plainly(client, pets_short):
+    response = submit(client, pets_short, {"mode": "single_target"})
+    detail = response.json()["detail"]
+    assert detail.startswith("invalid job options: mode 'single_target' needs first_box"), detail
+
+
 def test_options_that_are_not_json(client, pets_short):
     files = {"video": ("v.avi", pets_short.read_bytes())}
     response = client.post("/v1/jobs", files=files, data={"options": "{frame_step: 2"})
