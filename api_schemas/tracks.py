@@ -12,6 +12,12 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from api_schemas.common import BoxModel
 
+INTERPOLATED = (
+    "True when the tracker did not report the object in this frame: the estimate was filled "
+    "in afterwards, linearly in time between the frames before and after the gap (job option "
+    "fill_gaps)."
+)
+
 
 class PartState(BaseModel):
     """One body part of a tracked person in one frame."""
@@ -40,12 +46,7 @@ class TrackState(BaseModel):
     score: float = Field(ge=0, le=1, description="Confidence that the box holds the object.")
     occluded: bool = Field(description="True while another, nearer object covers it.")
     parts: list[PartState] = Field(default_factory=list)
-    interpolated: bool = Field(
-        default=False,
-        description="True when the tracker did not report the object in this frame: the "
-        "estimate was filled in afterwards, linearly in time between the frames before and "
-        "after the gap (job option fill_gaps).",
-    )
+    interpolated: bool = Field(default=False, description=INTERPOLATED)
 
 
 class FrameTracksMessage(BaseModel):
@@ -69,12 +70,7 @@ class TrajectoryPoint(BaseModel):
     score: float = Field(ge=0, le=1)
     occluded: bool
     parts: list[PartState] = Field(default_factory=list)
-    interpolated: bool = Field(
-        default=False,
-        description="True when the tracker did not report the object in this frame: the "
-        "estimate was filled in afterwards, linearly in time between the frames before and "
-        "after the gap (job option fill_gaps).",
-    )
+    interpolated: bool = Field(default=False, description=INTERPOLATED)
 
 
 class Trajectory(BaseModel):
