@@ -31,10 +31,13 @@ class JsonWriter:
         self._index: dict[int, tuple[array, array]] = {}
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
-        self.write_filled(message)
+        self._append(message)
 
     def write_filled(self, message: FrameTracksMessage) -> None:
         # a track's filled points come before the point that closed its gap: still in order
+        self._append(message)
+
+    def _append(self, message: FrameTracksMessage) -> None:
         for track in message.tracks:
             point = TrajectoryPoint(
                 frame_index=message.frame_index,

@@ -31,13 +31,15 @@ class MotWriter:
         self._file = path.open("w", encoding="utf-8")
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
-        self.write_filled(message)
+        self._append(message)
 
     def write_filled(self, message: FrameTracksMessage) -> None:
         # rows of filled frames come when the gap closes, after later frames' rows: MOT
         # readers group rows by frame, so the file needs no order
-        for row in mot_rows(message):
-            self._file.write(row + "\n")
+        self._append(message)
+
+    def _append(self, message: FrameTracksMessage) -> None:
+        self._file.writelines(row + "\n" for row in mot_rows(message))
 
     def close(self, summary: RunSummary) -> None:
         self._file.close()
