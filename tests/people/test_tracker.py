@@ -7,7 +7,10 @@ import pytest
 from scipy import ndimage
 
 from tracking.detection import Detections
+from tracking.detection.base import DenseScores
+from tracking.detection.calibration import LogisticCalibration
 from tracking.people import EMBEDDED_BODY, MultiPersonTracker, PeopleTrackerConfig
+from tracking.types import Box
 
 HEIGHT, WIDTH = 260, 420
 PART_COLOURS = np.array(
@@ -258,3 +261,77 @@ def test_part_trackers_follow_moving_limbs_without_detected_parts():
         PeopleTrackerConfig(confirm_hits=2, part_appearance=default_part_appearance())
     )
     assert tracked < 6.0 and tracked < model_only + 1.0
+
+
+class _ScoresBeside:
+    """A detector that scores densely: its scores peak at 0 ``shift`` px to the right of each
+    person of the crossing scene and fall by 1 every twentieth of the person's height squared
+    (calibrated: from probability 0.5 down), and it records what the tracker asks it for."""
+
+    part_names = EMBEDDED_BODY.names
+    calibration = LogisticCalibration(a=1.0, b=0.0)
+
+    def __init__(self, figures, shift):
+        self.figures, self.shift, self.t = figures, shift, 0
+        self.asked: list[tuple[Box, tuple[float, float]]] = []
+
+    def detect(self, frame):
+        return Detections.empty(self.part_names)
+
+    def detect_region(self, frame, region, heights=None):
+        return Detections.empty(self.part_names)
+
+    def dense_scores(self, frame, region, heights=None):
+        self.asked.append((region, heights))
+        stride = 1.0
+        xs = np.arange(region.x, region.x + region.w, stride)
+        ys = np.arange(region.y, region.y + region.h, stride)
+        score = np.full((ys.size, xs.size), -20.0)
+        for figure in self.figures:
+            cx, cy = figure.centre(self.t)
+            d2 = (xs[None, :] - cx - self.shift) ** 2 + (ys[:, None] - cy) ** 2
+            score = np.maximum(score, -d2 / (0.05 * figure.height) ** 2)
+        return DenseScores(
+            region=region,
+            heights=np.array([float(np.mean(heights))]),
+            levels=[score],
+            origins=np.array([[region.x, region.y]]),
+            strides=np.array([stride]),
+        )
+
+
+@pytest.mark.parametrize("dense", [False, True])
+def test_dense_scores_pull_the_particles_where_the_detector_scores(dense):
+    """With ``dense_likelihood``, every particle is weighed by the detector's calibrated score
+    at its position (DESIGN.md §5): a detector whose scores peak 12 px right of each person
+    draws every track a quarter of the way there (3-4 px); without it they stay within a
+    pixel and a half of the people."""
+    images, detections, (a, b), _ = crossing_scene(frames=12)
+    detector = _ScoresBeside((a, b), shift=12.0)
+    config = PeopleTrackerConfig(confirm_hits=2, dense_likelihood=dense)
+    tracker = MultiPersonTracker(config, detector=detector)
+    offsets = []
+    for t, (frame, dets) in enumerate(zip(images, detections, strict=True)):
+        detector.t = t
+        asked = len(detector.asked)
+        tracks = tracker.update(frame, t / 10.0, dets)
+        if dense and t > 0:
+            # one region per person around its predicted box, for people of its height
+            assert len(detector.asked) - asked == 2
+            for region, (low, high) in detector.asked[asked:]:
+                figure = min((a, b), key=lambda f: abs(f.centre(t)[0] - region.center[0]))
+                assert low <= figure.height <= high < 2 * low
+                assert region.x < figure.centre(t)[0] < region.x + region.w
+        if t >= 6:
+            offsets += [
+                tr.box.center[0] - f.centre(t)[0]
+                for f in (a, b)
+                for tr in tracks
+                if tr.track_id == _nearest_id(tracks, f.centre(t))
+            ]
+    assert len(offsets) == 12
+    if dense:
+        assert min(offsets) > 2.5
+    else:
+        assert max(np.abs(offsets)) < 1.5
+        assert detector.asked == []

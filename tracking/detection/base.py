@@ -143,12 +143,22 @@ class Detector(Protocol):
         """People in the whole frame (RGB uint8 ``(H, W, 3)``)."""
         ...
 
-    def detect_region(self, frame: np.ndarray, region: Box) -> Detections:
-        """People whose box centre lies inside ``region``; much cheaper than :meth:`detect`."""
+    def detect_region(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
+    ) -> Detections:
+        """People whose box centre lies inside ``region``; much cheaper than :meth:`detect`.
+
+        ``heights`` is the ``(min, max)`` height in pixels of the people to look for (the
+        tracker asks for about a person's predicted height); ``None`` leaves it to the
+        detector. Detectors that do not search (boxes from outside) ignore it.
+        """
         ...
 
-    def dense_scores(self, frame: np.ndarray, region: Box) -> DenseScores | None:
-        """Scores for every position and scale in ``region``, or ``None`` when the detector
-        cannot score densely (the tracker then builds its likelihood from :meth:`detect_region`).
+    def dense_scores(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
+    ) -> DenseScores | None:
+        """Scores for every position and scale in ``region`` for people ``heights`` tall (as
+        in :meth:`detect_region`), or ``None`` when the detector cannot score densely (the
+        tracker then builds its likelihood from the detections alone).
         """
         ...

@@ -203,11 +203,15 @@ class MotDetections:
         self._cursor.index += 1
         return out
 
-    def detect_region(self, frame: np.ndarray, region: Box) -> Detections:
+    def detect_region(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
+    ) -> Detections:
         """Detections of the current frame whose centre lies in ``region`` (no advance)."""
         return _in_region(self.for_frame(self._cursor.index), checked_region(region))
 
-    def dense_scores(self, frame: np.ndarray, region: Box) -> DenseScores | None:
+    def dense_scores(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
+    ) -> DenseScores | None:
         """``None``: boxes from a file cannot be scored densely."""
         return None
 
@@ -278,10 +282,14 @@ class SubmittedDetections:
         self.seek(self._cursor.index + 1)
         return out
 
-    def detect_region(self, frame: np.ndarray, region: Box) -> Detections:
+    def detect_region(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
+    ) -> Detections:
         """The current frame's detections centred in ``region`` (no advance)."""
         return _in_region(self.current(), checked_region(region))
 
-    def dense_scores(self, frame: np.ndarray, region: Box) -> DenseScores | None:
+    def dense_scores(
+        self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
+    ) -> DenseScores | None:
         """``None``: handed-in boxes cannot be scored densely."""
         return None

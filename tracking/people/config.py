@@ -147,11 +147,14 @@ class PeopleTrackerConfig:
         Standard deviation, in heights, of a part tracker's measurement: larger than a DPM part
         placement's, since a patch a tenth of a person tall is easily confused.
     dense_likelihood:
-        When the detector can score densely (the DPM engine), weigh each particle by the
-        detector's calibrated score at its position and height, over a region around the person
-        (the image likelihood of DESIGN.md §5); otherwise only associated detections count.
-        Off by default: with the embedded HOG detector it costs about 0.3 s per person and
-        frame on this machine (measured on the PETS09 video).
+        When the detector can score densely (the DPM engine and the embedded detector), weigh
+        each particle by the detector's calibrated score at its position and height, read over
+        the region and heights a region search would scan (``region_margin``,
+        ``region_heights``): the image likelihood of DESIGN.md §5. Otherwise only associated
+        detections count. Off by default: with the embedded detector it costs 28 ms per person
+        and frame on PETS09-S2L1 and lowers HOTA from 48.7 to 42.0 on PETS09-S2L1 and
+        TUD-Stadtmitte together (the scores say "a person", not "this person", and draw
+        particles onto neighbours; docs/benchmarks.md).
     full_detection_interval:
         Seconds between full-frame detections when the tracker runs its own detector; in
         between, only regions around the tracks are searched

@@ -350,9 +350,16 @@ class MultiPersonTracker:
         if not c.dense_likelihood or self._detector is None or calibration is None:
             return out
         corners, usable = widened(current.predicted, current.image.shape, c.region_margin)
+        low, high = c.region_heights
         for i in np.flatnonzero(usable):
             x0, y0, x1, y1 = corners[i].tolist()
-            dense = self._detector.dense_scores(current.image, Box(x0, y0, x1 - x0, y1 - y0))
+            # the heights a region search looks for: the detector's own default would read
+            # the widened region's height, twice the person's, and score levels no particle
+            # reads
+            height = float(current.predicted[i, 3])
+            dense = self._detector.dense_scores(
+                current.image, Box(x0, y0, x1 - x0, y1 - y0), (low * height, high * height)
+            )
             if dense is None:
                 continue
             particles = state.particles[i]
