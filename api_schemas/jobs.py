@@ -47,9 +47,14 @@ class JobState(StrEnum):
 
 
 class DetectorOptions(BaseModel):
-    """The person detector of a people-tracking job."""
+    """The person detector of a people-tracking job.
 
-    model_config = ConfigDict(extra="forbid")
+    Numbers and flags of every options model are strict: ``true`` is not a frame step nor
+    ``"2"`` an upscale, and NaN or infinity is no number, so a client's type mistake gets a
+    422 naming the field instead of a job that runs with a value nobody meant.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     name: Literal["default", "dpm"] = Field(
         default="default",
@@ -58,6 +63,7 @@ class DetectorOptions(BaseModel):
         "locates body parts.",
     )
     upscale: float | None = Field(
+        strict=True,
         default=None,
         gt=0,
         le=4,
@@ -74,10 +80,13 @@ class DetectorOptions(BaseModel):
 class PeopleTrackerOptions(BaseModel):
     """Multi-person tracker parameters; each None keeps the tracker's default."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    particles: int | None = Field(default=None, ge=2, le=1024, description="Particles per person.")
+    particles: int | None = Field(
+        strict=True, default=None, ge=2, le=1024, description="Particles per person."
+    )
     full_detection_interval: float | None = Field(
+        strict=True,
         default=None,
         ge=0,
         le=60,
@@ -86,18 +95,35 @@ class PeopleTrackerOptions(BaseModel):
         "searched in full. 0.2 tracked 25 fps video 1.3-2.6x as fast in our benchmarks.",
     )
     region_margin: float | None = Field(
-        default=None, ge=0, le=5, description="Margin, in person heights, of a searched region."
+        strict=True,
+        default=None,
+        ge=0,
+        le=5,
+        description="Margin, in person heights, of a searched region.",
     )
     confirm_hits: int | None = Field(
-        default=None, ge=1, le=30, description="Detections needed before a track is reported."
+        strict=True,
+        default=None,
+        ge=1,
+        le=30,
+        description="Detections needed before a track is reported.",
     )
     max_missing: float | None = Field(
-        default=None, ge=0, le=60, description="Seconds without detection after which a track ends."
+        strict=True,
+        default=None,
+        ge=0,
+        le=60,
+        description="Seconds without detection after which a track ends.",
     )
     occluded_max_missing: float | None = Field(
-        default=None, ge=0, le=120, description="The same while the person is occluded."
+        strict=True,
+        default=None,
+        ge=0,
+        le=120,
+        description="The same while the person is occluded.",
     )
     report_missing: float | None = Field(
+        strict=True,
         default=None,
         ge=0,
         le=60,
@@ -106,12 +132,18 @@ class PeopleTrackerOptions(BaseModel):
         "PETS09-S2L1, see docs/benchmarks.md).",
     )
     report_occluded: bool | None = Field(
-        default=None, description="Report covered people (flagged occluded) without a detection."
+        strict=True,
+        default=None,
+        description="Report covered people (flagged occluded) without a detection.",
     )
     part_appearance: bool | None = Field(
-        default=None, description="Follow body parts with their own small correlation trackers."
+        strict=True,
+        default=None,
+        description="Follow body parts with their own small correlation trackers.",
     )
-    seed: int | None = Field(default=None, ge=0, description="Seed of the particle filter.")
+    seed: int | None = Field(
+        strict=True, default=None, ge=0, description="Seed of the particle filter."
+    )
 
 
 class JobOptions(BaseModel):
@@ -120,7 +152,7 @@ class JobOptions(BaseModel):
     Unknown fields are rejected, so a misspelt option fails loudly instead of being ignored.
     """
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     mode: Literal["people", "single_target"] = Field(
         default="people",
@@ -149,6 +181,7 @@ class JobOptions(BaseModel):
         "foxglove.CompressedImage (each frame on its own, for tools that read images only).",
     )
     frame_step: int = Field(
+        strict=True,
         default=1,
         ge=1,
         le=100,
@@ -156,6 +189,7 @@ class JobOptions(BaseModel):
         "so it follows people across skipped frames; outputs hold the tracked frames only.",
     )
     fill_gaps: float = Field(
+        strict=True,
         default=0,
         ge=0,
         le=10,

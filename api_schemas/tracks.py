@@ -34,6 +34,12 @@ class PartState(BaseModel):
         description="False when the part is covered or out of the frame: the position is then "
         "the model's prediction, not a measurement."
     )
+    measured: bool = Field(
+        default=False,
+        description="True when this frame's image placed the part (the 'dpm' detector's part "
+        "placement, or the part's own tracker); false when the position is the body model's "
+        "prediction from the box: always with the default detector, which finds no parts.",
+    )
 
 
 class TrackState(BaseModel):
@@ -91,8 +97,12 @@ class VideoInfo(BaseModel):
     width: int = Field(ge=1)
     height: int = Field(ge=1)
     fps: float | None = Field(default=None, description="Frame rate the container declares.")
-    frames_announced: int = Field(ge=0, description="Frame count the container declares.")
-    frames_read: int = Field(ge=0, description="Frames that decoded (fewer when truncated).")
+    frames_announced: int = Field(
+        ge=0, description="Frame count the container declares; 0 when it declares none."
+    )
+    frames_read: int = Field(
+        ge=0, description="Frames that decoded, skipped ones included (fewer when truncated)."
+    )
     frame_step: int = Field(ge=1, description="Every frame_step-th frame was tracked.")
 
 

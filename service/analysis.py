@@ -20,7 +20,7 @@ from pathlib import Path
 from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
-from service.frames import FrameSource, open_frames
+from service.frames import FrameSource, ReadProgress, open_frames
 from service.outputs import RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
@@ -191,10 +191,10 @@ def analyze(
     )
     writers = open_writers(list(options.formats), scratch, info)
     filler = GapFiller(options.fill_gaps) if options.fill_gaps > 0 else None
-    processed = frames_read = 0
+    processed, read = 0, ReadProgress()
     try:
         last_report = time.perf_counter()
-        for frame in source.timed(options.frame_step):
+        for frame in source.timed(options.frame_step, read):
             tracks = pipeline.process(frame.image, frame.timestamp)
             if filler is not None:
                 # numbered by video frame, as the messages are
@@ -206,13 +206,12 @@ def analyze(
             for writer in writers.values():
                 writer.write(frame, message)
             processed += 1
-            frames_read = frame.index + 1
             now = time.perf_counter()
             if progress is not None and now - last_report >= progress_interval:
                 last_report = now
-                if not progress(frames_read, processed, processed / max(now - started, 1e-9)):
-                    raise AnalysisStopped(f"stopped after {frames_read} frames")
-        summary = _summary(source, options, frames_read, processed, filename)
+                if not progress(read.frames, processed, processed / max(now - started, 1e-9)):
+                    raise AnalysisStopped(f"stopped after {read.frames} frames")
+        summary = _summary(source, options, read, processed, filename)
         for writer in writers.values():
             writer.close(summary)
     except BaseException:
@@ -231,19 +230,23 @@ def analyze(
 
 
 def _summary(
-    source: FrameSource, options: JobOptions, frames_read: int, processed: int, filename: str | None
+    source: FrameSource,
+    options: JobOptions,
+    read: ReadProgress,
+    processed: int,
+    filename: str | None,
 ) -> RunSummary:
     warnings = []
+    frames_read = read.frames
     if source.fps is None:
         warnings.append(
             "the video declares no frame rate; frames without a presentation time of their "
             f"own are stamped {source.timing_fps:g} per second"
         )
-    if source.frame_count and source.frame_count - frames_read >= options.frame_step:
+    if truncation := _truncation(source, read):
         warnings.append(
-            f"the video ended after {frames_read} of the {source.frame_count} frames its "
-            "container announces (truncated or damaged file); the frames that decoded were "
-            "tracked"
+            f"the video ended after {truncation} its container announces (truncated or "
+            "damaged file); the frames that decoded were tracked"
         )
     missing = h264.h264_unavailable()
     if missing is not None and OutputFormat.mp4 in options.formats:
@@ -259,11 +262,29 @@ def _summary(
         width=source.width,
         height=source.height,
         fps=source.fps,
-        frames_announced=source.frame_count,
+        frames_announced=source.frame_count if source.count_stated else 0,
         frames_read=frames_read,
         frame_step=options.frame_step,
     )
     return RunSummary(video=video, frames_processed=processed, warnings=warnings)
+
+
+def _truncation(source: FrameSource, read: ReadProgress) -> str | None:
+    """How much of the announced video was read, when it ended early; else ``None``.
+
+    A stated frame count is a promise; where the container states none (Matroska, WebM),
+    OpenCV's count is the duration times the rate, which a variable-rate video does not reach,
+    so there the last frame's time is held against the duration, allowing two frame periods
+    (the last frame lasts one; containers round).
+    """
+    if source.count_stated:
+        if source.frame_count and read.frames < source.frame_count:
+            return f"{read.frames} of the {source.frame_count} frames"
+        return None
+    slack = 2.0 / source.timing_fps
+    if source.duration and read.end_time + slack < source.duration:
+        return f"{read.end_time:.2f} s of the {source.duration:.2f} s"
+    return None
 
 
 def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:

@@ -26,6 +26,7 @@ def part_state(part: PartEstimate) -> PartState:
         y=part.y,
         box=box_model(part.box) if part.box is not None else None,
         visible=part.visible,
+        measured=part.measured,
     )
 
 

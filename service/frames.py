@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import configparser
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import av
 import cv2
 import numpy as np
 
@@ -40,6 +42,22 @@ class TimedFrame:
     image: np.ndarray
 
 
+@dataclass(slots=True)
+class ReadProgress:
+    """How far :meth:`FrameSource.timed` has read: every frame counts, skipped ones too.
+
+    Attributes
+    ----------
+    frames:
+        Frames read so far.
+    end_time:
+        Timestamp of the last frame read, in seconds from the first.
+    """
+
+    frames: int = 0
+    end_time: float = 0.0
+
+
 @dataclass(frozen=True, slots=True)
 class FrameSource:
     """Frames of one video or image sequence.
@@ -49,11 +67,16 @@ class FrameSource:
     path:
         The video file or image folder.
     frame_count:
-        Number of frames (as the container reports it for videos; may be approximate).
+        Number of frames: as the container states it, else estimated from its duration and
+        frame rate (``count_stated`` false: Matroska and WebM state none).
     fps:
-        Frame rate, or ``None`` when unknown (image folders).
+        Frame rate, or ``None`` when unknown (image folders without ``seqinfo.ini``).
     width, height:
         Size of the first frame in pixels.
+    count_stated:
+        Whether the container states ``frame_count`` (image folders: always).
+    duration:
+        The container's duration in seconds, ``None`` when it states none.
     """
 
     path: Path
@@ -62,6 +85,8 @@ class FrameSource:
     _images: tuple[Path, ...] = ()
     width: int = 0
     height: int = 0
+    count_stated: bool = True
+    duration: float | None = None
 
     def __iter__(self) -> Iterator[np.ndarray]:
         """RGB uint8 frames ``(H, W, 3)``, in order."""
@@ -76,8 +101,9 @@ class FrameSource:
         """The frame rate that turns frame indices into timestamps."""
         return self.fps if self.fps and self.fps > 0 else DEFAULT_FPS
 
-    def timed(self, step: int = 1) -> Iterator[TimedFrame]:
-        """Every ``step``-th frame with its index and timestamp.
+    def timed(self, step: int = 1, read: ReadProgress | None = None) -> Iterator[TimedFrame]:
+        """Every ``step``-th frame with its index and timestamp; ``read``, when given, follows
+        every frame read, skipped ones included (a video's length is known only at its end).
 
         A video frame's timestamp is its presentation time in the container, so the frames of
         a variable-frame-rate video (phones, recorders that drop frames) keep their real
@@ -89,9 +115,12 @@ class FrameSource:
         if step < 1:
             raise ValueError(f"step must be >= 1, got {step}")
         fps = self.timing_fps
+        read = read if read is not None else ReadProgress()
         if self._images:
             for index in range(0, len(self._images), step):
+                read.frames, read.end_time = index + 1, index / fps
                 yield TimedFrame(index, index / fps, read_image(self._images[index]))
+            read.frames, read.end_time = len(self._images), (len(self._images) - 1) / fps
             return
         capture = cv2.VideoCapture(str(self.path))
         try:
@@ -102,6 +131,7 @@ class FrameSource:
                 if not ok:
                     break
                 seconds = clock.time_of(capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
+                read.frames, read.end_time = index + 1, seconds
                 if not skipped:
                     yield TimedFrame(index, seconds, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
                 index += 1
@@ -159,7 +189,8 @@ def read_image(path: Path) -> np.ndarray:
 
 
 def open_frames(path: str | Path) -> FrameSource:
-    """Open a video file, a folder of images, or an OTB sequence folder (its ``img/``).
+    """Open a video file, a folder of images, an OTB sequence folder (its ``img/``) or a
+    MOTChallenge one (its ``img1/``, at the frame rate of its ``seqinfo.ini``).
 
     Raises
     ------
@@ -170,12 +201,13 @@ def open_frames(path: str | Path) -> FrameSource:
     if not path.exists():
         raise FrameSourceError(f"no such file or folder: {path}")
     if path.is_dir():
-        folder = path / "img" if (path / "img").is_dir() else path
+        folder = next((path / name for name in ("img", "img1") if (path / name).is_dir()), path)
         images = tuple(sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
         if not images:
             raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
         height, width = read_image(images[0]).shape[:2]
-        return FrameSource(path, len(images), None, images, width=width, height=height)
+        fps = _sequence_fps(folder)
+        return FrameSource(path, len(images), fps, images, width=width, height=height)
     capture = cv2.VideoCapture(str(path))
     try:
         ok, first = capture.read() if capture.isOpened() else (False, None)
@@ -186,4 +218,44 @@ def open_frames(path: str | Path) -> FrameSource:
     finally:
         capture.release()
     height, width = first.shape[:2]
-    return FrameSource(path, max(count, 0), fps, width=width, height=height)
+    stated, duration = _container_length(path)
+    return FrameSource(
+        path,
+        max(count, 0),
+        fps,
+        width=width,
+        height=height,
+        count_stated=stated,
+        duration=duration,
+    )
+
+
+def _container_length(path: Path) -> tuple[bool, float | None]:
+    """Whether the container states its frame count, and its duration in seconds.
+
+    OpenCV reports a count either way, estimating ``duration x rate`` where the container
+    states none; that estimate is no promise (a variable-rate video holds fewer frames), so a
+    video read to its end is judged truncated by the duration instead.
+    """
+    try:
+        with av.open(str(path)) as container:
+            stated = container.streams.video[0].frames > 0
+            duration = container.duration / av.time_base if container.duration else None
+    except (av.FFmpegError, IndexError):  # OpenCV decodes it: keep its count as stated
+        return True, None
+    return stated, duration
+
+
+def _sequence_fps(folder: Path) -> float | None:
+    """The frame rate of a MOTChallenge sequence (``frameRate`` of the ``seqinfo.ini`` beside
+    or above its images), ``None`` for other folders."""
+    for ini in (folder / "seqinfo.ini", folder.parent / "seqinfo.ini"):
+        if ini.is_file():
+            parser = configparser.ConfigParser()
+            try:
+                parser.read(ini)
+                fps = parser.getfloat("Sequence", "frameRate", fallback=0.0)
+            except (configparser.Error, ValueError):
+                return None
+            return fps if fps > 0 else None
+    return None

@@ -19,6 +19,7 @@ from fastapi import HTTPException, Request, status
 from python_multipart import MultipartParser
 from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import parse_options_header
+from starlette.requests import ClientDisconnect
 
 from service.storage import FREE_SPACE, storage_problem
 
@@ -204,6 +205,13 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
             status.HTTP_507_INSUFFICIENT_STORAGE,
             f"{problem}: the upload was not kept; {FREE_SPACE}, then send the video again",
         ) from None
+    except ClientDisconnect:
+        # the client gave up mid-upload: nothing was kept, nobody reads an answer, and it is
+        # the client's doing, so one log line rather than the server error's traceback
+        receiver.close()
+        video_path.unlink(missing_ok=True)
+        log.warning("upload abandoned by the client after %d bytes; nothing kept", received)
+        raise HTTPException(400, "the client disconnected before the upload was complete") from None
     except BaseException:
         receiver.close()
         video_path.unlink(missing_ok=True)

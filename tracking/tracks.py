@@ -23,6 +23,10 @@ class PartEstimate:
     visible:
         ``False`` when the part is covered (by another person) or out of the frame; its position
         is then the model's prediction, not a measurement.
+    measured:
+        ``True`` when a measurement of this frame placed the part (a DPM part placement, or the
+        peak of the part's own tracker); ``False`` when its position is the body model's
+        prediction from the person's box, which is all a detector without parts gives.
     """
 
     name: str
@@ -30,6 +34,7 @@ class PartEstimate:
     y: float
     box: Box | None
     visible: bool
+    measured: bool = False
 
 
 @dataclass(frozen=True, slots=True)

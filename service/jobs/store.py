@@ -237,6 +237,7 @@ class JobStore:
                     " error = 'cancelled before it started' WHERE id = ?",
                     (JobState.cancelled.value, time.time(), job_id),
                 )
+                self._count_finished(JobState.cancelled, job_id)
                 state = JobState.cancelled
             elif state == JobState.running:
                 db.execute("UPDATE jobs SET cancel_requested = 1 WHERE id = ?", (job_id,))
@@ -268,6 +269,7 @@ class JobStore:
                             job_id,
                         ),
                     )
+                    self._count_finished(JobState.failed, job_id)
                     failed.append(job_id)
                 else:
                     db.execute(

@@ -7,7 +7,8 @@ Channels (JSON message encoding, JSON Schema schemas):
   with ``images`` "jpeg" (or where PyAV has no H.264 encoder), ``foxglove.CompressedImage``:
   each frame as JPEG, five to ten times the bytes;
 - ``/camera/annotations`` - ``foxglove.ImageAnnotations``: per track, the box as a
-  ``LINE_LOOP``, the parts as ``POINTS`` (visible parts filled, hidden ones faded) and the track
+  ``LINE_LOOP``, the parts as ``POINTS`` (parts the frame placed solid; predicted ones, covered or
+  not measured, faded) and the track
   id as text;
 - ``/tracks`` - ``vtrack.FrameTracks``: our own per-frame message
   (:class:`api_schemas.tracks.FrameTracksMessage`) with its JSON Schema.
@@ -80,7 +81,8 @@ def annotations(message: FrameTracksMessage, stamp: int) -> dict[str, Any]:
                     "points": [{"x": p.x, "y": p.y} for p in track.parts],
                     "outline_color": foxglove.color(rgb),
                     "outline_colors": [
-                        foxglove.color(rgb, 1.0 if p.visible else 0.3) for p in track.parts
+                        foxglove.color(rgb, 1.0 if p.visible and p.measured else 0.3)
+                        for p in track.parts
                     ],
                     "fill_color": foxglove.color(rgb),
                     "thickness": 4.0,

@@ -1,8 +1,8 @@
 """Annotated MP4: the tracked frames with each person's box, id, parts and trail.
 
-Boxes are solid for visible people and thin for occluded ones; visible parts are filled dots,
-hidden parts open circles; the trail is the box's bottom centre over the last
-:data:`TRAIL_SECONDS`.
+Boxes are solid for visible people and thin for occluded ones; parts the frame placed (visible
+and measured) are filled dots, predicted ones (covered, or not measured) open circles; the trail
+is the box's bottom centre over the last :data:`TRAIL_SECONDS`.
 
 The video is H.264 (:mod:`service.outputs.h264`), 4:2:0, with its index at the front of the
 file, so browsers and phones play it and start before the download ends; each frame keeps its
@@ -70,7 +70,8 @@ class TrackDrawer:
             cv2.rectangle(canvas, top_left, bottom_right, colour, 1 if track.occluded else 2)
             for part in track.parts:
                 centre = (round(part.x), round(part.y))
-                cv2.circle(canvas, centre, 2, colour, -1 if part.visible else 1, cv2.LINE_AA)
+                filled = -1 if part.visible and part.measured else 1
+                cv2.circle(canvas, centre, 2, colour, filled, cv2.LINE_AA)
             label = f"{track.track_id}" + (" occl" if track.occluded else "")
             (tw, th), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
             x, y = top_left[0], max(top_left[1] - 3, th + 2)

@@ -154,6 +154,35 @@ def test_covered_parts_are_reported_not_visible():
     assert hidden and max(hidden) > 0
 
 
+def test_parts_say_whether_the_frame_placed_them():
+    """A detector with part boxes measures the parts of the people it finds; one without them
+    leaves every part to the body model, and the output says so rather than calling a
+    template position seen."""
+    from tracking.people.config import default_part_appearance
+
+    images, detections, _, _covered = crossing_scene(frames=16)
+    stripped = [
+        Detections(d.boxes, d.scores, d.probabilities, np.zeros((len(d), 0, 4))) for d in detections
+    ]
+
+    def measured_share(config, frames):
+        tracker = MultiPersonTracker(config)
+        flags = [
+            p.measured
+            for t, (frame, dets) in enumerate(zip(images, frames, strict=True))
+            for track in tracker.update(frame, t / 10.0, dets)
+            for p in track.parts
+        ]
+        assert flags, "people are reported"
+        return np.mean(flags)
+
+    config = PeopleTrackerConfig(confirm_hits=2)
+    assert measured_share(config, detections) > 0.9
+    assert measured_share(config, stripped) == 0.0
+    with_trackers = dataclasses.replace(config, part_appearance=default_part_appearance())
+    assert measured_share(with_trackers, stripped) > 0.5
+
+
 # -- bad input -------------------------------------------------------------------------------
 
 

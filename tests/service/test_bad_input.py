@@ -7,6 +7,7 @@ one-second job time limit.
 from __future__ import annotations
 
 import json
+import socket
 
 import pytest
 
@@ -59,6 +60,16 @@ def _write(path, data):
         (lambda d, v: v, {"tracker": {"particle": 10}}, 422, "unknown option 'tracker.particle'"),
         # A value out of range.
         (lambda d, v: v, {"tracker": {"particles": 1}}, 422, "tracker.particles"),
+        # Wrong types are not converted: a flag is no number, a string no upscale, NaN no time.
+        (lambda d, v: v, {"frame_step": True}, 422, "frame_step: Input should be a valid integer"),
+        (lambda d, v: v, {"fill_gaps": True}, 422, "fill_gaps: Input should be a valid number"),
+        (lambda d, v: v, {"detector": {"upscale": "2"}}, 422, "detector.upscale: Input should"),
+        (
+            lambda d, v: v,
+            {"fill_gaps": float("nan")},
+            422,
+            "fill_gaps: Input should be a finite number",
+        ),
         # An unknown output format.
         (lambda d, v: v, {"formats": ["avi"]}, 422, "formats.0"),
         # Single-target mode without its first box.
@@ -162,6 +173,28 @@ def test_too_large_upload_streamed_without_a_length(client, server, pets_cut):
     assert response.status_code == 413
     assert "larger than this service accepts" in response.json()["detail"]
     assert not any((server.data_dir / "uploads").iterdir())
+
+
+def test_an_abandoned_upload_is_logged_in_one_line_and_nothing_is_kept(client, server):
+    # A client that closes its connection halfway through the body (a camera gateway that
+    # crashed, a user's Ctrl-C): a warning, not a server error with its traceback.
+    boundary = "vtrack-test-boundary"
+    head = (
+        f'--{boundary}\r\nContent-Disposition: form-data; name="video"; filename="cut.avi"'
+        "\r\nContent-Type: video/x-msvideo\r\n\r\n"
+    ).encode() + bytes(100_000)
+    request = (
+        f"POST /v1/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+        f"Authorization: Bearer {TOKEN}\r\nContent-Length: {len(head) + 200_000}\r\n"
+        f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n"
+    ).encode()
+    with socket.create_connection(("127.0.0.1", server.port)) as connection:
+        connection.sendall(request + head)
+        wait_for(lambda: any((server.data_dir / "uploads").glob("*.receiving")), 10, "the upload")
+    wait_for(lambda: "upload abandoned by the client" in server.log(), 10, "the log line")
+    assert not any((server.data_dir / "uploads").iterdir())
+    assert "Traceback" not in server.log() and "ClientDisconnect" not in server.log()
+    assert client.get("/healthz").status_code == 200
 
 
 def test_unknown_job(client):

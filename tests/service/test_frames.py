@@ -3,8 +3,10 @@ a variable-frame-rate video keep their real spacing in the results and in the mo
 
 from __future__ import annotations
 
+import fractions
 from itertools import islice
 
+import av
 import pytest
 
 from api_schemas.jobs import JobOptions
@@ -41,3 +43,64 @@ def test_the_json_result_carries_the_presentation_times(vfr_video, tmp_path):
     assert points, "people are tracked in the PETS frames"
     for point in points:
         assert point.timestamp == pytest.approx(VFR_MS[point.frame_index] / 1000)
+
+
+def _matroska(frames, stamps_ms, path):
+    """A Matroska file (which states no frame count) of ``frames`` at ``stamps_ms``."""
+    millisecond = fractions.Fraction(1, 1000)
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream("mpeg4", rate=10)
+        stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
+        stream.time_base = millisecond
+        for image, ms in zip(frames, stamps_ms, strict=True):
+            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
+            frame.pts, frame.time_base = ms, millisecond
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode())
+    return path
+
+
+@pytest.fixture(scope="module")
+def vfr_matroska(shared_data, tmp_path_factory):
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), len(VFR_MS)))
+    return _matroska(frames, VFR_MS, tmp_path_factory.mktemp("mkv") / "dropped_frames.mkv")
+
+
+def test_a_complete_variable_rate_matroska_is_not_called_truncated(vfr_matroska, tmp_path):
+    # Matroska states no frame count: OpenCV's duration x rate (27 here) is no promise
+    source = open_frames(vfr_matroska)
+    assert not source.count_stated and source.frame_count > len(VFR_MS)
+    result = analyze(vfr_matroska, JobOptions(formats=["json"]), tmp_path / "out")
+    assert result.warnings == []
+    assert result.video.frames_read == len(VFR_MS)
+    assert result.video.frames_announced == 0
+
+
+def test_a_cut_matroska_is_called_truncated_by_its_duration(shared_data, tmp_path):
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), 40))
+    data = _matroska(frames, range(0, 4000, 100), tmp_path / "whole.mkv").read_bytes()
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(data[: len(data) * 7 // 10])  # the header, with the duration, stays
+    result = analyze(cut, JobOptions(formats=["json"]), tmp_path / "out")
+    assert 0 < result.video.frames_read < len(frames)
+    assert any("of the 4.00 s its container announces" in w for w in result.warnings)
+
+
+def test_frames_skipped_at_the_end_are_counted_as_read(vfr_video, tmp_path):
+    # 12 frames with step 5: frames 0, 5 and 10 are tracked, 11 is read and skipped
+    result = analyze(vfr_video, JobOptions(formats=["json"], frame_step=5), tmp_path / "out")
+    assert result.frames_processed == 3
+    assert result.video.frames_read == len(VFR_MS)
+    assert result.warnings == []
+
+
+@pytest.mark.parametrize(
+    ("name", "fps", "count"), [("PETS09-S2L1", 7, 795), ("TUD-Stadtmitte", 25, 179)]
+)
+def test_a_motchallenge_folder_plays_at_its_frame_rate(shared_data, name, fps, count):
+    sequence = shared_data / "mot" / name
+    for path in (sequence, sequence / "img1"):
+        source = open_frames(path)
+        assert (source.fps, source.frame_count) == (fps, count)
+        stamps = [f.timestamp for f in islice(source.timed(2), 3)]
+        assert stamps == pytest.approx([0, 2 / fps, 4 / fps])

@@ -53,6 +53,7 @@ def test_a_job_interrupted_too_often_fails(store):
     assert store.requeue_orphans(max_attempts=2) == ([], ["a"])
     record = store.get("a")
     assert record.state == JobState.failed and "2 times" in record.error
+    assert store.counters()["jobs_failed"] == 1  # /metrics counts it with the others
 
 
 def test_cancel_queued_at_once_running_through_the_worker(store):
@@ -64,6 +65,10 @@ def test_cancel_queued_at_once_running_through_the_worker(store):
     assert store.cancel_requested("running")
     assert not store.report_progress(job, 7, 1, None, 1)
     assert store.request_cancel("missing") is None
+    assert store.finish(job, 7, JobState.cancelled)
+    # both count as finished cancellations; the queued one never ran, so no duration
+    counters = store.counters()
+    assert counters["jobs_cancelled"] == 2 and counters["processing_count"] == 1
 
 
 def test_a_failed_job_records_its_duration_in_the_histogram(store):

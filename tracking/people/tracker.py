@@ -52,6 +52,7 @@ class _Track:
     detection: int = -1  # index of the associated detection in the current frame
     parts: PartTrackers | None = None  # per-part appearance, for detectors without parts
     signature: np.ndarray | None = None  # clothing colours, for recognising the person
+    parts_measured: np.ndarray | None = None  # (P,) which parts this frame's image placed
 
 
 @dataclass(slots=True)
@@ -383,6 +384,8 @@ class MultiPersonTracker:
                 sigma[t] = c.part_tracker_sigma
         boxes = boxes_from_roots(roots, np.array([t.aspect for t in self._tracks]))
         found &= ~part_model.hidden(self._body, state, boxes, c.occlusion_overlap)
+        for track, placed in zip(self._tracks, found, strict=True):
+            track.parts_measured = placed
         return part_model.filter_arguments(self._body, state, z, found, sigma)
 
     def _learn(self, current: _Frame) -> None:
@@ -617,6 +620,7 @@ class MultiPersonTracker:
                         float(self._body.size[p, 1] * h),
                     ),
                     visible=not (hidden[i, p] or outside[i, p]),
+                    measured=track.parts_measured is not None and bool(track.parts_measured[p]),
                 )
                 for p, name in enumerate(self._body.names)
             )
