@@ -116,6 +116,7 @@ def get_job(job_id: str, store: StoreDep) -> JobStatus:
     return job_status(_job(store, job_id))
 
 
+@router.head("/{job_id}/result", include_in_schema=False)  # players and download managers
 @router.get(
     "/{job_id}/result",
     summary="Download a result: json, mcap, mot or mp4 (the annotated video)",

@@ -97,6 +97,7 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
+@router.head("/{stream_id}/recordings/{name}", include_in_schema=False)  # as a job's result
 @router.get(
     "/{stream_id}/recordings/{name}",
     responses={**_ERRORS, 200: {"content": {"application/octet-stream": {}}}},

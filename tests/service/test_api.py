@@ -258,6 +258,10 @@ def test_mp4_result_plays_in_a_browser_tab_and_seeks(client, finished_job):
     assert part.content == whole.content[1000:2000]
     beyond = client.get(url, headers={"Range": f"bytes={size}-"})
     assert beyond.status_code == 416
+    # a player or download manager asks HEAD first: the size, no body
+    head = client.head(url)
+    assert head.status_code == 200 and head.content == b""
+    assert head.headers["content-length"] == str(size)
     assert (
         client.get(status["links"]["results"]["json"])
         .headers["content-disposition"]

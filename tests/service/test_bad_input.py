@@ -246,6 +246,9 @@ def test_health_needs_no_token(server):
     with server.client(token="") as anonymous:
         assert anonymous.get("/healthz").status_code == 200
         assert anonymous.get("/readyz").status_code == 200
+        # uptime monitors probe with HEAD
+        assert anonymous.head("/healthz").status_code == 200
+        assert anonymous.head("/readyz").status_code == 200
 
 
 def test_job_over_the_time_limit_fails_and_the_service_goes_on(client, pets_short):
