@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 import re
 import sys
 import threading
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import zenoh
 
-from api_schemas.streams import CAMERA_PATTERN, PREFIX_PATTERN
+from api_schemas.streams import CAMERA_PATTERN, PREFIX_PATTERN, StreamTracksMessage
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, zenoh_endpoint
 from tracking.output_paths import output_file
@@ -131,8 +132,16 @@ def _publish(args: argparse.Namespace) -> int:
     _tell("publish", f"{redacted(args.source)} on {keys.frames}: {pace} (Ctrl-C stops)")
     watcher = watch_trackers(session, keys, _tracker_news("publish", args.camera, "sending on"))
     sent = 0
+
+    def count(sequence: int, stamp: float) -> None:
+        # Counted as each frame goes out: Ctrl-C interrupts publish_frames before it returns
+        # its report, and the total must still be true.
+        nonlocal sent
+        sent += 1
+
     try:
         while True:
+            first = sent
             report = publish_frames(
                 session,
                 keys,
@@ -142,9 +151,10 @@ def _publish(args: argparse.Namespace) -> int:
                 quality=args.quality,
                 detections=detections,
                 detections_scale=args.detections_scale,
-                first_sequence=sent,
-                wait_for_subscriber=args.wait if sent == 0 else 0.0,
-                limit=None if args.limit is None else args.limit - sent,
+                first_sequence=first,
+                wait_for_subscriber=args.wait if first == 0 else 0.0,
+                limit=None if args.limit is None else args.limit - first,
+                on_sent=count,
             )
             if report.subscribed is False:
                 _tell(
@@ -152,7 +162,6 @@ def _publish(args: argparse.Namespace) -> int:
                     f"nobody subscribed to {keys.frames} within {args.wait:g} s (is a stream "
                     "started for this camera? POST /v1/streams); frames were sent anyway",
                 )
-            sent += report.frames
             if not args.loop or (args.limit is not None and sent >= args.limit):
                 break
             frames, _ = video_frames(args.source)
@@ -166,7 +175,13 @@ def _publish(args: argparse.Namespace) -> int:
 
 
 def _subscribe(args: argparse.Namespace) -> int:
-    from service.streams.tools import current_tracks, follow_tracks, reach_tracker, watch_trackers
+    from service.streams.tools import (
+        TrackerReplyError,
+        current_tracks,
+        follow_tracks,
+        reach_tracker,
+        watch_trackers,
+    )
 
     if args.output:
         try:
@@ -178,38 +193,45 @@ def _subscribe(args: argparse.Namespace) -> int:
     if opened is None:
         return 1
     session, keys = opened
-    out = args.output.open("a") if args.output else sys.stdout
+    record = args.output.open("a") if args.output else None
+    # --output records JSON lines in the file instead of printing; --json prints them as well.
+    printing = not args.output or args.json
     done = threading.Event()
     received = 0
     lock = threading.Lock()
 
-    def show(message, arrived: float) -> None:
-        nonlocal received
+    def show(message: StreamTracksMessage, arrived: float) -> None:
+        nonlocal printing, received
         with lock:
             if done.is_set():
                 return
-            document = message.model_dump(mode="json")
-            if not args.output and not args.json:
-                people = ", ".join(
-                    f"#{t.track_id} ({t.box.x:.0f},{t.box.y:.0f} {t.box.w:.0f}x{t.box.h:.0f})"
-                    for t in message.tracks
-                )
-                line = (
-                    f"seq {message.sequence} t={message.timestamp:.3f} "
-                    f"latency {1000 * message.latency:.0f} ms skipped {message.frames_skipped}: "
-                    f"{people or 'nobody'}"
-                )
-            else:
-                line = json.dumps(document, separators=(",", ":"))
-            out.write(line + "\n")
-            out.flush()
+            document = json.dumps(message.model_dump(mode="json"), separators=(",", ":"))
+            if record is not None:
+                record.write(document + "\n")
+                record.flush()
+            if printing:
+                try:
+                    sys.stdout.write((document if args.json else _summary(message)) + "\n")
+                    sys.stdout.flush()
+                except BrokenPipeError:
+                    # The reader went away (| head): stop quietly, as cat does. Python's own
+                    # flush at exit would fail again and say so: stdout goes to /dev/null.
+                    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                    printing = False
+                    if record is None:
+                        done.set()
+                        return
             received += 1
             if args.count is not None and received >= args.count:
                 done.set()
 
     try:
         if args.current:
-            message = current_tracks(session, keys)
+            try:
+                message = current_tracks(session, keys)
+            except TrackerReplyError as error:
+                print(f"vtrack subscribe: {error}", file=sys.stderr)
+                return 1
             if message is None:
                 print(f"vtrack subscribe: no tracker answered on {keys.current}", file=sys.stderr)
                 return 1
@@ -233,9 +255,22 @@ def _subscribe(args: argparse.Namespace) -> int:
         pass
     finally:
         session.close()
-        if args.output:
-            out.close()
+        if record is not None:
+            record.close()
     return 0
+
+
+def _summary(message: StreamTracksMessage) -> str:
+    """One human line for a tracks message: frame, time, latency, and who is where."""
+    people = ", ".join(
+        f"#{t.track_id} ({t.box.x:.0f},{t.box.y:.0f} {t.box.w:.0f}x{t.box.h:.0f})"
+        for t in message.tracks
+    )
+    return (
+        f"seq {message.sequence} t={message.timestamp:.3f} "
+        f"latency {1000 * message.latency:.0f} ms skipped {message.frames_skipped}: "
+        f"{people or 'nobody'}"
+    )
 
 
 def _number(
@@ -374,11 +409,16 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     subscribe = commands.add_parser(
         "subscribe",
         help="print or record a camera's tracks from Zenoh",
-        description="Follow <prefix>/cameras/<camera>/tracks: one line per frame, or JSON lines "
-        "with --json or --output.",
+        description="Follow <prefix>/cameras/<camera>/tracks: one line per frame on stdout, or "
+        "JSON lines with --json; --output records JSON lines in a file instead of printing "
+        "(with --json, it prints them too). A closed stdout (| head) ends it quietly.",
     )
     zenoh_arguments(subscribe)
-    subscribe.add_argument("--output", type=Path, help="append JSON lines to this file")
+    subscribe.add_argument(
+        "--output",
+        type=Path,
+        help="append JSON lines to this file instead of printing (add --json to print too)",
+    )
     subscribe.add_argument("--json", action="store_true", help="print JSON lines")
     subscribe.add_argument("--count", type=_number(int, 1), help="stop after this many messages")
     subscribe.add_argument("--duration", type=positive, help="stop after this many seconds")

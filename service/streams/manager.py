@@ -260,6 +260,7 @@ class StreamManager:
             instance=self.instance,
             resources=self._resources,
             recordings_dir=self.recordings_dir(spec.camera),
+            database=self._store.path,
             frame_limit=self._frame_limit,
             log_level=self._log_level,
         )

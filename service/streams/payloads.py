@@ -23,6 +23,11 @@ JPEG = "image/jpeg"
 RAW = "application/octet-stream"
 H264 = "video/h264"
 MAX_PIXELS = 8192 * 8192
+MIN_SIDE = 32
+"""Fewest pixels a frame's width and height may have. The smallest sensors sold as cameras
+(80x60 thermal cores, 128x96 SQCIF) are above it; below it a person is a few pixels tall, out of
+reach of any detector (the default one needs 64 px at its largest enlargement), so such a frame
+is a glitch (a 1x1 placeholder, a broken encoder's output), not a change of resolution."""
 
 
 class PayloadError(ValueError):
@@ -76,6 +81,16 @@ def decode_frame(payload: bytes, encoding: str, attachment: FrameAttachment) -> 
         return cv2.cvtColor(pixels.reshape(a.height, a.width), cv2.COLOR_GRAY2RGB)
     image = pixels.reshape(a.height, a.width, 3)
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if a.format is PixelFormat.bgr8 else image.copy()
+
+
+def check_frame_size(image: np.ndarray) -> None:
+    """Raise :class:`PayloadError` for a frame too small to be a camera's (:data:`MIN_SIDE`)."""
+    height, width = image.shape[:2]
+    if min(width, height) < MIN_SIDE:
+        raise PayloadError(
+            f"frame of {width}x{height} is too small to track: width and height must be at "
+            f"least {MIN_SIDE}"
+        )
 
 
 def is_h264(encoding: str) -> bool:

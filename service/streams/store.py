@@ -2,6 +2,12 @@
 
 It lives in the job database file (its own table and connection). A stream stopped with
 ``DELETE`` keeps its row (``stopped_at`` set) until it is deleted a second time.
+
+Beside it, ``stream_track_ids`` holds per camera the highest track id a worker may have
+published (ids are reserved in blocks, see :mod:`service.streams.worker`): a worker that starts
+(the service restarted, or the worker died) continues above it, so an id is never reused within
+a stream. Its row outlives the stream's: a camera tracked again after a ``DELETE`` gets new ids
+too, so a consumer that keeps tracks by camera and id never sees one id name two people.
 """
 
 from __future__ import annotations
@@ -21,6 +27,10 @@ CREATE TABLE IF NOT EXISTS streams (
     created_at REAL NOT NULL,
     stopped_at REAL
 );
+CREATE TABLE IF NOT EXISTS stream_track_ids (
+    camera TEXT PRIMARY KEY,
+    reserved INTEGER NOT NULL
+);
 """
 
 
@@ -35,8 +45,9 @@ class StreamRecord:
 class StreamStore:
     """Stream specifications in SQLite; safe to use from several threads."""
 
-    def __init__(self, path: Path) -> None:
-        self._db = sqlite3.connect(path, check_same_thread=False, timeout=30.0)
+    def __init__(self, path: Path, timeout: float = 30.0) -> None:
+        self.path = path
+        self._db = sqlite3.connect(path, check_same_thread=False, timeout=timeout)
         self._db.row_factory = sqlite3.Row
         self._lock = threading.Lock()
         with self._lock, self._db:
@@ -79,3 +90,26 @@ class StreamStore:
             )
             for row in rows
         ]
+
+    def reserved_track_ids(self, camera: str) -> int:
+        """The highest track id the camera's workers may have published (0: none yet)."""
+        with self._lock:
+            row = self._db.execute(
+                "SELECT reserved FROM stream_track_ids WHERE camera = ?", (camera,)
+            ).fetchone()
+        return int(row["reserved"]) if row is not None else 0
+
+    def reserve_track_ids(self, camera: str, up_to: int) -> None:
+        """Record that ids up to ``up_to`` may be published; never lowers the record.
+
+        Raises
+        ------
+        sqlite3.Error
+            The database cannot be written (a full disk, locked for longer than the timeout).
+        """
+        with self._lock, self._db:
+            self._db.execute(
+                "INSERT INTO stream_track_ids (camera, reserved) VALUES (?, ?) "
+                "ON CONFLICT(camera) DO UPDATE SET reserved = max(reserved, excluded.reserved)",
+                (camera, up_to),
+            )

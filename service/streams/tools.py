@@ -195,6 +195,11 @@ def follow_tracks(
     return session.declare_subscriber(keys.tracks, received)
 
 
+class TrackerReplyError(Exception):
+    """The camera's tracker answered, with an error instead of tracks (the message says why,
+    e.g. ``camera gate has no tracks yet``)."""
+
+
 def current_tracks(
     session: zenoh.Session, keys: StreamKeys, timeout: float = 2.0
 ) -> StreamTracksMessage | None:
@@ -202,12 +207,22 @@ def current_tracks(
 
     A session that has just opened knows the tracker only once gossip has connected them (a
     fraction of a second), so the question is repeated until ``timeout``.
+
+    Raises
+    ------
+    TrackerReplyError
+        The tracker answered with an error (and no tracker with tracks): it is there, but has
+        nothing to say yet.
     """
     deadline = time.monotonic() + timeout
     while True:
+        refusals = []
         for reply in session.get(keys.current, timeout=max(deadline - time.monotonic(), 0.1)):
             if reply.ok is not None:
                 return StreamTracksMessage.model_validate_json(reply.ok.payload.to_bytes())
+            refusals.append(reply.err.payload.to_bytes().decode(errors="replace"))
+        if refusals:
+            raise TrackerReplyError(refusals[0])
         if time.monotonic() >= deadline:
             return None
         time.sleep(0.1)

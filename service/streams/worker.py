@@ -14,6 +14,7 @@ import collections
 import ctypes
 import logging
 import os
+import sqlite3
 import statistics
 import threading
 import time
@@ -37,6 +38,7 @@ from service.streams.keys import StreamKeys
 from service.streams.payloads import (
     H264Frames,
     PayloadError,
+    check_frame_size,
     decode_frame,
     frame_attachment,
     is_h264,
@@ -45,6 +47,7 @@ from service.streams.payloads import (
     to_detections,
 )
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from service.streams.store import StreamStore
 from service.worker_processes import ignore_stop_signals
 from tracking.detection.base import Detections
 from tracking.pipeline import FramePipeline
@@ -63,6 +66,19 @@ RECORDING_CHUNK_BYTES = 256 * 1024
 their annotations and tracks, 1.6 s at 10 fps): a worker killed mid-recording loses its open
 chunk only."""
 
+ID_BLOCK = 100
+"""Track ids reserved in the database at a time. The reservation is written before the first
+id beyond the last one is published, so the database is written once per this many new people
+(not per frame) and a worker that starts again continues above every id that may have gone out;
+the price is a gap of up to this many ids after a restart."""
+
+RESERVE_RETRY = 5.0
+"""Seconds before a reservation that failed (a full disk, a locked database) is tried again;
+tracking goes on meanwhile."""
+
+DATABASE_TIMEOUT = 5.0
+"""Seconds the tracking thread waits for the database's lock (the service writes it too)."""
+
 
 @dataclass(frozen=True, slots=True)
 class StreamContext:
@@ -74,6 +90,8 @@ class StreamContext:
     instance: str
     resources: PipelineResources = field(default_factory=PipelineResources)
     recordings_dir: Path | None = None
+    database: Path | None = None
+    """The service's database (``stream_track_ids``); None: ids start at 1 with each worker."""
     frame_limit: int = 32 * 1024**2
     log_level: str = "info"
     status_interval: float = 0.25
@@ -113,6 +131,11 @@ class LatestFrame:
             frame, self._frame = self._frame, None
             return frame
 
+    def count_skipped(self) -> None:
+        """Count a frame the tracker took but did not track as skipped."""
+        with self._ready:
+            self.skipped += 1
+
 
 class UpstreamBuffer:
     """Upstream detections by frame sequence number, the newest ``capacity`` kept."""
@@ -120,6 +143,7 @@ class UpstreamBuffer:
     def __init__(self, capacity: int = 256) -> None:
         self._arrived = threading.Condition()
         self._by_sequence: collections.OrderedDict[int, Detections] = collections.OrderedDict()
+        self._arrived_at: dict[int, float] = {}  # time.perf_counter(), by sequence
         self._capacity = capacity
         self.last_seen: float | None = None  # time.monotonic()
         self.received = 0
@@ -128,8 +152,10 @@ class UpstreamBuffer:
         with self._arrived:
             self._by_sequence[sequence] = detections
             self._by_sequence.move_to_end(sequence)
+            self._arrived_at[sequence] = time.perf_counter()
             while len(self._by_sequence) > self._capacity:
-                self._by_sequence.popitem(last=False)
+                oldest, _ = self._by_sequence.popitem(last=False)
+                self._arrived_at.pop(oldest, None)
             self.last_seen = time.monotonic()
             self.received += 1
             self._arrived.notify_all()
@@ -142,7 +168,17 @@ class UpstreamBuffer:
         """The detections of frame ``sequence``, waiting up to ``wait`` s for them to arrive."""
         with self._arrived:
             self._arrived.wait_for(lambda: sequence in self._by_sequence, timeout=wait)
+            self._arrived_at.pop(sequence, None)
             return self._by_sequence.pop(sequence, None)
+
+    def forget_before(self, moment: float) -> None:
+        """Drop the detections that arrived before ``moment`` (``time.perf_counter()``): after
+        the camera started over, they belong to frames of its previous run whose sequence
+        numbers the new run reuses."""
+        with self._arrived:
+            for sequence in [s for s, t in self._arrived_at.items() if t < moment]:
+                del self._arrived_at[sequence]
+                del self._by_sequence[sequence]
 
 
 class StreamWorker:
@@ -170,9 +206,16 @@ class StreamWorker:
         self._last_arrival: float | None = None  # time.monotonic()
         self._last_frame_wall: float | None = None
         self._last_timestamp: float | None = None
+        self._last_sequence: int | None = None
         self._frame_size: tuple[int, int] | None = None  # (width, height) of this run's frames
-        self._id_offset = 0
-        self._max_id = 0
+        # A frame of another size than this run's, not tracked until the next frame says
+        # whether the camera changed resolution (same size) or it was a bad one (the old size).
+        self._odd_frame: tuple[int, tuple[int, int]] | None = None  # (sequence, (w, h))
+        self._id_offset = 0  # added to the tracker's ids (which start at 1 with each tracker)
+        self._max_id = 0  # the highest id that may have been published
+        self._store: StreamStore | None = None
+        self._reserved = 0  # ids up to this are reserved in the database
+        self._reserve_retry_at = 0.0  # time.monotonic()
         self._current_json: bytes | None = None  # the latest tracks message
         self._state = StreamState.waiting
         self._pipeline: FramePipeline | None = None
@@ -247,8 +290,13 @@ class StreamWorker:
 
     def run(self, stop: ctypes.c_bool, parent_alive=lambda: True) -> None:
         self._salvage_recordings()
+        self._open_id_store()
         self._pipeline = self._new_pipeline()
-        session = open_session(self.context.zenoh.member_config())
+        try:
+            session = open_session(self.context.zenoh.member_config())
+        except BaseException:
+            self._close_id_store()
+            raise
         try:
             # Kept referenced: Zenoh undeclares what is garbage collected (the token at least).
             declared = (
@@ -274,20 +322,69 @@ class StreamWorker:
         finally:
             self._close_recording()
             session.close()
+            self._close_id_store()
         self.report(force=True)
+
+    def _open_id_store(self) -> None:
+        """Continue above every id an earlier worker of this stream may have published."""
+        if self.context.database is None:
+            return
+        self._store = StreamStore(self.context.database, timeout=DATABASE_TIMEOUT)
+        self._reserved = self._store.reserved_track_ids(self.spec.camera)
+        self._id_offset = self._max_id = self._reserved
+        if self._reserved:
+            log.info("camera %s: track ids continue above %d", self.spec.camera, self._reserved)
+
+    def _close_id_store(self) -> None:
+        if self._store is not None:
+            self._store.close()
+            self._store = None
+
+    def _reserve_ids(self, highest: int) -> None:
+        """Reserve ids beyond ``highest`` in the database before ``highest`` is published."""
+        if self._store is None or highest <= self._reserved:
+            return
+        now = time.monotonic()
+        if now < self._reserve_retry_at:
+            return
+        up_to = highest + ID_BLOCK
+        try:
+            self._store.reserve_track_ids(self.spec.camera, up_to)
+        except sqlite3.Error as error:
+            self._reserve_retry_at = now + RESERVE_RETRY
+            self._note_error(
+                f"track ids could not be reserved in the database ({error}); tracking goes on, "
+                f"but ids above {self._reserved} may be given again if the stream restarts",
+                logging.ERROR,
+            )
+            return
+        self._reserved = up_to
 
     def _new_pipeline(self) -> FramePipeline:
         options = JobOptions(detector=self.spec.detector, tracker=self.spec.tracker)
         return build_pipeline(options, self.context.resources)
 
-    def _restart(self, why: str) -> None:
-        """Start the tracker over; ids keep counting up so no id is ever reused."""
+    def _restart(self, why: str, camera_restarted_at: float | None = None) -> None:
+        """Start the tracker over; ids keep counting up so no id is ever reused.
+
+        ``camera_restarted_at`` (``time.perf_counter()``): the camera started counting from
+        zero again; upstream detections that arrived before then are its previous run's.
+        """
         log.info("camera %s: tracks end: %s", self.spec.camera, why)
         self._close_recording()  # a recording holds one run of tracks
         self._pipeline = self._new_pipeline()
         self._id_offset = self._max_id
         self._last_timestamp = None
+        self._last_sequence = None
         self._frame_size = None
+        if self._odd_frame is not None:
+            # Taken but never tracked; whether it was bad cannot be known any more.
+            self._odd_frame = None
+            self._latest.count_skipped()
+        if camera_restarted_at is not None:
+            # Otherwise a frame of the new run would take the old run's detections of the
+            # same sequence number (those of frames that were skipped, never taken).
+            self._upstream.forget_before(camera_restarted_at)
         self._recording_resumes = None  # stream time may start over
         self._current_json = None
         self._restarts += 1
@@ -296,8 +393,11 @@ class StreamWorker:
         if self._last_arrival is None:
             return
         silent = time.monotonic() - self._last_arrival
-        if silent >= self.spec.end_tracks_after and self._last_timestamp is not None:
-            self._restart(f"no frame for {silent:.1f} s")
+        if silent >= self.spec.end_tracks_after and (
+            self._last_timestamp is not None or self._odd_frame is not None
+        ):
+            # The camera may come back counting from zero: its detections then start over too.
+            self._restart(f"no frame for {silent:.1f} s", camera_restarted_at=time.perf_counter())
         if silent >= self.spec.idle_after:
             self._state = StreamState.idle
 
@@ -311,26 +411,30 @@ class StreamWorker:
         self._state = StreamState.running
         attachment = frame.attachment
         image = frame.image
-        if image is None:
-            try:
+        try:
+            if image is None:
                 image = decode_frame(frame.payload, frame.encoding, attachment)
-            except PayloadError as error:
-                self._malformed_sample(f"frame {attachment.sequence}: {error}")
-                return
-        if self._last_timestamp is not None and attachment.timestamp < self._last_timestamp:
+            # Before anything below looks at it: a bad frame leaves the tracker as it was.
+            check_frame_size(image)
+        except PayloadError as error:
+            self._malformed_sample(f"frame {attachment.sequence}: {error}")
+            return
+        if self._last_sequence is not None and attachment.sequence < self._last_sequence:
+            # A publisher that started again counts from zero but stamps with the clock,
+            # so its timestamps need not go back.
+            self._restart(
+                f"frame {attachment.sequence} comes after frame {self._last_sequence}: the "
+                "camera (or its publisher) started over",
+                camera_restarted_at=frame.arrived,
+            )
+        elif self._last_timestamp is not None and attachment.timestamp < self._last_timestamp:
             self._restart(
                 f"frame {attachment.sequence} is stamped {attachment.timestamp:.3f}, before the "
-                f"previous frame ({self._last_timestamp:.3f}): the camera started over"
+                f"previous frame ({self._last_timestamp:.3f}): the camera started over",
+                camera_restarted_at=frame.arrived,
             )
-        size = (image.shape[1], image.shape[0])
-        if self._frame_size is not None and size != self._frame_size:
-            # A new geometry: positions and appearance models no longer apply, and a
-            # recording holds frames of one size.
-            self._restart(
-                f"frame {attachment.sequence} is {size[0]}x{size[1]}, the frames before it "
-                f"{self._frame_size[0]}x{self._frame_size[1]}: the camera changed resolution"
-            )
-        self._frame_size = size
+        if not self._same_size(attachment.sequence, (image.shape[1], image.shape[0])):
+            return
         detections, source = self._detections_for(attachment.sequence)
         assert self._pipeline is not None
         try:
@@ -340,10 +444,12 @@ class StreamWorker:
             self._restart("the tracker rejected a frame")
             return
         self._last_timestamp = attachment.timestamp
+        self._last_sequence = attachment.sequence
         tracks = [track_state(t) for t in tracked.tracks]
         for track in tracks:
             track.track_id += self._id_offset
             self._max_id = max(self._max_id, track.track_id)
+        self._reserve_ids(self._max_id)
         skipped = self._latest.skipped
         message = StreamTracksMessage(
             frame_index=self._processed,
@@ -367,6 +473,44 @@ class StreamWorker:
         self._latencies.append(done - frame.arrived)
         self._done_at.append(done)
         self._record(image, message)
+
+    def _same_size(self, sequence: int, size: tuple[int, int]) -> bool:
+        """Whether frame ``sequence`` of ``size`` (width, height) is to be tracked; starts the
+        tracker over when the camera changed resolution.
+
+        A new geometry invalidates positions and appearance models (and a recording holds
+        frames of one size), so a lasting change starts over. One frame is not enough to tell:
+        the first frame of another size waits for the next one. If that one has the same size,
+        the camera changed resolution (the first one counts as skipped); if it has the old
+        size, the odd frame was a bad one (malformed) and the tracks go on untouched.
+        """
+        odd, self._odd_frame = self._odd_frame, None
+        current = self._frame_size
+        if current is None:  # the first frame of this run
+            self._frame_size = size
+            return True
+        if size == current:
+            if odd is not None:
+                (w, h) = odd[1]
+                self._malformed_sample(
+                    f"frame {odd[0]}: {w}x{h} between frames of {current[0]}x{current[1]}; dropped"
+                )
+            return True
+        if odd is None or odd[1] != size:
+            if odd is not None:
+                (w, h) = odd[1]
+                self._malformed_sample(
+                    f"frame {odd[0]}: {w}x{h}, then a frame of another size; dropped"
+                )
+            self._odd_frame = (sequence, size)
+            return False
+        self._latest.count_skipped()  # the first frame of the new size, not tracked
+        self._restart(
+            f"frames {odd[0]} and {sequence} are {size[0]}x{size[1]}, the frames before them "
+            f"{current[0]}x{current[1]}: the camera changed resolution"
+        )
+        self._frame_size = size
+        return True
 
     # -- recording ---------------------------------------------------------------------------
 

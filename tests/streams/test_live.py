@@ -7,14 +7,10 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 import threading
 import time
-from itertools import islice
 from pathlib import Path
 
-import httpx
-import numpy as np
 import pytest
 import zenoh
 from mcap.reader import make_reader
@@ -26,107 +22,24 @@ from service.streams.session import ZenohOptions
 from service.streams.simulated_cameras import RtspCamera, access_units
 from service.streams.tools import (
     current_tracks,
-    follow_tracks,
     member_session,
     publish_frames,
     reach_tracker,
     trackers_of,
-    video_frames,
 )
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, Server, wait_for
-from tracking.detection import MotDetections
+from tests.streams.live import (
+    VTRACK,
+    Follower,
+    StderrLines,
+    all_taken,
+    put_frame,
+    start_stream,
+    status,
+)
 
 pytestmark = pytest.mark.slow
-
-VTRACK = [sys.executable, "-m", "service.cli"]
-
-
-class Follower:
-    """A consumer of one camera's tracks, in this process."""
-
-    def __init__(self, session: zenoh.Session, keys: StreamKeys) -> None:
-        self.messages: list[tuple[StreamTracksMessage, float]] = []
-        self._lock = threading.Lock()
-        self._subscriber = follow_tracks(session, keys, self._received)
-
-    def _received(self, message: StreamTracksMessage, arrived: float) -> None:
-        with self._lock:
-            self.messages.append((message, arrived))
-
-    def received(self) -> list[StreamTracksMessage]:
-        with self._lock:
-            return [m for m, _ in self.messages]
-
-    def close(self) -> None:
-        self._subscriber.undeclare()
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory) -> Server:
-    """One service for the module's tests; each test tracks its own camera."""
-    folder = tmp_path_factory.mktemp("streams")
-    server = Server(folder / "data", workers=1).start()
-    yield server
-    server.stop()
-
-
-@pytest.fixture(scope="module")
-def session(server) -> zenoh.Session:
-    """This process's Zenoh session: the cameras and consumers of the tests."""
-    session = member_session(ZenohOptions(listen=server.zenoh_listen))
-    yield session
-    session.close()
-
-
-@pytest.fixture(scope="module")
-def pets_frames(shared_data) -> list[np.ndarray]:
-    frames, _ = video_frames(str(shared_data / PETS_VIDEO))
-    return list(islice(frames, 60))
-
-
-@pytest.fixture(scope="module")
-def public_detections(shared_data) -> MotDetections:
-    """The public detections of PETS09-S2L1 (768x576: scale 0.625 to the video)."""
-    return MotDetections.from_file(shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt")
-
-
-def start_stream(client: httpx.Client, session: zenoh.Session, camera: str, **spec) -> dict:
-    """POST the stream and wait until its worker listens and this session can reach it."""
-    response = client.post("/v1/streams", json={"camera": camera, **spec})
-    assert response.status_code == 201, response.text
-    keys = StreamKeys("vtrack", camera)
-
-    wait_for(
-        lambda: client.get(f"/v1/streams/{camera}").json()["state"] == "waiting",
-        60,
-        f"stream {camera} to listen",
-    )
-    assert reach_tracker(session, keys, timeout=30), f"the tracker of {camera} does not answer"
-    assert trackers_of(session, keys), "no liveliness token for a running stream"
-    return response.json()
-
-
-def status(client: httpx.Client, camera: str) -> dict:
-    response = client.get(f"/v1/streams/{camera}")
-    assert response.status_code == 200, response.text
-    return response.json()
-
-
-def all_taken(client: httpx.Client, camera: str, frames: int) -> dict:
-    """The stream's counters once ``frames`` frames came in and each was processed, skipped or
-    refused as malformed."""
-
-    def taken():
-        counters = status(client, camera)["counters"]
-        done = counters["frames_processed"] + counters["frames_skipped"] + counters["malformed"]
-        return counters["frames_in"] == frames == done and counters
-
-    return wait_for(taken, 60, f"all {frames} frames of {camera} to be taken")
-
-
-def put_frame(session, keys, payload: bytes, attachment: bytes | None, encoding) -> None:
-    session.put(keys.frames, payload, encoding=encoding, attachment=attachment)
 
 
 def test_tracks_follow_the_frames_published_at_their_rate(server, session, pets_frames):
@@ -816,30 +729,6 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
             timeout=60,
         )
         assert untracked.returncode == 0 and "nobody subscribed" in untracked.stderr
-
-
-class StderrLines:
-    """The stderr lines of a running process, gathered by a thread as they come."""
-
-    def __init__(self, process: subprocess.Popen) -> None:
-        self.lines: list[str] = []
-        self._process = process
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        for line in self._process.stderr:
-            self.lines.append(line)
-
-    def has(self, text: str) -> bool:
-        """Whether a line so far holds ``text``; a process that ended without one fails."""
-        if any(text in line for line in list(self.lines)):
-            return True
-        if self._process.poll() is not None:
-            self._reader.join(5)
-            assert any(text in line for line in self.lines), "".join(self.lines)
-            return True
-        return False
 
 
 def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, shared_data):

@@ -32,6 +32,7 @@ from service.streams.payloads import (
     RAW,
     H264Frames,
     PayloadError,
+    check_frame_size,
     decode_frame,
     encode_jpeg,
     frame_attachment,
@@ -41,6 +42,7 @@ from service.streams.payloads import (
 )
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.simulated_cameras import access_units
+from service.streams.store import StreamStore
 from service.streams.worker import Incoming, LatestFrame, UpstreamBuffer
 from service.testing import free_port
 from tracking.detection.base import Detections
@@ -219,6 +221,25 @@ def test_decode_jpeg_garbage(payload):
         decode_frame(payload, JPEG, parse_attachment(frame_attachment(0, 0.0)))
 
 
+@pytest.mark.parametrize(
+    ("height", "width", "taken"),
+    [
+        (32, 32, True),  # the smallest frame taken
+        (60, 80, True),  # a small thermal camera's
+        (1, 1, False),  # a placeholder, the walkthrough's bad frame
+        (360, 31, False),  # one side under the minimum is enough
+        (31, 480, False),
+    ],
+)
+def test_check_frame_size(height, width, taken):
+    image = np.zeros((height, width, 3), dtype=np.uint8)
+    if taken:
+        check_frame_size(image)
+    else:
+        with pytest.raises(PayloadError, match=f"frame of {width}x{height} is too small"):
+            check_frame_size(image)
+
+
 # -- payloads: detections ----------------------------------------------------------------------
 
 
@@ -388,6 +409,21 @@ def test_upstream_capacity_drops_the_oldest():
     for sequence in (2, 3, 4):
         got = buffer.take(sequence, wait=0.0)
         assert got is not None and got.boxes[0, 0] == sequence
+
+
+def test_upstream_forget_before_drops_only_what_arrived_earlier():
+    # A camera that started over reuses sequence numbers: its previous run's detections go.
+    buffer = UpstreamBuffer()
+    buffer.offer(7, some_detections(1.0))
+    buffer.offer(8, some_detections(2.0))
+    restarted = time.perf_counter()
+    buffer.offer(0, some_detections(3.0))  # the new run's first frame
+    buffer.forget_before(restarted)
+    assert buffer.take(7, wait=0.0) is None
+    assert buffer.take(8, wait=0.0) is None
+    assert buffer.take(0, wait=0.0).boxes[0, 0] == 3.0
+    buffer.offer(7, some_detections(4.0))  # the new run's frame 7 is taken as usual
+    assert buffer.take(7, wait=0.0).boxes[0, 0] == 4.0
 
 
 def test_upstream_capacity_counts_a_reoffered_sequence_as_newest():
@@ -682,3 +718,26 @@ def test_publish_frames_round_trip():
         assert [item.x, item.y, item.w, item.h] == pytest.approx([b * 0.5 for b in boxes[index]])
         assert item.score == pytest.approx(0.5 + 0.1 * index)
         np.testing.assert_allclose(to_detections(message).boxes, [[b * 0.5 for b in boxes[index]]])
+
+
+# -- store: track id reservations ----------------------------------------------------------------
+
+
+def test_track_id_reservations_only_go_up_and_outlive_the_stream(tmp_path):
+    store = StreamStore(tmp_path / "jobs.db")
+    try:
+        assert store.reserved_track_ids("gate") == 0  # never tracked: ids start at 1
+        store.reserve_track_ids("gate", 100)
+        store.reserve_track_ids("gate", 40)  # a late, lower write does not take ids back
+        store.reserve_track_ids("hall", 7)
+        spec = StreamSpec(camera="gate")
+        store.put(spec)
+        store.delete("gate")
+    finally:
+        store.close()
+    reopened = StreamStore(tmp_path / "jobs.db")  # a worker's own connection, or the next run
+    try:
+        assert reopened.reserved_track_ids("gate") == 100
+        assert reopened.reserved_track_ids("hall") == 7
+    finally:
+        reopened.close()

@@ -1,0 +1,198 @@
+"""``vtrack publish`` and ``vtrack subscribe`` as users run them (each in its own process),
+against ``vtrack serve`` on loopback: what they say and how they end.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import signal
+import subprocess
+import threading
+from collections.abc import Iterator
+from itertools import cycle
+
+import numpy as np
+import pytest
+import zenoh
+
+from api_schemas.streams import StreamTracksMessage
+from service.streams.keys import StreamKeys
+from service.streams.tools import publish_frames
+from tests.conftest import REPO_ROOT
+from tests.service.conftest import PETS_VIDEO, wait_for
+from tests.streams.live import VTRACK, StderrLines, start_stream, status
+from tracking.detection import MotDetections
+
+pytestmark = pytest.mark.slow
+
+
+@contextlib.contextmanager
+def camera_running(
+    session: zenoh.Session,
+    keys: StreamKeys,
+    frames: list[np.ndarray],
+    public: MotDetections,
+) -> Iterator[None]:
+    """A camera publishing ``frames`` over and over at 10 fps, with the public detections as
+    its upstream detector's (so that tracking is cheap), until the block ends."""
+    stop = threading.Event()
+    count = len(frames)
+    thread = threading.Thread(
+        target=publish_frames,
+        args=(session, keys, cycle(frames), 10.0),
+        kwargs={
+            "detections": lambda index: public.for_frame(index % count),
+            "detections_scale": 0.625,
+            "stop": stop,
+        },
+        daemon=True,
+    )
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(10)
+
+
+def connect(server) -> list[str]:
+    return ["--connect", server.zenoh_listen[0]]
+
+
+def test_subscribe_current_on_a_stream_without_tracks_says_what_the_tracker_answered(
+    server, session
+):
+    camera = "quiet"
+    with server.client() as client:
+        start_stream(client, session, camera)
+        asked = subprocess.run(
+            [*VTRACK, "subscribe", "--camera", camera, "--current", *connect(server)],
+            cwd=REPO_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert asked.returncode == 1
+        assert "vtrack subscribe: camera quiet has no tracks yet\n" in asked.stderr
+        assert "no tracker answered" not in asked.stderr
+        assert asked.stdout == ""
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_subscribe_ends_quietly_when_its_reader_goes_away(
+    server, session, pets_frames, public_detections
+):
+    # vtrack subscribe --camera door | head -2
+    camera = "piped"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera)
+        subscriber = subprocess.Popen(
+            [*VTRACK, "subscribe", "--camera", camera, *connect(server)],
+            cwd=REPO_ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        stderr = StderrLines(subscriber)
+        try:
+            with camera_running(session, keys, pets_frames[:20], public_detections):
+                lines = [subscriber.stdout.readline() for _ in range(2)]
+                subscriber.stdout.close()  # head has its lines and exits
+                returncode = subscriber.wait(timeout=30)
+        finally:
+            subscriber.kill()
+            subscriber.wait()
+        assert all(line.startswith("seq ") for line in lines), lines
+        assert returncode == 0
+        wait_for(lambda: stderr.has("following"), 5, "the whole stderr")
+        said = "".join(stderr.lines)
+        assert "Traceback" not in said and "BrokenPipeError" not in said, said
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_subscribe_json_with_an_output_file_prints_and_records(
+    server, session, tmp_path, pets_frames, public_detections
+):
+    camera = "both"
+    keys = StreamKeys("vtrack", camera)
+    out = tmp_path / "tracks.jsonl"
+    with server.client() as client:
+        start_stream(client, session, camera)
+        with camera_running(session, keys, pets_frames[:20], public_detections):
+            subscribed = subprocess.run(
+                [
+                    *VTRACK,
+                    "subscribe",
+                    "--camera",
+                    camera,
+                    "--json",
+                    "--output",
+                    str(out),
+                    "--count",
+                    "3",
+                    *connect(server),
+                ],
+                cwd=REPO_ROOT,
+                capture_output=True,
+                text=True,
+                timeout=60,
+            )
+        assert subscribed.returncode == 0, subscribed.stderr
+        printed = subscribed.stdout.splitlines()
+        assert len(printed) == 3
+        assert printed == out.read_text().splitlines()
+        for line in printed:
+            assert StreamTracksMessage.model_validate_json(line).camera == camera
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shared_data):
+    camera = "ctrlc"
+    detections = shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt"
+    with server.client() as client:
+        start_stream(client, session, camera)
+        publisher = subprocess.Popen(
+            [
+                *VTRACK,
+                "publish",
+                str(shared_data / PETS_VIDEO),
+                "--camera",
+                camera,
+                "--fps",
+                "10",
+                "--detections",
+                str(detections),
+                "--detections-scale",
+                "0.625",
+                *connect(server),
+            ],
+            cwd=REPO_ROOT,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        stderr = StderrLines(publisher)
+        try:
+            wait_for(
+                lambda: status(client, camera)["counters"]["frames_in"] >= 10,
+                60,
+                "frames from vtrack publish",
+            )
+            publisher.send_signal(signal.SIGINT)  # Ctrl-C
+            returncode = publisher.wait(timeout=30)
+        finally:
+            publisher.kill()
+            publisher.wait()
+        assert returncode == 0
+        wait_for(lambda: stderr.has("frames sent"), 5, "the count")
+        said = "".join(stderr.lines)
+        sent = int(re.search(r"(\d+) frames sent", said).group(1))
+        assert sent >= 10, said
+        # Every frame it counted reached the service, and no other.
+        wait_for(
+            lambda: status(client, camera)["counters"]["frames_in"] == sent,
+            30,
+            f"the service to count {sent} frames",
+        )
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
