@@ -4,19 +4,30 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import dataclasses
 import json
+import math
+import os
+import shutil
 import sys
 from pathlib import Path
 
 from tqdm import tqdm
 
-from service.frames import FrameSourceError, open_frames
+from service.frames import FrameSourceError, ReadProgress, open_frames
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.output_paths import output_file, output_folder
 from tracking.types import Box, TrackerOutput
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
+
+CLOSED_OUTPUT = 141
+"""Exit status when the reader of our standard output went away (``vtrack track ... | head``):
+128 + SIGPIPE, what the shell reports for ``yes | head``."""
 
 
 def _parse_box(text: str) -> Box:
@@ -27,6 +38,22 @@ def _parse_box(text: str) -> Box:
     return Box(x, y, w, h)
 
 
+def _box_text(box: Box) -> str:
+    return ",".join(f"{v:g}" for v in (box.x, box.y, box.w, box.h))
+
+
+def _box_problem(box: Box, width: int, height: int) -> str | None:
+    """Why ``box`` cannot start a track in a ``width`` x ``height`` frame, in plain numbers
+    (the tracker's own check, ``tracking.types.validate_box``, which would stop it later)."""
+    if not all(math.isfinite(v) for v in (box.x, box.y, box.w, box.h)):
+        return f"{_box_text(box)} is not four finite numbers"
+    if box.w < 1 or box.h < 1:
+        return f"{_box_text(box)}: width and height must be at least 1 pixel"
+    if box.x >= width or box.y >= height or box.x + box.w <= 0 or box.y + box.h <= 0:
+        return f"{_box_text(box)} lies entirely outside the {width}x{height} frame"
+    return None
+
+
 def _first_box_from_groundtruth(folder: Path) -> Box | None:
     """The first line of an OTB ``groundtruth_rect.txt`` (1-based pixels), if there is one."""
     path = folder / "groundtruth_rect.txt"
@@ -35,6 +62,62 @@ def _first_box_from_groundtruth(folder: Path) -> Box | None:
     first = path.read_text().splitlines()[0].replace("\t", ",").replace(" ", ",")
     x, y, w, h = (float(v) for v in first.split(",") if v)
     return Box(x - 1, y - 1, w, h)
+
+
+def _model_file(given: Path | None, flag: str, variable: str) -> tuple[Path | None, str]:
+    """A model file from its flag, else from its environment variable (as ``vtrack serve``
+    reads it; the flag wins), and the name of where it came from, for messages."""
+    if given is not None:
+        return given, flag
+    value = os.environ.get(variable, "")
+    return (Path(value) if value else None), variable
+
+
+def _color_names_file(given: Path | None) -> Path | None:
+    """The Color Names table of ``--w2c`` or ``VTRACK_COLOR_NAMES``, loaded once to check it.
+
+    Raises
+    ------
+    ValueError
+        The file is not a w2c table; the message names the flag or variable.
+    """
+    from tracking.features.colornames import load_w2c_table
+
+    path, origin = _model_file(given, "--w2c", "VTRACK_COLOR_NAMES")
+    if path is not None:
+        try:
+            load_w2c_table(path)
+        except ValueError as error:
+            raise ValueError(f"{origin}: {error}") from None
+    return path
+
+
+def _dpm_model_file(given: Path | None) -> Path | None:
+    """The DPM model of ``--dpm-model`` or ``VTRACK_DPM_MODEL``, loaded once to check it.
+
+    Raises
+    ------
+    ValueError
+        A missing file, or one that is not a voc-release5 model (the detection layer's reason);
+        the message names the flag or variable.
+    """
+    from tracking.detection.dpm.model import ModelFileError, load_dpm_model
+
+    path, origin = _model_file(given, "--dpm-model", "VTRACK_DPM_MODEL")
+    if path is None:
+        return None
+    if not path.exists():
+        raise ValueError(f"{origin}: {path} does not exist")
+    if not path.is_file():
+        raise ValueError(f"{origin}: {path} is not a file")
+    try:
+        load_dpm_model(path)
+    except ModelFileError as error:
+        reason = str(error).removeprefix(f"{path}: ")
+        raise ValueError(f"{origin}: {path} is not a voc-release5 DPM model: {reason}") from None
+    if path.suffix.lower() != ".mat":  # the detector factory tells models by their suffix
+        raise ValueError(f"{origin}: {path} is a DPM model; name it *.mat to use it")
+    return path
 
 
 def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> str:
@@ -57,34 +140,62 @@ def _track(args: argparse.Namespace) -> int:
     if box is None:
         print("vtrack: give the first box with --box x,y,w,h", file=sys.stderr)
         return 2
+    # before any output: a bad box is a usage error, not a run that stops at its first frame
+    if problem := _box_problem(box, source.width, source.height):
+        where = "--box" if args.box else f"the first box of {source.path / 'groundtruth_rect.txt'}"
+        print(f"vtrack: {where} {problem}", file=sys.stderr)
+        return 2
     config = PRESETS[args.preset]
-    if args.w2c:
-        config = dataclasses.replace(config, color_names_path=str(args.w2c))
     try:
-        tracker = CorrelationTracker(config)  # loads the Color Names table, if one is given
-        out_file = open(output_file(args.out), "w") if args.out else sys.stdout  # noqa: SIM115
+        if color_names := _color_names_file(args.w2c):
+            config = dataclasses.replace(config, color_names_path=str(color_names))
+        tracker = CorrelationTracker(config)
+        # rows go to a file beside --out, renamed over it once the run is complete: a run that
+        # fails or is interrupted leaves no half-written file (and an older file as it was)
+        partial = output_file(args.out).with_name(f".{args.out.name}.partial") if args.out else None
+        out_file = open(partial, "w") if partial else sys.stdout  # noqa: SIM115
     except (ValueError, OSError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
+    read, written = ReadProgress(), 0
     try:
         if args.format == "csv":
             print("frame,x,y,w,h,peak,psr", file=out_file)
-        frames = tqdm(source, total=source.frame_count, unit="frame", disable=args.quiet)
-        for index, frame in enumerate(frames, start=1):
-            if index == 1:
-                tracker.initialize(frame, box)
-                print(_format_row(index, box, None, args.format), file=out_file)
-            else:
-                output = tracker.update(frame)
-                print(_format_row(index, output.box, output, args.format), file=out_file)
+        frames = source.timed(1, read)
+        with tqdm(frames, total=source.frame_count, unit="frame", disable=args.quiet) as bar:
+            for frame in bar:
+                if written == 0:
+                    tracker.initialize(frame.image, box)
+                    row = _format_row(1, box, None, args.format)
+                else:
+                    output = tracker.update(frame.image)
+                    row = _format_row(written + 1, output.box, output, args.format)
+                print(row, file=out_file)
+                written += 1
+        if partial:
+            out_file.close()
+            os.replace(partial, args.out)
     except ValueError as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        kept = "nothing written" if partial else f"the {written} rows printed are complete"
+        print(f"vtrack: interrupted after {written} frames; {kept}", file=sys.stderr)
+        return INTERRUPTED
     finally:
-        if args.out:
+        if partial:
             out_file.close()
+            partial.unlink(missing_ok=True)  # gone already when the run completed
+    from service.analysis import _truncation  # the same judgement as for `vtrack analyze`
+
+    if truncation := _truncation(source, read):
+        print(
+            f"vtrack: warning: the video ended after {truncation} its container announces "
+            "(truncated or damaged file); the frames that decoded were tracked",
+            file=sys.stderr,
+        )
     if args.out:
-        print(f"vtrack: wrote {index} boxes to {args.out}", file=sys.stderr)
+        print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)
     return 0
 
 
@@ -151,7 +262,7 @@ def _analyze(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from api_schemas.jobs import JobOptions
-    from service.analysis import OptionsError, PipelineResources, analyze, publish
+    from service.analysis import PipelineResources, analyze, publish
 
     raw, given = _analyze_options(args)
     try:
@@ -165,17 +276,33 @@ def _analyze(args: argparse.Namespace) -> int:
         message = first["msg"].removeprefix("Value error, ")
         print(f"vtrack: {': '.join([*where, message])}", file=sys.stderr)
         return 2
-    resources = PipelineResources(dpm_model=args.dpm_model, color_names=args.w2c)
     try:
+        # VTRACK_DPM_MODEL is read only for a run that detects with it; --dpm-model always
+        needs_dpm = options.mode == "people" and options.detector.name == "dpm"
+        dpm_model = _dpm_model_file(args.dpm_model) if needs_dpm or args.dpm_model else None
+        if needs_dpm and dpm_model is None:
+            raise ValueError(
+                "detector 'dpm' needs a voc-release5 model: give --dpm-model MODEL.mat or set "
+                "VTRACK_DPM_MODEL"
+            )
+        resources = PipelineResources(dpm_model=dpm_model, color_names=_color_names_file(args.w2c))
         source = open_frames(args.source)
+        if options.mode == "single_target" and options.first_box is not None:
+            b = options.first_box
+            if problem := _box_problem(Box(b.x, b.y, b.w, b.h), source.width, source.height):
+                raise ValueError(f"{given.get(('first_box',), '--options: first_box')} {problem}")
+        created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it
-    except (OSError, FrameSourceError) as error:
+    except (OSError, ValueError) as error:  # FrameSourceError is a ValueError
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     bar = tqdm(total=source.frame_count or None, unit="frame", disable=args.quiet)
+    frames_read = 0
 
-    def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
-        bar.update(frames_read - bar.n)
+    def progress(read: int, frames_processed: int, fps: float | None) -> bool:
+        nonlocal frames_read
+        frames_read = read
+        bar.update(read - bar.n)
         return True
 
     scratch = args.out_dir / ".vtrack-partial"
@@ -191,9 +318,18 @@ def _analyze(args: argparse.Namespace) -> int:
         )
         files = publish(result, args.out_dir)
         scratch.rmdir()
-    except (FrameSourceError, OptionsError, ValueError, OSError) as error:  # OSError: disk full
+    except (ValueError, OSError, KeyboardInterrupt) as error:  # OSError: disk full
         bar.close()
-        print(f"vtrack: {error}", file=sys.stderr)
+        # the files of an unfinished run are no result: none is left behind
+        shutil.rmtree(scratch, ignore_errors=True)
+        if created and args.out_dir.is_dir() and not any(args.out_dir.iterdir()):
+            args.out_dir.rmdir()
+        if isinstance(error, KeyboardInterrupt):
+            print(
+                f"vtrack: interrupted after {frames_read} frames; nothing written", file=sys.stderr
+            )
+            return INTERRUPTED
+        print(f"vtrack: {error}", file=sys.stderr)  # OptionsError is a ValueError
         return 2
     bar.update(result.video.frames_read - bar.n)
     bar.close()
@@ -258,6 +394,9 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+W2C_HELP = "van de Weijer w2c.mat Color Names table (VTRACK_COLOR_NAMES; default: embedded)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -275,7 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument(
         "--preset", default="hog_cn_scale", choices=sorted(PRESETS), help="tracker variant"
     )
-    track.add_argument("--w2c", type=Path, help="van de Weijer w2c.mat Color Names table")
+    track.add_argument("--w2c", type=Path, help=W2C_HELP)
     track.add_argument("--out", type=Path, help="write the boxes here instead of stdout")
     track.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
     track.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -302,7 +441,10 @@ def build_parser() -> argparse.ArgumentParser:
         "foxglove.CompressedImage only)",
     )
     analyze.add_argument(
-        "--dpm-model", type=Path, help="detect with this voc-release5 model (.mat) instead"
+        "--dpm-model",
+        type=Path,
+        help="detect with this voc-release5 model (.mat) instead (VTRACK_DPM_MODEL gives the "
+        "model for a detector 'dpm' of --options)",
     )
     analyze.add_argument(
         "--upscale",
@@ -339,7 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="job options as JSON, the service's `options` part (for example "
         '\'{"tracker": {"report_missing": 0.15}}\'); the flags above win over it',
     )
-    analyze.add_argument("--w2c", type=Path, help="van de Weijer w2c.mat Color Names table")
+    analyze.add_argument("--w2c", type=Path, help=W2C_HELP)
     analyze.add_argument("--quiet", action="store_true", help="no progress bar")
     analyze.set_defaults(handler=_analyze)
 
@@ -363,7 +505,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return args.handler(args)
+    try:
+        status = args.handler(args)
+        sys.stdout.flush()  # a reader gone before the last buffered lines shows here
+    except BrokenPipeError:
+        # the reader of our output went away (`| head`): stop quietly, as `yes | head` does;
+        # stdout to devnull so that the interpreter's final flush does not fail again
+        # (https://docs.python.org/3/library/signal.html#note-on-sigpipe)
+        with contextlib.suppress(OSError, ValueError):  # no descriptor (captured in tests)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return CLOSED_OUTPUT
+    except KeyboardInterrupt:  # a command that has nothing to clean up
+        print("vtrack: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    return status
 
 
 if __name__ == "__main__":

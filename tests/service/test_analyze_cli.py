@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import cv2
 import jsonschema
@@ -14,16 +17,32 @@ from mcap.reader import make_reader
 
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, cut_video, schema_for
+from tests.service.test_cli import vtrack_interrupted
+
+DPM_MODEL = Path("dpm") / "INRIA" / "inriaperson_final.mat"
+DPM_OPTIONS = json.dumps({"detector": {"name": "dpm"}})
 
 
-def vtrack(*args):
+def vtrack(*args, env=None):
+    """``vtrack ARGS`` with ``env`` over this environment (without its model variables)."""
+    base = {
+        k: v for k, v in os.environ.items() if k not in ("VTRACK_DPM_MODEL", "VTRACK_COLOR_NAMES")
+    }
     return subprocess.run(
         [sys.executable, "-m", "service.cli", *map(str, args)],
         capture_output=True,
         text=True,
         timeout=300,
         cwd=REPO_ROOT,
+        env={**base, **(env or {})},
     )
+
+
+def fill(text: str, **values) -> str:
+    """``text`` with ``{name}`` replaced by ``values[name]`` (JSON braces left alone)."""
+    for name, value in values.items():
+        text = text.replace(f"{{{name}}}", str(value))
+    return text
 
 
 @pytest.mark.slow
@@ -103,7 +122,8 @@ def test_analyze_takes_the_service_job_options_with_its_flags_over_them(pets_sho
         (["--frame-step", "0"], "--frame-step: Input should be greater than or equal to 1"),
         (["--upscale", "-1"], "--upscale: Input should be greater than 0"),
         (["--box", "1,1,-5,3"], "--box: Input should be greater than 0"),
-        (["--box", "900,10,20,20"], "outside"),  # first box outside the frame
+        # first box outside the frame; before: "first_box: box Box(x=900.0, ...) lies ..."
+        (["--box", "900,10,20,20"], "--box 900,10,20,20 lies entirely outside the 480x360 frame"),
         (["--fill-gaps", "-1"], "--fill-gaps: Input should be greater than or equal to 0"),
         (["--box", "150,130,28,65", "--fill-gaps", "0.5"], "fill_gaps is for mode 'people'"),
         (["--options", "{"], "--options: not JSON"),
@@ -123,6 +143,83 @@ def test_analyze_rejects_bad_arguments(pets_short, tmp_path, args, message):
     result = vtrack("analyze", pets_short, "--out-dir", tmp_path / "o", *args)
     assert result.returncode == 2
     assert message in result.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("variable", "flags"),
+    [
+        # the variable alone, as the README says; before: "this service has none: set
+        # VTRACK_DPM_MODEL"
+        ("{model}", ["--options", DPM_OPTIONS]),
+        ("{tmp}/missing.mat", ["--dpm-model", "{model}"]),  # the flag wins over the variable
+    ],
+)
+def test_analyze_detects_with_the_dpm_model_of_the_flag_or_the_environment(
+    shared_data, pets_short, tmp_path, variable, flags
+):
+    values = {"model": shared_data / DPM_MODEL, "tmp": tmp_path}
+    arguments = [fill(a, **values) for a in flags]
+    env = {"VTRACK_DPM_MODEL": fill(variable, **values)}
+    out = tmp_path / "out"
+    result = vtrack(
+        "analyze", pets_short, "--out-dir", out, "--format", "json", *arguments, env=env
+    )
+    assert result.returncode == 0, result.stderr
+    document = json.loads((out / "trajectories.json").read_text())
+    # only the DPM places body parts; the embedded detector's are predicted from the box
+    parts = [p for t in document["tracks"] for f in t["frames"] for p in f["parts"]]
+    assert any(part["measured"] for part in parts)
+
+
+@pytest.mark.parametrize(
+    ("args", "env", "message"),
+    [
+        # before: "detector 'dpm' needs a voc-release5 model, and this service has none"
+        (["--dpm-model", "{tmp}/missing.mat"], {}, "--dpm-model: {tmp}/missing.mat does not exist"),
+        (  # a video given as the model; before: "unknown detector '...avi': expected one of"
+            ["--dpm-model", "{video}"],
+            {},
+            "--dpm-model: {video} is not a voc-release5 DPM model: it is not a readable MATLAB",
+        ),
+        (  # the variable is read, and checked the same way
+            ["--options", DPM_OPTIONS],
+            {"VTRACK_DPM_MODEL": "{video}"},
+            "VTRACK_DPM_MODEL: {video} is not a voc-release5 DPM model",
+        ),
+        (  # a DPM job and no model anywhere: say both ways to give one
+            ["--options", DPM_OPTIONS],
+            {},
+            "detector 'dpm' needs a voc-release5 model: give --dpm-model MODEL.mat or set "
+            "VTRACK_DPM_MODEL",
+        ),
+        # the Color Names table comes from the variable as from --w2c; before: ignored
+        ([], {"VTRACK_COLOR_NAMES": "{video}"}, "VTRACK_COLOR_NAMES: colour-name table '{video}'"),
+    ],
+)
+def test_analyze_refuses_a_model_file_that_is_not_one_before_it_starts(
+    pets_short, tmp_path, args, env, message
+):
+    values = {"video": pets_short, "tmp": tmp_path}
+    arguments = [fill(a, **values) for a in args]
+    env = {key: fill(value, **values) for key, value in env.items()}
+    out = tmp_path / "out"
+    result = vtrack("analyze", pets_short, "--out-dir", out, "--quiet", *arguments, env=env)
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"vtrack: {fill(message, **values)}")
+    assert result.stderr.count("\n") == 1  # one line, no traceback
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_analyze_with_one_line_and_no_partial_results(shared_data, tmp_path):
+    # before: a KeyboardInterrupt traceback and out/.vtrack-partial/ with half-written files
+    out = tmp_path / "out"
+    video = shared_data / PETS_VIDEO  # 795 frames: a minute of work to interrupt
+    status, stderr = vtrack_interrupted("analyze", video, "--out-dir", out, cwd=REPO_ROOT)
+    assert status == 130 and "Traceback" not in stderr
+    assert re.search(r"\nvtrack: interrupted after [1-9]\d* frames; nothing written\n$", stderr)
+    assert not out.exists()  # the folder this run made is gone with the partial files
 
 
 @pytest.fixture(scope="module")

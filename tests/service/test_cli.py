@@ -2,14 +2,19 @@
 
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
+import threading
 
 import cv2
 import numpy as np
 import pytest
 
+from service.testing import wait_for
 from tests.correlation.test_tracker import moving_target_scene
+from tests.service.conftest import PETS_VIDEO
 
 
 def vtrack(*args, check=False):
@@ -20,6 +25,47 @@ def vtrack(*args, check=False):
         timeout=300,
         check=check,
     )
+
+
+# the progress bar once a frame is done: "  3%|▎         | 24/795 [00:00<00:07, ...]"
+PROGRESS = re.compile(rb"\| *[1-9]\d*/\d+ \[")
+
+
+def vtrack_interrupted(*args, cwd=None) -> tuple[int, str]:
+    """Run ``vtrack ARGS``, press Ctrl-C (SIGINT) once its progress bar shows tracked frames,
+    and return its exit status and standard error."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", *map(str, args)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        cwd=cwd,
+        # SIGINT as in a terminal, also where the tests run as a background job (ignoring it)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    stderr = bytearray()
+
+    def read() -> None:
+        while chunk := process.stderr.read1(4096):
+            stderr.extend(chunk)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        wait_for(
+            lambda: PROGRESS.search(bytes(stderr)) or process.poll() is not None,
+            120,
+            "the first tracked frames",
+            interval=0.05,
+        )
+        assert process.poll() is None, stderr.decode()  # still running when interrupted
+        process.send_signal(signal.SIGINT)
+        status = process.wait(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    reader.join(timeout=10)
+    return status, stderr.decode(errors="replace")
 
 
 @pytest.fixture(scope="module")
@@ -93,10 +139,71 @@ def test_video_without_box_asks_for_one(scene_video):
     assert "--box" in result.stderr
 
 
-def test_box_outside_the_frame_is_reported(scene_video):
-    result = vtrack("track", scene_video[0], "--box", "5000,10,20,20")
+@pytest.mark.parametrize("to_file", [False, True])
+@pytest.mark.parametrize(
+    ("box", "message"),
+    [
+        # before: "box Box(x=5000.0, ...) lies entirely outside", after the CSV header
+        ("5000,10,20,20", "--box 5000,10,20,20 lies entirely outside the 320x240 frame"),
+        # before: refused at the first frame, once the progress bar had started
+        ("300,100,-20,50", "--box 300,100,-20,50: width and height must be at least 1 pixel"),
+    ],
+)
+def test_a_bad_box_stops_track_before_any_output(scene_video, tmp_path, box, message, to_file):
+    out = ["--out", tmp_path / "boxes.csv"] if to_file else []
+    result = vtrack("track", scene_video[0], "--box", box, *out)
     assert result.returncode == 2
-    assert "outside" in result.stderr
+    assert result.stderr == f"vtrack: {message}\n"  # one line: no progress bar, no repr
+    assert result.stdout == "" and list(tmp_path.iterdir()) == []  # no header, no file
+
+
+def test_track_warns_of_a_truncated_video(pets_cut, tmp_path):
+    # the first half of the 24-frame file's bytes: its header still announces 24 frames
+    data = pets_cut.read_bytes()
+    truncated = tmp_path / "truncated.avi"
+    truncated.write_bytes(data[: len(data) // 2])
+    result = vtrack("track", truncated, "--box", "150,130,28,65", "--quiet")
+    assert result.returncode == 0, result.stderr
+    rows = result.stdout.splitlines()[1:]
+    assert 1 < len(rows) < 24
+    assert (
+        f"vtrack: warning: the video ended after {len(rows)} of the 24 frames its container "
+        "announces (truncated or damaged file)" in result.stderr
+    )
+
+
+@pytest.mark.parametrize(
+    ("source", "args"),
+    [
+        ("otb/Crossing", ["--format", "json"]),  # 120 rows: the pipe breaks during the run
+        ("cut", ["--box", "150,130,28,65"]),  # 8 rows: it breaks at the final flush
+    ],
+)
+def test_a_closed_output_ends_track_quietly(shared_data, pets_short, source, args):
+    # `vtrack track ... | head` whose reader is gone at once; before: a BrokenPipeError
+    # traceback (exit status 1), or "Exception ignored ... BrokenPipeError" (120)
+    path = pets_short if source == "cut" else shared_data / source
+    process = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "track", path, "--quiet", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    process.stdout.close()
+    stderr = process.stderr.read()
+    assert process.wait(timeout=300) == 141  # 128 + SIGPIPE, as `yes | head` ends
+    assert stderr == ""
+
+
+def test_ctrl_c_ends_track_leaving_the_output_file_as_it_was(shared_data, tmp_path):
+    # before: a KeyboardInterrupt traceback and a half-written boxes.csv over the old one
+    out = tmp_path / "boxes.csv"
+    out.write_text("an earlier run\n")
+    video = shared_data / PETS_VIDEO  # 795 frames: seconds of work to interrupt
+    status, stderr = vtrack_interrupted("track", video, "--box", "150,130,28,65", "--out", out)
+    assert status == 130 and "Traceback" not in stderr
+    assert re.search(r"\nvtrack: interrupted after [1-9]\d* frames; nothing written\n$", stderr)
+    assert list(tmp_path.iterdir()) == [out] and out.read_text() == "an earlier run\n"
 
 
 def test_a_colour_table_that_is_not_one_is_reported(scene_video, tmp_path):
