@@ -243,11 +243,8 @@ def _summary(
             "the video declares no frame rate; frames without a presentation time of their "
             f"own are stamped {source.timing_fps:g} per second"
         )
-    if truncation := _truncation(source, read):
-        warnings.append(
-            f"the video ended after {truncation} its container announces (truncated or "
-            "damaged file); the frames that decoded were tracked"
-        )
+    if truncation := truncation_warning(source, read):
+        warnings.append(truncation)
     missing = h264.h264_unavailable()
     if missing is not None and OutputFormat.mp4 in options.formats:
         warnings.append(f"the annotated video is mp4v, which browsers do not play: {missing}")
@@ -269,8 +266,9 @@ def _summary(
     return RunSummary(video=video, frames_processed=processed, warnings=warnings)
 
 
-def _truncation(source: FrameSource, read: ReadProgress) -> str | None:
-    """How much of the announced video was read, when it ended early; else ``None``.
+def truncation_warning(source: FrameSource, read: ReadProgress) -> str | None:
+    """What to tell the user when the video ended before what its container announces (a
+    truncated or damaged file); ``None`` when it did not.
 
     A stated frame count is a promise; where the container states none (Matroska, WebM),
     OpenCV's count is the duration times the rate, which a variable-rate video does not reach,
@@ -278,13 +276,18 @@ def _truncation(source: FrameSource, read: ReadProgress) -> str | None:
     (the last frame lasts one; containers round).
     """
     if source.count_stated:
-        if source.frame_count and read.frames < source.frame_count:
-            return f"{read.frames} of the {source.frame_count} frames"
-        return None
-    slack = 2.0 / source.timing_fps
-    if source.duration and read.end_time + slack < source.duration:
-        return f"{read.end_time:.2f} s of the {source.duration:.2f} s"
-    return None
+        if not (source.frame_count and read.frames < source.frame_count):
+            return None
+        read_part = f"{read.frames} of the {source.frame_count} frames"
+    else:
+        slack = 2.0 / source.timing_fps
+        if not (source.duration and read.end_time + slack < source.duration):
+            return None
+        read_part = f"{read.end_time:.2f} s of the {source.duration:.2f} s"
+    return (
+        f"the video ended after {read_part} its container announces (truncated or damaged "
+        "file); the frames that decoded were tracked"
+    )
 
 
 def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:

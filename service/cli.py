@@ -8,7 +8,6 @@ import contextlib
 import copy
 import dataclasses
 import json
-import math
 import os
 import shutil
 import sys
@@ -20,7 +19,7 @@ from service.frames import FrameSourceError, ReadProgress, open_frames
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.output_paths import output_file, output_folder
-from tracking.types import Box, TrackerOutput
+from tracking.types import Box, TrackerOutput, box_problem
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
@@ -36,22 +35,6 @@ def _parse_box(text: str) -> Box:
     except ValueError:
         raise argparse.ArgumentTypeError(f"a box is x,y,w,h (four numbers), got {text!r}") from None
     return Box(x, y, w, h)
-
-
-def _box_text(box: Box) -> str:
-    return ",".join(f"{v:g}" for v in (box.x, box.y, box.w, box.h))
-
-
-def _box_problem(box: Box, width: int, height: int) -> str | None:
-    """Why ``box`` cannot start a track in a ``width`` x ``height`` frame, in plain numbers
-    (the tracker's own check, ``tracking.types.validate_box``, which would stop it later)."""
-    if not all(math.isfinite(v) for v in (box.x, box.y, box.w, box.h)):
-        return f"{_box_text(box)} is not four finite numbers"
-    if box.w < 1 or box.h < 1:
-        return f"{_box_text(box)}: width and height must be at least 1 pixel"
-    if box.x >= width or box.y >= height or box.x + box.w <= 0 or box.y + box.h <= 0:
-        return f"{_box_text(box)} lies entirely outside the {width}x{height} frame"
-    return None
 
 
 def _first_box_from_groundtruth(folder: Path) -> Box | None:
@@ -141,7 +124,7 @@ def _track(args: argparse.Namespace) -> int:
         print("vtrack: give the first box with --box x,y,w,h", file=sys.stderr)
         return 2
     # before any output: a bad box is a usage error, not a run that stops at its first frame
-    if problem := _box_problem(box, source.width, source.height):
+    if problem := box_problem(box, (source.height, source.width)):
         where = "--box" if args.box else f"the first box of {source.path / 'groundtruth_rect.txt'}"
         print(f"vtrack: {where} {problem}", file=sys.stderr)
         return 2
@@ -186,14 +169,10 @@ def _track(args: argparse.Namespace) -> int:
         if partial:
             out_file.close()
             partial.unlink(missing_ok=True)  # gone already when the run completed
-    from service.analysis import _truncation  # the same judgement as for `vtrack analyze`
+    from service.analysis import truncation_warning  # as `vtrack analyze` judges it
 
-    if truncation := _truncation(source, read):
-        print(
-            f"vtrack: warning: the video ended after {truncation} its container announces "
-            "(truncated or damaged file); the frames that decoded were tracked",
-            file=sys.stderr,
-        )
+    if warning := truncation_warning(source, read):
+        print(f"vtrack: warning: {warning}", file=sys.stderr)
     if args.out:
         print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)
     return 0
@@ -289,7 +268,7 @@ def _analyze(args: argparse.Namespace) -> int:
         source = open_frames(args.source)
         if options.mode == "single_target" and options.first_box is not None:
             b = options.first_box
-            if problem := _box_problem(Box(b.x, b.y, b.w, b.h), source.width, source.height):
+            if problem := box_problem(Box(b.x, b.y, b.w, b.h), (source.height, source.width)):
                 raise ValueError(f"{given.get(('first_box',), '--options: first_box')} {problem}")
         created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it

@@ -101,20 +101,30 @@ def validate_frame(frame: object) -> np.ndarray:
     return frame
 
 
+def box_problem(box: Box, frame_shape: tuple[int, ...]) -> str | None:
+    """Why ``box`` cannot start a track in a frame of ``frame_shape``, in plain numbers
+    (``"900,10,20,20 lies entirely outside the 480x360 frame"``); ``None`` when it can."""
+    values = (box.x, box.y, box.w, box.h)
+    text = ",".join(f"{v:g}" for v in values)
+    if not all(np.isfinite(v) for v in values):
+        return f"{text} is not four finite numbers"
+    if box.w < 1 or box.h < 1:
+        return f"{text}: width and height must be at least 1 pixel"
+    height, width = frame_shape[:2]
+    if box.x >= width or box.y >= height or box.x + box.w <= 0 or box.y + box.h <= 0:
+        return f"{text} lies entirely outside the {width}x{height} frame"
+    return None
+
+
 def validate_box(box: Box, frame_shape: tuple[int, ...]) -> Box:
     """Check that ``box`` has a positive size and overlaps a frame of ``frame_shape``.
 
     Raises
     ------
     ValueError
-        If the box has a non-positive or non-finite size or lies entirely outside the frame.
+        If the box has a non-positive or non-finite size or lies entirely outside the frame
+        (:func:`box_problem` says which).
     """
-    values = (box.x, box.y, box.w, box.h)
-    if not all(np.isfinite(v) for v in values):
-        raise ValueError(f"box must have finite coordinates, got {box}")
-    if box.w < 1 or box.h < 1:
-        raise ValueError(f"box must be at least 1x1 pixel, got size {box.w}x{box.h}")
-    height, width = frame_shape[:2]
-    if box.x >= width or box.y >= height or box.x + box.w <= 0 or box.y + box.h <= 0:
-        raise ValueError(f"box {box} lies entirely outside the {width}x{height} frame")
+    if problem := box_problem(box, frame_shape):
+        raise ValueError(f"box {problem}")
     return box

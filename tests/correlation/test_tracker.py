@@ -155,7 +155,7 @@ FRAME = np.zeros((120, 160, 3), np.uint8)
         (np.zeros((0, 0, 3), np.uint8), Box(1, 1, 5, 5), "empty"),  # empty frame
         (np.zeros((10, 10, 4), np.uint8), Box(1, 1, 5, 5), r"\(H, W, 3\)"),  # RGBA
         ([[1, 2], [3, 4]], Box(0, 0, 1, 1), "numpy array"),  # not an array
-        (FRAME, Box(10, 10, 0, 20), "at least 1x1"),  # zero width
+        (FRAME, Box(10, 10, 0, 20), "at least 1 pixel"),  # zero width
         (FRAME, Box(500, 10, 20, 20), "outside"),  # box right of the frame
         (FRAME, Box(-50, -50, 20, 20), "outside"),  # box above-left of the frame
         (FRAME, Box(np.nan, 10, 20, 20), "finite"),  # NaN coordinate
