@@ -10,6 +10,7 @@ import dataclasses
 import json
 import os
 import shutil
+import socket
 import sys
 from pathlib import Path
 
@@ -355,21 +356,36 @@ def _serve(args: argparse.Namespace) -> int:
     except OSError as error:
         print(f"vtrack: the data folder (--data-dir, VTRACK_DATA_DIR): {error}", file=sys.stderr)
         return 2
+    # The port is taken here, before the workers start and "serving" is said: a port in use
+    # is then a setting that cannot work, stopped at once like the others.
+    family = socket.AF_INET6 if ":" in settings.host else socket.AF_INET
+    try:
+        listener = socket.create_server((settings.host, settings.port), family=family)
+    except OSError as error:
+        print(
+            f"vtrack: --port, VTRACK_PORT: cannot listen on {settings.host}:{settings.port} "
+            f"({error.strerror or error}); another program (another vtrack serve?) may use it: "
+            "stop it or choose another port",
+            file=sys.stderr,
+        )
+        return 2
     url = f"http://{settings.host}:{settings.port}"
+    workers = f"{settings.workers} worker{'s' if settings.workers != 1 else ''}"
     print(
-        f"vtrack: serving on {url} with {settings.workers} workers, data in {settings.data_dir}\n"
+        f"vtrack: serving on {url} with {workers}, data in {settings.data_dir}\n"
         f"vtrack: open the API docs at {url}/docs (Ctrl-C stops)",
         file=sys.stderr,
         flush=True,
     )
     logging.basicConfig(level=settings.log_level.upper())
-    uvicorn.run(
+    config = uvicorn.Config(
         create_app(settings),
         host=settings.host,
         port=settings.port,
         log_level=settings.log_level.lower(),
         timeout_graceful_shutdown=10,
     )
+    uvicorn.Server(config).run(sockets=[listener])
     return 0
 
 

@@ -4,6 +4,7 @@ import json
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -269,6 +270,22 @@ def test_serve_names_the_setting_that_is_wrong(tmp_path, env, args, message):
     )
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert message.format(tmp=tmp_path) in result.stderr
+
+
+def test_serve_on_a_port_in_use_stops_at_once(tmp_path):
+    # before: "serving on ..." and workers started, then uvicorn's own error and exit 3
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = taken.getsockname()[1]
+        result = subprocess.run(
+            [sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
+            capture_output=True,
+            text=True,
+            timeout=60,  # a service that started would run until killed here
+            env={**os.environ, "VTRACK_DATA_DIR": str(tmp_path / "data")},
+        )
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"VTRACK_PORT: cannot listen on 127.0.0.1:{port}" in result.stderr
+    assert "serving on" not in result.stderr
 
 
 @pytest.mark.parametrize(
