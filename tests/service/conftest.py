@@ -70,16 +70,20 @@ VFR_MS = [0, 100, 200, 300, 800, 900, 1000, 2200, 2300, 2400, 2500, 2600]
 
 @pytest.fixture(scope="session")
 def vfr_video(shared_data, tmp_path_factory):
-    """An MPEG-4 file of real PETS frames stamped with ``VFR_MS`` (written by PyAV: OpenCV's
-    writer has one frame rate)."""
+    """An MPEG-4 file of real PETS frames stamped with ``VFR_MS``."""
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), len(VFR_MS)))
-    path = tmp_path_factory.mktemp("vfr") / "dropped_frames.mp4"
+    return write_stamped(frames, VFR_MS, tmp_path_factory.mktemp("vfr") / "dropped_frames.mp4")
+
+
+def write_stamped(frames, stamps_ms, path: Path) -> Path:
+    """480x360 ``frames`` at presentation times ``stamps_ms`` in ``path``'s container (MPEG-4
+    video; written by PyAV: OpenCV's writer has one frame rate)."""
     millisecond = fractions.Fraction(1, 1000)
     with av.open(str(path), "w") as container:
         stream = container.add_stream("mpeg4", rate=10)
         stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
         stream.time_base = millisecond
-        for image, ms in zip(frames, VFR_MS, strict=True):
+        for image, ms in zip(frames, stamps_ms, strict=True):
             frame = av.VideoFrame.from_ndarray(image, format="rgb24")
             frame.pts, frame.time_base = ms, millisecond
             container.mux(stream.encode(frame))

@@ -3,17 +3,15 @@ a variable-frame-rate video keep their real spacing in the results and in the mo
 
 from __future__ import annotations
 
-import fractions
 from itertools import islice
 
-import av
 import pytest
 
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
 from service.frames import open_frames
 from service.outputs.json_out import read_trajectories
-from tests.service.conftest import PETS_VIDEO, VFR_MS
+from tests.service.conftest import PETS_VIDEO, VFR_MS, write_stamped
 
 pytestmark = pytest.mark.slow
 
@@ -45,25 +43,10 @@ def test_the_json_result_carries_the_presentation_times(vfr_video, tmp_path):
         assert point.timestamp == pytest.approx(VFR_MS[point.frame_index] / 1000)
 
 
-def _matroska(frames, stamps_ms, path):
-    """A Matroska file (which states no frame count) of ``frames`` at ``stamps_ms``."""
-    millisecond = fractions.Fraction(1, 1000)
-    with av.open(str(path), "w") as container:
-        stream = container.add_stream("mpeg4", rate=10)
-        stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
-        stream.time_base = millisecond
-        for image, ms in zip(frames, stamps_ms, strict=True):
-            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
-            frame.pts, frame.time_base = ms, millisecond
-            container.mux(stream.encode(frame))
-        container.mux(stream.encode())
-    return path
-
-
 @pytest.fixture(scope="module")
 def vfr_matroska(shared_data, tmp_path_factory):
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), len(VFR_MS)))
-    return _matroska(frames, VFR_MS, tmp_path_factory.mktemp("mkv") / "dropped_frames.mkv")
+    return write_stamped(frames, VFR_MS, tmp_path_factory.mktemp("mkv") / "dropped_frames.mkv")
 
 
 def test_a_complete_variable_rate_matroska_is_not_called_truncated(vfr_matroska, tmp_path):
@@ -78,7 +61,7 @@ def test_a_complete_variable_rate_matroska_is_not_called_truncated(vfr_matroska,
 
 def test_a_cut_matroska_is_called_truncated_by_its_duration(shared_data, tmp_path):
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), 40))
-    data = _matroska(frames, range(0, 4000, 100), tmp_path / "whole.mkv").read_bytes()
+    data = write_stamped(frames, range(0, 4000, 100), tmp_path / "whole.mkv").read_bytes()
     cut = tmp_path / "cut.mkv"
     cut.write_bytes(data[: len(data) * 7 // 10])  # the header, with the duration, stays
     result = analyze(cut, JobOptions(formats=["json"]), tmp_path / "out")
