@@ -25,6 +25,7 @@ from service.outputs import RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detector
+from tracking.detection.dpm import DpmDetector
 from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
 from tracking.detection.factory import make_detector
 from tracking.detection.hog_people import HogPeopleConfig
@@ -94,7 +95,8 @@ def job_detector(options: DetectorOptions, resources: PipelineResources) -> Dete
         config = DPM_TRACKING_CONFIG
         if options.upscale:
             config = dataclasses.replace(config, upscale=options.upscale)
-        return make_detector(resources.dpm_model, config)
+        # the model is known to be a DPM: make_detector would tell it by its .mat suffix
+        return DpmDetector.from_file(resources.dpm_model, config)
     config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
     return make_detector("default", config)
 

@@ -99,8 +99,6 @@ def _dpm_model_file(given: Path | None) -> Path | None:
     except ModelFileError as error:
         reason = str(error).removeprefix(f"{path}: ")
         raise ValueError(f"{origin}: {path} is not a voc-release5 DPM model: {reason}") from None
-    if path.suffix.lower() != ".mat":  # the detector factory tells models by their suffix
-        raise ValueError(f"{origin}: {path} is a DPM model; name it *.mat to use it")
     return path
 
 

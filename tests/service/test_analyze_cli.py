@@ -6,6 +6,7 @@ import itertools
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -153,12 +154,15 @@ def test_analyze_rejects_bad_arguments(pets_short, tmp_path, args, message):
         # VTRACK_DPM_MODEL"
         ("{model}", ["--options", DPM_OPTIONS]),
         ("{tmp}/missing.mat", ["--dpm-model", "{model}"]),  # the flag wins over the variable
+        ("", ["--dpm-model", "{renamed}"]),  # a model is read as one whatever its name
     ],
 )
 def test_analyze_detects_with_the_dpm_model_of_the_flag_or_the_environment(
     shared_data, pets_short, tmp_path, variable, flags
 ):
-    values = {"model": shared_data / DPM_MODEL, "tmp": tmp_path}
+    renamed = tmp_path / "inria-person.model"
+    shutil.copyfile(shared_data / DPM_MODEL, renamed)
+    values = {"model": shared_data / DPM_MODEL, "tmp": tmp_path, "renamed": renamed}
     arguments = [fill(a, **values) for a in flags]
     env = {"VTRACK_DPM_MODEL": fill(variable, **values)}
     out = tmp_path / "out"
