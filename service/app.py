@@ -14,6 +14,7 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from fastapi_offline import FastAPIOffline
 
 from service.deps import TOKEN_MISSING, token_accepted
 from service.jobs.housekeeping import Housekeeper, sweep
@@ -111,6 +112,10 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     )
 
 
+DOCS_ASSETS = "/docs-assets"
+"""Where the API docs' JavaScript, CSS and icon are served: generic files, open without the
+token (the schema they render, ``/openapi.json``, is not)."""
+
 DOCUMENTATION_PATHS = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json"})
 
 
@@ -130,7 +135,10 @@ async def _documentation_needs_the_token(request: Request, call_next):
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The application; ``settings`` default to the environment, read when it starts."""
-    app = FastAPI(
+    # The docs pages load Swagger UI and ReDoc from the service (DOCS_ASSETS), not from a CDN:
+    # cameras often sit on networks without internet access.
+    app = FastAPIOffline(
+        static_url=DOCS_ASSETS,
         title="visual-tracking",
         version="0.1.0",
         summary="Multi-person tracking of uploaded surveillance video",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import re
 from concurrent.futures import ThreadPoolExecutor
 
 import av
@@ -347,6 +348,24 @@ def test_metrics_count_jobs_by_state_and_frames(client, finished_job):
     assert values["vtrack_frames_processed_total"] >= 24
     assert values["vtrack_job_processing_seconds_count"] >= 1
     assert values["vtrack_workers_alive"] == 2
+
+
+@pytest.mark.parametrize("page", ["/docs", "/redoc"])
+def test_docs_pages_need_no_internet(client, page):
+    """Every script, stylesheet and icon of the docs pages comes from the service itself: a
+    site without internet access (FastAPI's defaults load them from a CDN) sees the docs."""
+    html = client.get(page).text
+    links = re.findall(r'(?:src|href)="([^"]+)"', html)
+    assert links, html
+    for link in links:
+        assert link.startswith("/"), f"{page} loads {link} from outside the service"
+        response = client.get(link)
+        assert response.status_code == 200, link
+        assert len(response.content) > 1000, link
+    # the schema is OpenAPI 3.1, which Swagger UI renders from version 5 on
+    assert client.get("/openapi.json").json()["openapi"].startswith("3.1")
+    if page == "/docs":
+        assert "3.1.0" in client.get("/docs-assets/swagger-ui-bundle.js").text
 
 
 def test_docs_and_openapi_are_served(client):

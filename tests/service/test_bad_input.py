@@ -222,6 +222,7 @@ def test_unknown_result_format(client):
         ("DELETE", "/v1/jobs/some-id"),
         ("GET", "/metrics"),
         ("GET", "/docs"),
+        ("GET", "/redoc"),
         ("GET", "/openapi.json"),
         ("GET", "/v1/streams"),
         ("POST", "/v1/streams"),
@@ -249,6 +250,8 @@ def test_health_needs_no_token(server):
         # uptime monitors probe with HEAD
         assert anonymous.head("/healthz").status_code == 200
         assert anonymous.head("/readyz").status_code == 200
+        # the docs pages' generic scripts are open; the schema they render is not
+        assert anonymous.get("/docs-assets/swagger-ui-bundle.js").status_code == 200
 
 
 def test_job_over_the_time_limit_fails_and_the_service_goes_on(client, pets_short):
