@@ -18,7 +18,12 @@ import zenoh
 
 from api_schemas.streams import CAMERA_PATTERN, PREFIX_PATTERN, StreamTracksMessage
 from service.streams.keys import StreamKeys
-from service.streams.session import ZenohOptions, ZenohUnavailable, zenoh_endpoint
+from service.streams.session import (
+    ZenohOptions,
+    ZenohUnavailable,
+    wait_for_neighbour,
+    zenoh_endpoint,
+)
 from tracking.output_paths import output_file
 
 
@@ -50,14 +55,29 @@ def _session(args: argparse.Namespace, command: str) -> tuple[zenoh.Session, Str
 
     settings = _settings(command)
     keys = StreamKeys(args.prefix or settings.zenoh_prefix, args.camera)
+    options = _zenoh_options(args, settings)
     try:
-        return member_session(_zenoh_options(args, settings)), keys
+        session = member_session(options)
     except ZenohUnavailable as error:
         print(f"vtrack {command}: {error}", file=sys.stderr)
         return None
+    if not wait_for_neighbour(session, REACH_SECONDS):
+        endpoints = ", ".join(options.member_endpoints())
+        _tell(
+            command,
+            (f"nothing answers at {endpoints}" if endpoints else "no Zenoh peer or router found")
+            + " (is vtrack serve running there? --connect names another endpoint; "
+            "VTRACK_ZENOH_LISTEN and VTRACK_ZENOH_CONNECT set the defaults); trying again in "
+            "the background",
+        )
+    return session, keys
 
 
 _STDERR = threading.Lock()
+
+REACH_SECONDS = 1.0
+"""How long a tool waits for its session to reach the service before it says nothing answers
+(on loopback and LANs a reachable hub answers while the session opens)."""
 
 
 def _tell(command: str, news: str) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -59,13 +60,16 @@ class ZenohOptions:
         """A stream worker's or a CLI tool's session: connects to the hub and the router."""
         with _reported():
             config = self._base()
-            endpoints = [*self.connect]
             if self.mode == "peer":
-                endpoints = [*(_reachable(e) for e in self.listen), *endpoints]
                 config.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
-            if endpoints:
+            if endpoints := self.member_endpoints():
                 config.insert_json5("connect/endpoints", json.dumps(endpoints))
         return config
+
+    def member_endpoints(self) -> list[str]:
+        """The endpoints a member session connects to: the hub (in peer mode), then ``connect``."""
+        hub = [_reachable(e) for e in self.listen] if self.mode == "peer" else []
+        return [*hub, *self.connect]
 
     def _base(self) -> zenoh.Config:
         config = load_config_file(self.config_file) if self.config_file else zenoh.Config()
@@ -107,6 +111,24 @@ def open_session(config: zenoh.Config) -> zenoh.Session:
     """Open a session; Zenoh's error (a busy port, no router) comes back as ``ZenohUnavailable``."""
     with _reported():
         return zenoh.open(config)
+
+
+def wait_for_neighbour(session: zenoh.Session, timeout: float) -> bool:
+    """Whether ``session`` is connected to a peer or a router within ``timeout`` seconds.
+
+    A peer session opens even when nothing answers at its endpoints (Zenoh keeps trying them
+    in the background), so without this a camera publishing to a mistyped endpoint would look
+    like one that nobody subscribes to.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        if any(True for _ in session.info.peers_zid()) or any(
+            True for _ in session.info.routers_zid()
+        ):
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.05)
 
 
 @contextmanager

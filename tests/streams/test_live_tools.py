@@ -19,6 +19,7 @@ import zenoh
 from api_schemas.streams import StreamTracksMessage
 from service.streams.keys import StreamKeys
 from service.streams.tools import publish_frames
+from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, wait_for
 from tests.streams.live import VTRACK, StderrLines, start_stream, status
@@ -76,6 +77,7 @@ def test_subscribe_current_on_a_stream_without_tracks_says_what_the_tracker_answ
         assert asked.returncode == 1
         assert "vtrack subscribe: camera quiet has no tracks yet\n" in asked.stderr
         assert "no tracker answered" not in asked.stderr
+        assert "nothing answers" not in asked.stderr
         assert asked.stdout == ""
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
 
@@ -188,6 +190,7 @@ def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shar
         wait_for(lambda: stderr.has("frames sent"), 5, "the count")
         said = "".join(stderr.lines)
         sent = int(re.search(r"(\d+) frames sent", said).group(1))
+        assert "nothing answers" not in said
         assert sent >= 10, said
         # Every frame it counted reached the service, and no other.
         wait_for(
@@ -196,3 +199,25 @@ def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shar
             f"the service to count {sent} frames",
         )
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+@pytest.mark.parametrize("command", ["publish", "subscribe"])
+def test_a_tool_pointed_where_nothing_answers_says_so(shared_data, command):
+    # A mistyped endpoint: Zenoh opens the session anyway and keeps trying in the background,
+    # so without a word the camera looked like one nobody subscribed to.
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    arguments = {
+        "publish": ["publish", str(shared_data / PETS_VIDEO), "--limit", "2", "--wait", "0"],
+        "subscribe": ["subscribe", "--current"],
+    }[command]
+    ran = subprocess.run(
+        [*VTRACK, *arguments, "--camera", "door", "--connect", endpoint],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert f"vtrack {command}: nothing answers at {endpoint} (is vtrack serve running" in (
+        ran.stderr
+    ), ran.stderr
+    assert "Traceback" not in ran.stderr
