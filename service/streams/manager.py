@@ -113,6 +113,11 @@ class StreamManager:
             self._hub = open_session(self._zenoh.hub_config())
         except ZenohUnavailable as error:
             self.unavailable = f"Zenoh is unavailable: {error}"
+            if "in use" in str(error):  # another service or Zenoh program has the port
+                self.unavailable += (
+                    " (another program listens there: give this service another endpoint "
+                    "with VTRACK_ZENOH_LISTEN)"
+                )
             log.error("%s; live streams are off", self.unavailable)
             return
         for spec in configured:

@@ -614,7 +614,9 @@ def test_zenoh_port_taken_streams_unavailable_jobs_go_on(tmp_path, server):
         with clash.client() as client:
             response = client.post("/v1/streams", json={"camera": "gate"})
             assert response.status_code == 503
-            assert "Zenoh is unavailable" in response.json()["detail"]
+            detail = response.json()["detail"]
+            assert "Zenoh is unavailable" in detail
+            assert "another endpoint with VTRACK_ZENOH_LISTEN" in detail
             assert client.get("/readyz").status_code == 200
             assert client.get("/v1/streams").json() == {"streams": []}
     finally:
