@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -25,3 +26,9 @@ class ErrorResponse(BaseModel):
     errors: list[dict[str, Any]] | None = Field(
         default=None, description="For validation errors: each failed check (location, message)."
     )
+
+
+def error_message(item: Mapping[str, Any]) -> str:
+    """The message of one pydantic error (an item of ``ValidationError.errors()``) as users read
+    it: without the "Value error, " that pydantic puts before our validators' own sentences."""
+    return str(item["msg"]).removeprefix("Value error, ")

@@ -239,6 +239,7 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
 def _analyze(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
+    from api_schemas.common import error_message
     from api_schemas.jobs import JobOptions
     from service.analysis import PipelineResources, analyze, publish
 
@@ -251,7 +252,7 @@ def _analyze(args: argparse.Namespace) -> int:
         where = [flag for key, flag in given.items() if loc[: len(key)] == key]
         if not where and loc:
             where = [f"--options: {'.'.join(loc)}"]
-        message = first["msg"].removeprefix("Value error, ")
+        message = error_message(first)
         print(f"vtrack: {': '.join([*where, message])}", file=sys.stderr)
         return 2
     try:

@@ -11,6 +11,7 @@ from typing import Any, Literal
 from pydantic import Field, SecretStr, ValidationError, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict, SettingsError
 
+from api_schemas.common import error_message
 from api_schemas.streams import PREFIX_PATTERN, StreamSpec
 from service.streams.session import (
     DEFAULT_LISTEN,
@@ -238,4 +239,4 @@ def _problem(item: Any, options: Collection[str]) -> str:
     name = f"--{field.replace('_', '-')}" if field in options else f"VTRACK_{field.upper()}"
     # the place inside a list or object setting: VTRACK_STREAMS[0].camera
     name += "".join(f"[{part}]" if isinstance(part, int) else f".{part}" for part in loc[1:])
-    return f"{name}: {item['msg'].removeprefix('Value error, ')}"
+    return f"{name}: {error_message(item)}"

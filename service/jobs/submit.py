@@ -11,6 +11,7 @@ from fastapi import HTTPException, Request, status
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
+from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
 from service.analysis import OptionsError, PipelineResources, check_options
 from service.frames import FrameSource, FrameSourceError, open_frames
@@ -34,7 +35,7 @@ def describe_validation(error: ValidationError) -> str:
     problems = []
     for item in error.errors():
         where = ".".join(str(part) for part in item["loc"])
-        message = item["msg"].removeprefix("Value error, ")
+        message = error_message(item)
         if item["type"] == "extra_forbidden":
             problems.append(f"unknown option '{where}'")
         else:
