@@ -31,6 +31,7 @@ from tracking.detection.factory import make_detector
 from tracking.detection.hog_people import HogPeopleConfig
 from tracking.gap_filling import GapFiller
 from tracking.people import PeopleTrackerConfig
+from tracking.people.config import default_part_appearance
 from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
 from tracking.types import Box, validate_box
 
@@ -79,6 +80,10 @@ def people_config(options: JobOptions, resources: PipelineResources) -> PeopleTr
         )
         base = dataclasses.replace(base, appearance=appearance)
     overrides = options.tracker.model_dump(exclude_none=True)
+    if "part_appearance" in overrides:  # the option switches the tracker's part trackers
+        overrides["part_appearance"] = (
+            default_part_appearance() if overrides["part_appearance"] else None
+        )
     try:
         return dataclasses.replace(base, **overrides)
     except ValueError as error:

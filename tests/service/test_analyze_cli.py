@@ -116,6 +116,32 @@ def test_analyze_takes_the_service_job_options_with_its_flags_over_them(pets_sho
     assert document["mode"] == "people"
 
 
+@pytest.mark.slow
+def test_analyze_follows_parts_with_part_trackers_on_request(pets_short, tmp_path):
+    def tracks(tracker_options: dict | None) -> list:
+        out = tmp_path / f"out-{json.dumps(tracker_options)}"
+        arguments = ["--format", "json", "--quiet"]
+        if tracker_options is not None:
+            arguments += ["--options", json.dumps({"tracker": tracker_options})]
+        result = vtrack("analyze", pets_short, "--out-dir", out, *arguments)
+        assert result.returncode == 0, result.stderr  # was: a traceback for true
+        return json.loads((out / "trajectories.json").read_text())["tracks"]
+
+    def measured(found: list) -> int:
+        return sum(
+            part["measured"]
+            for track in found
+            for point in track["frames"]
+            for part in point["parts"]
+        )
+
+    default = tracks(None)
+    assert measured(default) == 0  # the default detector gives no parts
+    assert tracks({"part_appearance": False}) == default  # was: part trackers half switched on
+    followed = tracks({"part_appearance": True})
+    assert measured(followed) > 0  # the part trackers' peaks are measurements
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
