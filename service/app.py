@@ -20,7 +20,7 @@ from service.deps import TOKEN_MISSING, token_accepted
 from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
-from service.jobs.submit import resources
+from service.jobs.submit import InvalidOptions, resources
 from service.jobs.workers import WorkerPool
 from service.metrics import make_registry
 from service.routers import health, jobs, metrics, streams
@@ -112,6 +112,12 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     )
 
 
+async def _invalid_options(request: Request, error: Exception) -> JSONResponse:
+    """422 for job options: the sentence and each failed check (:class:`InvalidOptions`)."""
+    assert isinstance(error, InvalidOptions)
+    return JSONResponse({"detail": error.detail, "errors": error.errors}, status_code=422)
+
+
 DOCS_ASSETS = "/docs-assets"
 """Where the API docs' JavaScript, CSS and icon are served: generic files, open without the
 token (the schema they render, ``/openapi.json``, is not)."""
@@ -147,6 +153,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(InvalidOptions, _invalid_options)
     app.middleware("http")(_documentation_needs_the_token)
     app.include_router(health.router)
     app.include_router(jobs.router)

@@ -43,17 +43,29 @@ def describe_validation(error: ValidationError) -> str:
     return "; ".join(problems)
 
 
+class InvalidOptions(HTTPException):
+    """422 for job options that fail their schema: the sentence, and each failed check for
+    programs (``errors`` of ErrorResponse, located under ``options``)."""
+
+    def __init__(self, error: ValidationError) -> None:
+        super().__init__(
+            422,
+            f"invalid job options: {describe_validation(error)}. The options part is JSON "
+            "with the fields of JobOptions (see /docs)",
+        )
+        self.errors = [
+            {"loc": ["options", *item["loc"]], "msg": error_message(item), "type": item["type"]}
+            for item in error.errors()
+        ]
+
+
 def parse_options(raw: bytes | None) -> JobOptions:
     if raw is None or not raw.strip():
         return JobOptions()
     try:
         return JobOptions.model_validate_json(raw)
     except ValidationError as error:
-        raise HTTPException(
-            422,
-            f"invalid job options: {describe_validation(error)}. The options part is JSON "
-            "with the fields of JobOptions (see /docs)",
-        ) from None
+        raise InvalidOptions(error) from None
 
 
 def probe_video(path: Path, size: int) -> FrameSource:

@@ -11,6 +11,7 @@ import socket
 
 import pytest
 
+from api_schemas.common import ErrorResponse
 from tests.service.conftest import PETS_VIDEO, Server, submit, wait_for, wait_for_state
 
 pytestmark = pytest.mark.slow
@@ -114,6 +115,19 @@ def test_a_rule_across_options_is_stated_plainly(client, pets_short):
     response = submit(client, pets_short, {"mode": "single_target"})
     detail = response.json()["detail"]
     assert detail.startswith("invalid job options: mode 'single_target' needs first_box"), detail
+
+
+def test_bad_options_list_each_failed_check_for_programs(client, pets_short):
+    response = submit(client, pets_short, {"frame_step": 0, "tracker": {"particles": 1}})
+    assert response.status_code == 422
+    body = response.json()
+    ErrorResponse.model_validate(body)
+    # was: the sentence only, though ErrorResponse promises the checks
+    assert sorted((e["loc"], e["type"]) for e in body["errors"]) == [
+        (["options", "frame_step"], "greater_than_equal"),
+        (["options", "tracker", "particles"], "greater_than_equal"),
+    ]
+    assert all(e["msg"].startswith("Input should be") for e in body["errors"])
 
 
 def test_options_that_are_not_json(client, pets_short):
