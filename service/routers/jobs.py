@@ -10,18 +10,28 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.responses import FileResponse, StreamingResponse
 
-from api_schemas.common import ErrorResponse
 from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFormat
+from api_schemas.tracks import Trajectories
 from service.deps import AuthDep, SettingsDep, StoreDep
 from service.jobs.housekeeping import remove_job
 from service.jobs.store import JobRecord, JobStore
 from service.jobs.submit import submit
 from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
 from service.outputs.base import MEDIA_TYPES
+from service.routers import BINARY_CONTENT, error_responses
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
 
-_ERRORS = {code: {"model": ErrorResponse} for code in (401, 404, 409, 413, 415, 422, 507)}
+_RESULT_CONTENT = {
+    "description": "The result file: `json` a Trajectories document, `mot` MOTChallenge text, "
+    "`mcap` an MCAP file (Foxglove), `mp4` the annotated video.",
+    "model": Trajectories,  # the JSON result's schema, in the components for client generators
+    "content": {
+        MEDIA_TYPES[OutputFormat.mcap]: BINARY_CONTENT,
+        MEDIA_TYPES[OutputFormat.mot]: {"schema": {"type": "string"}},
+        MEDIA_TYPES[OutputFormat.mp4]: BINARY_CONTENT,
+    },
+}
 
 _UPLOAD_BODY = {
     "requestBody": {
@@ -70,7 +80,7 @@ def _job(store: JobStore, job_id: str) -> JobRecord:
     description="multipart/form-data: the video as the `video` file part, and optionally the "
     "job options (JobOptions, JSON) as the `options` part. The upload streams to disk; the "
     "answer says where to poll.",
-    responses=_ERRORS,
+    responses=error_responses(413, 415, 422, 507),
     openapi_extra=_UPLOAD_BODY,
 )
 async def create_job(
@@ -86,7 +96,7 @@ async def create_job(
     )
 
 
-@router.get("", summary="Jobs, newest first, a page at a time", responses=_ERRORS)
+@router.get("", summary="Jobs, newest first, a page at a time", responses=error_responses(404, 422))
 def list_jobs(
     store: StoreDep,
     state: Annotated[JobState | None, Query(description="Only jobs in this state.")] = None,
@@ -111,7 +121,7 @@ def list_jobs(
     return JobList(jobs=[job_status(r) for r in page], next=following)
 
 
-@router.get("/{job_id}", summary="A job's state and progress", responses=_ERRORS)
+@router.get("/{job_id}", summary="A job's state and progress", responses=error_responses(404))
 def get_job(job_id: str, store: StoreDep) -> JobStatus:
     return job_status(_job(store, job_id))
 
@@ -121,7 +131,7 @@ def get_job(job_id: str, store: StoreDep) -> JobStatus:
     "/{job_id}/result",
     summary="Download a result: json, mcap, mot or mp4 (the annotated video)",
     response_class=FileResponse,
-    responses=_ERRORS,
+    responses={**error_responses(404, 409, 422), 200: _RESULT_CONTENT},
 )
 def get_result(
     job_id: str,
@@ -173,7 +183,7 @@ def get_result(
     description="`event: progress` with a ProgressEvent (JSON) whenever the job changes, then "
     "`event: end` with the final one, after which the stream closes.",
     response_class=StreamingResponse,
-    responses={**_ERRORS, 200: {"content": {"text/event-stream": {}}}},
+    responses={**error_responses(404), 200: {"content": {"text/event-stream": {}}}},
 )
 async def job_events(job_id: str, request: Request, store: StoreDep) -> StreamingResponse:
     _job(store, job_id)
@@ -207,7 +217,7 @@ async def job_events(job_id: str, request: Request, store: StoreDep) -> Streamin
     summary="Cancel a queued or running job, or delete a finished one with its files",
     status_code=status.HTTP_200_OK,
     responses={
-        **_ERRORS,
+        **error_responses(404),
         202: {"model": JobStatus, "description": "Running: asked to stop (state follows)."},
         204: {"description": "Finished: deleted with its upload and results."},
     },

@@ -8,18 +8,16 @@ from typing import TypeVar
 from fastapi import APIRouter, HTTPException, Response, status
 from fastapi.responses import FileResponse
 
-from api_schemas.common import ErrorResponse
 from api_schemas.streams import StreamDetail, StreamList, StreamSpec, StreamStatus
 from service.analysis import OptionsError
 from service.deps import AuthDep, StreamsDep
+from service.routers import BINARY_CONTENT, error_responses
 from service.streams.manager import StreamConflict, StreamNotFound
 from service.streams.session import ZenohUnavailable
 
 router = APIRouter(prefix="/v1/streams", tags=["streams"], dependencies=[AuthDep])
 
 T = TypeVar("T")
-
-_ERRORS = {code: {"model": ErrorResponse} for code in (401, 404, 409, 422, 503)}
 
 
 def _not_found(stream_id: str) -> HTTPException:
@@ -42,7 +40,7 @@ def _call(stream_id: str, method: Callable[[str], T]) -> T:
     "",
     status_code=status.HTTP_201_CREATED,
     response_model=StreamStatus,
-    responses=_ERRORS,
+    responses=error_responses(409, 422, 503),
     summary="Start tracking a camera",
 )
 def create_stream(spec: StreamSpec, streams: StreamsDep, response: Response) -> StreamStatus:
@@ -61,7 +59,7 @@ def create_stream(spec: StreamSpec, streams: StreamsDep, response: Response) -> 
     return created
 
 
-@router.get("", response_model=StreamList, summary="List the streams")
+@router.get("", response_model=StreamList, responses=error_responses(), summary="List the streams")
 def list_streams(streams: StreamsDep) -> StreamList:
     return StreamList(streams=streams.list())
 
@@ -69,7 +67,7 @@ def list_streams(streams: StreamsDep) -> StreamList:
 @router.get(
     "/{stream_id}",
     response_model=StreamDetail,
-    responses=_ERRORS,
+    responses=error_responses(404),
     summary="A stream's status and current tracks",
 )
 def get_stream(stream_id: str, streams: StreamsDep) -> StreamDetail:
@@ -79,7 +77,7 @@ def get_stream(stream_id: str, streams: StreamsDep) -> StreamDetail:
 @router.delete(
     "/{stream_id}",
     response_model=StreamStatus,
-    responses={**_ERRORS, 204: {"description": "A stopped stream was deleted."}},
+    responses={**error_responses(404, 409), 204: {"description": "A stopped stream was deleted."}},
     summary="Stop a stream (then, a second time, delete it)",
 )
 def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Response:
@@ -100,7 +98,11 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
 @router.head("/{stream_id}/recordings/{name}", include_in_schema=False)  # as a job's result
 @router.get(
     "/{stream_id}/recordings/{name}",
-    responses={**_ERRORS, 200: {"content": {"application/octet-stream": {}}}},
+    response_class=FileResponse,
+    responses={
+        **error_responses(404),
+        200: {"content": {"application/octet-stream": BINARY_CONTENT}},
+    },
     summary="Download a finished MCAP recording",
 )
 def get_recording(stream_id: str, name: str, streams: StreamsDep) -> FileResponse:

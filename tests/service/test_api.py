@@ -368,6 +368,21 @@ def test_docs_pages_need_no_internet(client, page):
         assert "3.1.0" in client.get("/docs-assets/swagger-ui-bundle.js").text
 
 
+def test_openapi_describes_results_and_only_the_errors_a_route_gives(client):
+    spec = client.get("/openapi.json").json()
+    result = spec["paths"]["/v1/jobs/{job_id}/result"]["get"]["responses"]
+    # a client generator gets a type for the JSON result (was: a 200 without content)
+    assert result["200"]["content"]["application/json"]["schema"] == {
+        "$ref": "#/components/schemas/Trajectories"
+    }
+    assert {"video/mp4", "application/octet-stream"} <= set(result["200"]["content"])
+    assert "Trajectories" in spec["components"]["schemas"]
+    # upload errors belong to the upload (were listed on every route)
+    assert {"413", "415", "507"} <= set(spec["paths"]["/v1/jobs"]["post"]["responses"])
+    assert not {"413", "415", "507"} & set(result)
+    assert "401" in spec["paths"]["/metrics"]["get"]["responses"]
+
+
 def test_docs_and_openapi_are_served(client):
     assert client.get("/docs").status_code == 200
     spec = client.get("/openapi.json").json()
