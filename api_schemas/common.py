@@ -9,7 +9,11 @@ from pydantic import BaseModel, ConfigDict, Field
 
 
 class BoxModel(BaseModel):
-    """An axis-aligned box in pixels: top-left corner ``(x, y)`` (0-based) and size ``(w, h)``."""
+    """An axis-aligned box in pixels: top-left corner ``(x, y)`` (0-based) and size ``(w, h)``.
+
+    A box may reach past the frame's edges, for a person partly out of view (as MOTChallenge
+    ground truth does): clip it to the frame before cropping the image.
+    """
 
     model_config = ConfigDict(extra="forbid", title="Box")
 

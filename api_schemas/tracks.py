@@ -19,26 +19,48 @@ INTERPOLATED = (
 )
 
 
+SCORE = (
+    "Confidence in the box. People: the probability that the box holds a person, a running "
+    "average of the calibrated detector scores of the detections the track matched. A single "
+    "target: the "
+    "peak of the correlation filter's response (how well the patch matches the learned "
+    "appearance; it falls when the target is covered or lost, though not reliably once the "
+    "filter has drifted onto another object)."
+)
+OCCLUDED = (
+    "True while the tracker judges the object covered by a nearer one. The occluder can be a "
+    "track that is not reported in that frame (not yet confirmed, or without a detection), so "
+    "it need not appear among the frame's tracks. Always false for a single target."
+)
+
+
 class PartState(BaseModel):
     """One body part of a tracked person in one frame."""
 
     model_config = ConfigDict(extra="forbid")
 
-    name: str = Field(description="Stable part name, e.g. 'head', 'left_shoulder'.")
+    name: str = Field(
+        description="Stable part name, e.g. 'head', 'left_shoulder'. Left and right are the "
+        "image's: a left_ part lies on the left of the image (the person's own right when they "
+        "face the camera), since a part model cannot tell which way a person faces."
+    )
     x: float = Field(description="Centre of the part, pixels.")
     y: float = Field(description="Centre of the part, pixels.")
     box: BoxModel | None = Field(
         default=None, description="The part's box, when the model has one."
     )
     visible: bool = Field(
-        description="False when the part is covered or out of the frame: the position is then "
-        "the model's prediction, not a measurement."
+        description="False when the part is judged covered (its person is occluded) or lies "
+        "out of the frame: its position is less reliable. Whether the position was measured "
+        "or predicted is 'measured'; a part can be measured and not visible (the 'dpm' "
+        "detector placed it on a person judged occluded)."
     )
     measured: bool = Field(
         default=False,
         description="True when this frame's image placed the part (the 'dpm' detector's part "
         "placement, or the part's own tracker); false when the position is the body model's "
-        "prediction from the box: always with the default detector, which finds no parts.",
+        "prediction from the box: always with the default detector, which finds no parts, "
+        "unless the tracker option part_appearance follows them.",
     )
 
 
@@ -49,8 +71,8 @@ class TrackState(BaseModel):
 
     track_id: int = Field(ge=0, description="Stable id of the object within one video or stream.")
     box: BoxModel
-    score: float = Field(ge=0, le=1, description="Confidence that the box holds the object.")
-    occluded: bool = Field(description="True while another, nearer object covers it.")
+    score: float = Field(ge=0, le=1, description=SCORE)
+    occluded: bool = Field(description=OCCLUDED)
     parts: list[PartState] = Field(default_factory=list)
     interpolated: bool = Field(default=False, description=INTERPOLATED)
 
@@ -73,8 +95,8 @@ class TrajectoryPoint(BaseModel):
     frame_index: int = Field(ge=0, description="0-based index of the frame in the video.")
     timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")
     box: BoxModel
-    score: float = Field(ge=0, le=1)
-    occluded: bool
+    score: float = Field(ge=0, le=1, description=SCORE)
+    occluded: bool = Field(description=OCCLUDED)
     parts: list[PartState] = Field(default_factory=list)
     interpolated: bool = Field(default=False, description=INTERPOLATED)
 
