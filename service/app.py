@@ -22,6 +22,7 @@ from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
 from service.jobs.submit import InvalidOptions, resources
 from service.jobs.workers import WorkerPool
+from service.logs import LOG_FORMAT
 from service.metrics import make_registry
 from service.routers import health, jobs, metrics, streams
 from service.settings import Settings
@@ -43,9 +44,8 @@ Or track cameras live: frames published on Zenoh in, tracks published back as th
 @asynccontextmanager
 async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: Settings = app.state.settings or Settings()
-    logging.basicConfig(
-        level=settings.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
-    )
+    # `vtrack serve` configured logging already; this serves `uvicorn service.app:app`
+    logging.basicConfig(level=settings.log_level.upper(), format=LOG_FORMAT)
     output_folder(settings.uploads_dir)  # an OSError that names the folder and the reason
     output_folder(settings.results_dir)
     store = JobStore(settings.database_path)
@@ -83,7 +83,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.pool = pool
     app.state.streams = streams
     app.state.registry = make_registry(store, pool, streams)
-    log.info("data in %s; %d workers", settings.data_dir.resolve(), settings.workers)
+    log.info("data in %s; worker processes: %d", settings.data_dir.resolve(), settings.workers)
     housekeeper = Housekeeper(settings, store)
     housekeeper.start()
     try:

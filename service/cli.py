@@ -326,11 +326,10 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    import logging
-
     import uvicorn
 
     from service.app import create_app
+    from service.logs import uvicorn_log_config
     from service.settings import InvalidSettings, load_settings
 
     overrides = {
@@ -376,11 +375,11 @@ def _serve(args: argparse.Namespace) -> int:
         file=sys.stderr,
         flush=True,
     )
-    logging.basicConfig(level=settings.log_level.upper())
     config = uvicorn.Config(
         create_app(settings),
         host=settings.host,
         port=settings.port,
+        log_config=uvicorn_log_config(settings.log_level),
         log_level=settings.log_level.lower(),
         timeout_graceful_shutdown=10,
     )

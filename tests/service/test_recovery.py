@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 
 import pytest
@@ -140,3 +141,20 @@ def test_the_service_stops_after_an_idle_worker_was_killed(make_server):
     server.process.wait(timeout=30)  # it hung for ever in the stop signal to the workers
     assert "worker processes stopped" in server.log()
     assert "Application shutdown complete" in server.log()
+
+
+def test_every_log_line_of_the_service_carries_its_time(make_server, pets_short):
+    # Operators place crashes, timeouts and cancellations in time from the log alone; the API
+    # process's and uvicorn's lines had none (only the workers' had).
+    server = make_server(workers=1)
+    with server.client() as client:
+        job = submit(client, pets_short, {"formats": ["json"]}).json()["id"]
+        wait_for_state(client, job, ("succeeded",), timeout=60)
+        assert client.get("/v1/jobs/no-such-job").status_code == 404
+    server.stop()
+    stamped = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3} [A-Z]+ ")
+    lines = [line for line in server.log().splitlines() if not line.startswith("vtrack: ")]
+    assert any("GET /v1/jobs/no-such-job" in line for line in lines)  # the access log
+    assert any("uvicorn.error: Application startup complete" in line for line in lines)
+    unstamped = [line for line in lines if not stamped.match(line)]
+    assert not unstamped, unstamped
