@@ -7,6 +7,8 @@ import argparse
 import contextlib
 import copy
 import dataclasses
+import errno
+import importlib.metadata
 import json
 import os
 import shutil
@@ -360,12 +362,21 @@ def _serve(args: argparse.Namespace) -> int:
     try:
         listener = socket.create_server((settings.host, settings.port), family=family)
     except OSError as error:
-        print(
-            f"vtrack: --port, VTRACK_PORT: cannot listen on {settings.host}:{settings.port} "
-            f"({error.strerror or error}); another program (another vtrack serve?) may use it: "
-            "stop it or choose another port",
-            file=sys.stderr,
-        )
+        # create_server words every failure alike; errno tells the port's from the address's
+        # (a name that does not resolve has a negative errno, that of getaddrinfo)
+        reason = (error.strerror or str(error)).partition(" (while attempting")[0]
+        if error.errno in (errno.EADDRINUSE, errno.EACCES):
+            problem = (
+                f"--port, VTRACK_PORT: cannot listen on {settings.host}:{settings.port} "
+                f"({reason}); another program (another vtrack serve?) may use it, or the port "
+                "needs privileges (under 1024): stop it or choose another port"
+            )
+        else:  # not an address of this machine, or a name that does not resolve
+            problem = (
+                f"--host, VTRACK_HOST: cannot listen on {settings.host!r} ({reason}): give an "
+                "address of this machine, e.g. 127.0.0.1, or 0.0.0.0 for all"
+            )
+        print(f"vtrack: {problem}", file=sys.stderr)
         return 2
     url = f"http://{settings.host}:{settings.port}"
     workers = f"{settings.workers} worker{'s' if settings.workers != 1 else ''}"
@@ -387,11 +398,19 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _version() -> str:
+    try:
+        return importlib.metadata.version("visual-tracking")
+    except importlib.metadata.PackageNotFoundError:  # run from a checkout without installing
+        return "(not installed)"
+
+
 W2C_HELP = "van de Weijer w2c.mat Color Names table (VTRACK_COLOR_NAMES; default: embedded)"
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", required=True)
     track = commands.add_parser(
         "track",
@@ -489,7 +508,11 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument(
         "--workers", type=int, help="worker processes (VTRACK_WORKERS, default: cores)"
     )
-    serve.add_argument("--data-dir", type=Path, help="job store and files (VTRACK_DATA_DIR)")
+    serve.add_argument(
+        "--data-dir",
+        type=Path,
+        help="job store and files (VTRACK_DATA_DIR, default: vtrack-data in the current folder)",
+    )
     serve.add_argument("--log-level", help="debug, info, warning... (VTRACK_LOG_LEVEL)")
     serve.set_defaults(handler=_serve)
     add_stream_commands(commands)  # publish, subscribe

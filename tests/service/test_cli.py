@@ -288,6 +288,29 @@ def test_serve_on_a_port_in_use_stops_at_once(tmp_path):
     assert "serving on" not in result.stderr
 
 
+@pytest.mark.parametrize("host", ["10.255.255.254", "no-such-host.invalid"])
+def test_serve_on_a_host_address_it_cannot_have_names_the_host(tmp_path, host):
+    # before: "--port, VTRACK_PORT: ... choose another port" for an address problem
+    result = subprocess.run(
+        [sys.executable, "-m", "service.cli", "serve", "--port", "0", "--host", host],
+        capture_output=True,
+        text=True,
+        timeout=60,  # a service that started would run until killed here
+        env={**os.environ, "VTRACK_DATA_DIR": str(tmp_path / "data")},
+    )
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"vtrack: --host, VTRACK_HOST: cannot listen on '{host}'" in result.stderr
+    assert "VTRACK_PORT" not in result.stderr
+
+
+def test_version():
+    result = subprocess.run(
+        [sys.executable, "-m", "service.cli", "--version"], capture_output=True, text=True
+    )
+    assert result.returncode == 0
+    assert re.fullmatch(r"vtrack \d+\.\d+\.\d+\n", result.stdout), result.stdout
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
