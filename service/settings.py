@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import difflib
 import os
 import re
-from collections.abc import Collection
+import sys
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
@@ -174,6 +176,29 @@ class Settings(BaseSettings):
     def _endpoints(cls, value: list[str]) -> list[str]:
         return [zenoh_endpoint(endpoint) for endpoint in value]
 
+    @field_validator("zenoh_listen")
+    @classmethod
+    def _listens_somewhere(cls, value: list[str], info) -> list[str]:
+        # With no endpoint Zenoh picks its own: a random port on every interface, exposing an
+        # API without access control to the network, and one the cameras cannot know.
+        if not value and info.data.get("zenoh_enabled") and info.data.get("zenoh_mode") == "peer":
+            raise ValueError(
+                'give at least one endpoint, e.g. ["tcp/127.0.0.1:7447"] (the default); '
+                "VTRACK_ZENOH_ENABLED=false turns live streams off"
+            )
+        return value
+
+    @field_validator("api_token")
+    @classmethod
+    def _token_given(cls, value: SecretStr | None) -> SecretStr | None:
+        # An unset ${TOKEN} in a compose or unit file: no request could ever match it.
+        if value is not None and not value.get_secret_value().strip():
+            raise ValueError(
+                "is set but empty, so no request could match it: unset it to serve without a "
+                "token, or give the token clients send as 'Authorization: Bearer <token>'"
+            )
+        return value
+
     @property
     def zenoh(self) -> ZenohOptions:
         return ZenohOptions(
@@ -221,8 +246,10 @@ def load_settings(options: dict[str, Any] | None = None) -> Settings:
         (``VTRACK_PORT``).
     """
     options = options or {}
+    for line in unknown_variables(os.environ):
+        print(f"vtrack: {line}", file=sys.stderr)
     try:
-        return Settings(**options)
+        settings = Settings(**options)
     except ValidationError as error:
         raise InvalidSettings([_problem(item, options) for item in error.errors()]) from None
     except SettingsError as error:  # a list or object variable that is not JSON
@@ -231,6 +258,25 @@ def load_settings(options: dict[str, Any] | None = None) -> Settings:
         example = '["tcp/zenoh:7447"] or [{"camera": "gate"}]'
         problem = f"{name} is not valid JSON ({error.__cause__}); lists are JSON, e.g. {example}"
         raise InvalidSettings([problem]) from None
+    return settings
+
+
+KNOWN_EXTRA_VARIABLES = frozenset({"VTRACK_SHARED_DATA"})
+"""``VTRACK_*`` variables that are not settings but are known: the tests' data folder."""
+
+
+def unknown_variables(environ: Mapping[str, str]) -> list[str]:
+    """A line for each ``VTRACK_*`` variable in ``environ`` that is no setting (a misspelt one
+    would otherwise be ignored without a word), with the setting it may have meant."""
+    known = {f"VTRACK_{name.upper()}" for name in Settings.model_fields}
+    lines = []
+    for name in sorted(environ):
+        if name.startswith("VTRACK_") and name not in known | KNOWN_EXTRA_VARIABLES:
+            # compared without the prefix, which every name shares
+            close = difflib.get_close_matches(name[7:].lower(), Settings.model_fields, n=1)
+            hint = f" (did you mean VTRACK_{close[0].upper()}?)" if close else ""
+            lines.append(f"ignoring {name}: not a setting{hint}")
+    return lines
 
 
 def _problem(item: Any, options: Collection[str]) -> str:

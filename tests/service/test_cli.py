@@ -256,6 +256,16 @@ def test_serve_refuses_a_model_setting_that_is_not_a_model(tmp_path, variable, c
         ({"VTRACK_ZENOH_CONNECT": '["a:7447"]'}, [], "'a:7447' is not a Zenoh endpoint"),
         ({"VTRACK_ZENOH_CONFIG": "{tmp}/zenoh.yaml"}, [], "VTRACK_ZENOH_CONFIG: {tmp}/zenoh.yaml"),
         ({"VTRACK_STREAMS": '[{{"camera": "a/b"}}]'}, [], "VTRACK_STREAMS[0].camera: String"),
+        # an unset ${TOKEN} in a unit file: every request would be refused
+        ({"VTRACK_API_TOKEN": ""}, [], "VTRACK_API_TOKEN: is set but empty"),
+        # Zenoh would listen on a random port of every interface
+        ({"VTRACK_ZENOH_LISTEN": "[]"}, [], "VTRACK_ZENOH_LISTEN: give at least one endpoint"),
+        # a misspelt setting is named (and the service stops here for the bad port)
+        (
+            {"VTRACK_WORKER": "3", "VTRACK_PORT": "x"},
+            [],
+            "ignoring VTRACK_WORKER: not a setting (did you mean VTRACK_WORKERS?)",
+        ),
     ],
 )
 def test_serve_names_the_setting_that_is_wrong(tmp_path, env, args, message):
