@@ -16,6 +16,7 @@ from prometheus_client.core import (
 from prometheus_client.registry import Collector
 
 from api_schemas.jobs import JobState
+from api_schemas.streams import StreamState
 from service.jobs.store import DURATION_BUCKETS, JobStore
 from service.jobs.workers import WorkerPool
 from service.streams.manager import StreamManager
@@ -66,8 +67,10 @@ class ServiceCollector(Collector):
 
     def _stream_metrics(self):
         by_state = GaugeMetricFamily("vtrack_streams", "Live streams, by state.", labels=["state"])
-        for state, count in self._streams.counts().items():
-            by_state.add_metric([state], count)
+        counts = self._streams.counts()
+        # every state, 0 included: a series that vanishes breaks alerts and graphs on it
+        for state in StreamState:
+            by_state.add_metric([state.value], counts.get(state.value, 0))
         yield by_state
         frames = CounterMetricFamily(
             "vtrack_stream_frames",

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from api_schemas.streams import StreamState
 from service.outputs.h264 import nal_unit_types
 from tests.service.conftest import (
     FAST_OPTIONS,
@@ -381,6 +382,13 @@ def test_openapi_describes_results_and_only_the_errors_a_route_gives(client):
     assert {"413", "415", "507"} <= set(spec["paths"]["/v1/jobs"]["post"]["responses"])
     assert not {"413", "415", "507"} & set(result)
     assert "401" in spec["paths"]["/metrics"]["get"]["responses"]
+
+
+def test_metrics_list_every_stream_state_even_at_zero(client):
+    # was: only the states some stream was in, so a series vanished when its count fell to 0
+    metrics = client.get("/metrics").text
+    for state in StreamState:
+        assert re.search(rf'^vtrack_streams{{state="{state.value}"}} \d', metrics, re.M), state
 
 
 def test_docs_and_openapi_are_served(client):
