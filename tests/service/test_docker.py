@@ -72,13 +72,19 @@ def test_dockerfile_shape(dockerfile):
         assert (REPO_ROOT / source).exists(), f"COPY names {source}, which is not in the repo"
 
 
-def _replay(dockerfile, build: Path, env_dir: Path) -> None:
-    """Run the Dockerfile's COPY and pip/python RUN steps in ``build`` with ``env_dir``."""
+def _replay(dockerfile, build: Path, env_dir: Path) -> dict[str, str]:
+    """Run the Dockerfile's COPY and pip/python RUN steps in ``build`` with ``env_dir``, under
+    its ENV settings (``/app`` read as ``build``); returns those settings."""
     venv.EnvBuilder(with_pip=True, clear=True).create(env_dir)
     bindir = env_dir / "bin"
     replayed = 0
+    settings: dict[str, str] = {}
     for keyword, args in dockerfile:
-        if keyword == "COPY":
+        if keyword == "ENV":
+            for pair in shlex.split(args):
+                name, _, value = pair.partition("=")
+                settings[name] = value.replace("/app", str(build), 1)
+        elif keyword == "COPY":
             source, target = args.split()
             destination = (build / target).resolve()
             if (REPO_ROOT / source).is_dir():
@@ -91,10 +97,17 @@ def _replay(dockerfile, build: Path, env_dir: Path) -> None:
             if command[0] not in ("pip", "python"):
                 continue
             command[0] = str(bindir / command[0])
-            result = subprocess.run(command, cwd=build, capture_output=True, text=True)
+            result = subprocess.run(
+                command,
+                cwd=build,
+                capture_output=True,
+                text=True,
+                env={**os.environ, **settings},
+            )
             assert result.returncode == 0, f"RUN {args}\n{result.stdout}\n{result.stderr}"
             replayed += 1
     assert replayed >= 3
+    return settings
 
 
 _SHIPPED_CASCADES = (
@@ -109,12 +122,21 @@ _SHIPPED_CASCADES = (
 def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path):
     build, env_dir = tmp_path / "app", tmp_path / "env"
     build.mkdir()
-    _replay(dockerfile, build, env_dir)
+    image_env = _replay(dockerfile, build, env_dir)
     bindir = env_dir / "bin"
     elsewhere = tmp_path / "elsewhere"  # not the build folder: import the installed package
     elsewhere.mkdir()
     clean_env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
     clean_env.pop("PYTHONPATH", None)
+    clean_env.update(image_env)
+    # The kernels the build compiled are those the service runs: none compiles again (was:
+    # the warm-up compiled the sources in the build folder, the service the installed copy).
+    cache = Path(image_env["NUMBA_CACHE_DIR"])
+    compiled = sorted(cache.rglob("*.nbi"))
+    assert compiled
+    warm = [str(bindir / "python"), "-c", "from tracking.warmup import warm_up; warm_up()"]
+    subprocess.run(warm, cwd=elsewhere, env=clean_env, check=True, capture_output=True)
+    assert sorted(cache.rglob("*.nbi")) == compiled
     for command in (
         [str(bindir / "vtrack"), "--help"],
         [str(bindir / "python"), "-c", "import service.app, api_schemas, tracking.pipeline"],
