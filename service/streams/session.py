@@ -122,9 +122,7 @@ def wait_for_neighbour(session: zenoh.Session, timeout: float) -> bool:
     """
     deadline = time.monotonic() + timeout
     while True:
-        if any(True for _ in session.info.peers_zid()) or any(
-            True for _ in session.info.routers_zid()
-        ):
+        if list(session.info.peers_zid()) or list(session.info.routers_zid()):
             return True
         if time.monotonic() >= deadline:
             return False
