@@ -1,7 +1,8 @@
 """The ASGI application: ``create_app()`` builds it, the lifespan opens what it owns.
 
 ``uvicorn service.app:app`` serves it with every default (settings from ``VTRACK_*``
-environment variables). Nothing happens at import: the job store opens, interrupted jobs are
+environment variables). Nothing happens at import: the data folder is claimed (unless
+``vtrack serve`` claimed it before it took its port), the job store opens, interrupted jobs are
 requeued and the worker processes start in the lifespan, and stop with it.
 """
 
@@ -15,7 +16,9 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from service.data_folder import DataFolder, claim_data_folder
 from service.deps import TOKEN_MISSING, token_accepted
 from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.runner import WorkerConfig
@@ -28,7 +31,6 @@ from service.routers import health, jobs, metrics, streams
 from service.settings import Settings
 from service.streams.manager import StreamManager
 from service.streams.store import StreamStore
-from tracking.output_paths import output_folder
 
 log = logging.getLogger("service")
 
@@ -46,8 +48,9 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: Settings = app.state.settings or Settings()
     # `vtrack serve` configured logging already; this serves `uvicorn service.app:app`
     logging.basicConfig(level=settings.log_level.upper(), format=LOG_FORMAT)
-    output_folder(settings.uploads_dir)  # an OSError that names the folder and the reason
-    output_folder(settings.results_dir)
+    # `vtrack serve` claimed the folder already, to refuse a bad one in a line before it serves;
+    # under `uvicorn service.app:app` a DataFolderError stops the start-up here, with its reason
+    claimed_here = None if app.state.data_folder is not None else claim_data_folder(settings)
     store = JobStore(settings.database_path)
     requeued, failed = store.requeue_orphans(settings.max_attempts)
     if requeued or failed:
@@ -95,6 +98,8 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         store.close()
         for name in ("pool", "store", "registry", "streams"):
             delattr(app.state, name)
+        if claimed_here is not None:  # only once the workers are gone
+            claimed_here.release()
 
 
 async def _validation_error(request: Request, error: Exception) -> JSONResponse:
@@ -110,6 +115,42 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     return JSONResponse(
         {"detail": "invalid request: " + "; ".join(problems), "errors": listed}, status_code=422
     )
+
+
+class _InternalErrorsAsJson:
+    """ASGI middleware: an exception no route expected answers 500 with JSON ``{"detail": ...}``
+    like every other error, and is logged once, with its traceback and the request.
+
+    Not an exception handler for ``Exception``: Starlette's error middleware, which runs those,
+    raises the exception on after the handler's answer, and uvicorn then logs it a second time
+    and drops the connection at once, resetting it under a client still sending its upload.
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def watched(message: Message) -> None:
+            nonlocal started
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await self.app(scope, receive, watched)
+        except Exception as error:
+            if started:  # too late for an answer: the server logs it and drops the connection
+                raise
+            log.exception("internal error answering %s %s", scope["method"], scope["path"])
+            detail = (
+                f"internal error ({type(error).__name__}) while answering {scope['method']} "
+                f"{scope['path']}: the service's log has the details; tell its operator"
+            )
+            await JSONResponse({"detail": detail}, status_code=500)(scope, receive, send)
 
 
 async def _invalid_options(request: Request, error: Exception) -> JSONResponse:
@@ -139,8 +180,12 @@ async def _documentation_needs_the_token(request: Request, call_next):
     return await call_next(request)
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """The application; ``settings`` default to the environment, read when it starts."""
+def create_app(settings: Settings | None = None, data_folder: DataFolder | None = None) -> FastAPI:
+    """The application; ``settings`` default to the environment, read when it starts.
+
+    ``data_folder``: the settings' data folder, claimed already by the caller, who keeps it as
+    long as the app runs; without it, the lifespan claims the folder itself.
+    """
     # The docs pages load Swagger UI and ReDoc from the service (DOCS_ASSETS), not from a CDN:
     # cameras often sit on networks without internet access.
     app = FastAPIOffline(
@@ -152,9 +197,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     app.state.settings = settings
+    app.state.data_folder = data_folder
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
     app.middleware("http")(_documentation_needs_the_token)
+    app.add_middleware(_InternalErrorsAsJson)  # added last: outside the others, to catch theirs
     app.include_router(health.router)
     app.include_router(jobs.router)
     app.include_router(streams.router)

@@ -331,6 +331,7 @@ def _serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from service.app import create_app
+    from service.data_folder import DataFolderError, claim_data_folder
     from service.logs import uvicorn_log_config
     from service.settings import InvalidSettings, load_settings
 
@@ -352,8 +353,9 @@ def _serve(args: argparse.Namespace) -> int:
             print(f"vtrack: {problem}", file=sys.stderr)
         return 2
     try:
-        output_folder(settings.data_dir)
-    except OSError as error:
+        # writable (with its subfolders and job database) and ours alone, locked until we exit
+        data_folder = claim_data_folder(settings)
+    except DataFolderError as error:
         print(f"vtrack: the data folder (--data-dir, VTRACK_DATA_DIR): {error}", file=sys.stderr)
         return 2
     # The port is taken here, before the workers start and "serving" is said: a port in use
@@ -387,7 +389,7 @@ def _serve(args: argparse.Namespace) -> int:
         flush=True,
     )
     config = uvicorn.Config(
-        create_app(settings),
+        create_app(settings, data_folder),
         host=settings.host,
         port=settings.port,
         log_config=uvicorn_log_config(settings.log_level),

@@ -194,6 +194,16 @@ class JobStore:
 
     # -- the API's writes ----------------------------------------------------------------------
 
+    def count_start(self) -> None:
+        """Count one start of the service (counter ``service_starts``).
+
+        A real write, made before the service answers: SQLite opens a database this process
+        cannot write (another user's file or ``-wal`` file, a read-only mount) read-only and
+        without complaint, and only a write shows it.
+        """
+        with self._transaction():
+            self._add_counter("service_starts", 1)
+
     def create(
         self,
         job_id: str,
