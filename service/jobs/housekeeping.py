@@ -6,7 +6,10 @@
   results, as ``DELETE /v1/jobs/{id}`` deletes it.
 - When the service starts, uploads and result folders that no job owns (an upload cut by a
   crash, a deletion cut between the job and its files) are removed too. Only then: while the
-  service runs, an upload exists a moment before its job does.
+  service runs, an upload exists a moment before its job does. So are the partial results
+  that jobs' attempts left when a service stopped or died while they ran
+  (:func:`service.jobs.result_folders.tidy`; while the service runs, the runner and the
+  worker supervisor remove them as attempts end).
 
 The service sweeps when it starts and then every ``VTRACK_HOUSEKEEPING_INTERVAL`` seconds.
 """
@@ -19,6 +22,7 @@ import threading
 import time
 from dataclasses import dataclass
 
+from service.jobs.result_folders import tidy
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
 
@@ -44,7 +48,8 @@ def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
 
 def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swept:
     """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
-    and result folders that no job owns (only safe before uploads are accepted)."""
+    and result folders that no job owns (only safe before uploads are accepted) and the
+    partial results of attempts that are over."""
     jobs = 0
     if settings.retention_hours is not None:
         for record in store.finished_before(time.time() - settings.retention_hours * 3600):
@@ -59,8 +64,13 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
                 uploads += 1
     if orphans and settings.results_dir.is_dir():
         for folder in settings.results_dir.iterdir():
-            if folder.is_dir() and store.get(folder.name) is None:
+            if not folder.is_dir():
+                continue
+            record = store.get(folder.name)
+            if record is None:
                 shutil.rmtree(folder, ignore_errors=True)
+            elif record.result_dir.resolve() == folder.resolve():  # not a moved folder's job
+                tidy(record)
     if uploads or jobs:
         log.info("housekeeping: %d uploads and %d expired jobs removed", uploads, jobs)
     return Swept(uploads, jobs)

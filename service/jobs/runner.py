@@ -19,6 +19,7 @@ from pathlib import Path
 from api_schemas.jobs import JobOptions, JobState
 from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
 from service.frames import FrameSourceError
+from service.jobs.result_folders import attempt_folder, discard, remove_attempts
 from service.jobs.store import JobRecord, JobStore
 from service.storage import FREE_SPACE, storage_problem
 from service.worker_processes import ignore_stop_signals
@@ -76,7 +77,9 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
     """Run one claimed job to its end state."""
     pid = os.getpid()
     log.info("job %s: attempt %d starts", job.id, job.attempts)
-    scratch = job.result_dir / f".attempt-{job.attempts}"
+    # what the earlier attempts left (a restart, a stop of the service) is never read again
+    remove_attempts(job.result_dir, before=job.attempts)
+    scratch = attempt_folder(job.result_dir, job.attempts)
     reported = 0
 
     def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
@@ -106,7 +109,7 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         return
     except (FrameSourceError, OptionsError, ValueError) as error:
         shutil.rmtree(scratch, ignore_errors=True)
-        store.finish(job, pid, JobState.failed, error=f"the job could not run: {error}")
+        _failed(store, job, f"the job could not run: {error}")
         log.warning("job %s: failed: %s", job.id, error)
         return
     except Exception as error:
@@ -122,15 +125,14 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
                 f"{problem} while the results were written; the partial results were removed: "
                 f"{FREE_SPACE}, then submit the job again"
             )
-        store.finish(job, pid, JobState.failed, error=message)
+        _failed(store, job, message)
         return
     fps = result.frames_processed / max(result.seconds, 1e-9)
     if not progress(result.video.frames_read, result.frames_processed, fps):
         _stopped(store, job, scratch)
         return
     files = publish(result, job.result_dir)
-    for stale in job.result_dir.glob(".attempt-*"):
-        shutil.rmtree(stale, ignore_errors=True)
+    remove_attempts(job.result_dir)
     store.finish(
         job,
         pid,
@@ -144,11 +146,20 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
     )
 
 
+def _failed(store: JobStore, job: JobRecord, error: str) -> None:
+    """Record the attempt's failure; the job's result folder goes with it (nothing there was
+    published), but only when the job was still this attempt's to fail."""
+    if store.finish(job, os.getpid(), JobState.failed, error=error):
+        discard(job.result_dir)
+
+
 def _stopped(store: JobStore, job: JobRecord, scratch: Path) -> None:
     """The run stopped because the job was cancelled or is no longer this attempt's."""
+    shutil.rmtree(scratch, ignore_errors=True)
     if store.cancel_requested(job.id):
-        store.finish(job, os.getpid(), JobState.cancelled, error="cancelled on request")
+        if store.finish(job, os.getpid(), JobState.cancelled, error="cancelled on request"):
+            discard(job.result_dir)  # the record says it was cancelled; no empty folder
         log.info("job %s: cancelled", job.id)
     else:
+        # its folder is the next attempt's now, or the supervisor's to remove
         log.warning("job %s: no longer this worker's (failed or requeued elsewhere)", job.id)
-    shutil.rmtree(scratch, ignore_errors=True)

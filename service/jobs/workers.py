@@ -7,6 +7,9 @@ The supervisor (a thread of the service process) checks every ``check_interval``
 - a job that has run longer than ``job_timeout`` is failed with the reason, and its worker is
   killed (and so replaced).
 
+Either way the failed job's partial results are removed once its worker is gone (never
+before: a worker still alive could write on).
+
 On a clean stop, idle workers leave at a flag, busy ones are killed, and the jobs they were
 running go back to the queue.
 """
@@ -21,8 +24,9 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from service.jobs.result_folders import discard
 from service.jobs.runner import WorkerConfig, worker_main
-from service.jobs.store import JobStore
+from service.jobs.store import JobRecord, JobStore
 from service.worker_processes import describe_exit, shared_flag, single_threaded_blas
 
 log = logging.getLogger(__name__)
@@ -56,6 +60,9 @@ class WorkerPool:
         self._slots: list[_Slot] = []
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
+        # jobs failed over the time limit, by the pid of their killed worker: their partial
+        # results go once it is dead
+        self._timed_out: dict[int, JobRecord] = {}
         self.replaced = 0
 
     # -- lifecycle -------------------------------------------------------------------------
@@ -150,6 +157,9 @@ class WorkerPool:
                         pid,
                     ):
                         log.error("job %s failed: its worker %d died (%s)", job.id, pid, how)
+                        discard(job.result_dir)
+                if (timed_out := self._timed_out.pop(pid, None)) is not None:
+                    discard(timed_out.result_dir)
                 slot.process.join(0)
                 slot.process.close()
                 self._slots[index] = self._spawn(index)
@@ -172,4 +182,5 @@ class WorkerPool:
                 job.worker_pid,
             ):
                 log.error("job %s failed: over the time limit; killing its worker", job.id)
+                self._timed_out[slot.process.pid] = job
                 slot.process.kill()
