@@ -9,9 +9,12 @@ requeued and the worker processes start in the lifespan, and stop with it.
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from types import FrameType
 
+import uvicorn
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
@@ -198,6 +201,9 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     )
     app.state.settings = settings
     app.state.data_folder = data_folder
+    # Set by `vtrack serve` when a stop signal comes: open event streams end at once instead of
+    # holding the stop for the graceful-shutdown timeout (their clients reconnect elsewhere).
+    app.state.stopping = threading.Event()
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
     app.middleware("http")(_documentation_needs_the_token)
@@ -207,6 +213,15 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app.include_router(streams.router)
     app.include_router(metrics.router)
     return app
+
+
+class StoppingServer(uvicorn.Server):
+    """uvicorn's server, telling the app when a stop signal comes (``app.state.stopping``) so
+    that its event streams end and the stop does not wait out the graceful-shutdown timeout."""
+
+    def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+        self.config.app.state.stopping.set()
+        super().handle_exit(sig, frame)
 
 
 app = create_app()

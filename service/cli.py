@@ -330,7 +330,7 @@ def _analyze(args: argparse.Namespace) -> int:
 def _serve(args: argparse.Namespace) -> int:
     import uvicorn
 
-    from service.app import create_app
+    from service.app import StoppingServer, create_app
     from service.data_folder import DataFolderError, claim_data_folder
     from service.logs import uvicorn_log_config
     from service.settings import InvalidSettings, load_settings
@@ -396,7 +396,7 @@ def _serve(args: argparse.Namespace) -> int:
         log_level=settings.log_level.lower(),
         timeout_graceful_shutdown=10,
     )
-    uvicorn.Server(config).run(sockets=[listener])
+    StoppingServer(config).run(sockets=[listener])
     return 0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from typing import Annotated
 from urllib.parse import urlencode
@@ -190,7 +191,8 @@ async def job_events(job_id: str, request: Request, store: StoreDep) -> Streamin
 
     async def stream():
         last, last_sent = None, time.monotonic()
-        while not await request.is_disconnected():
+        stopping: threading.Event = request.app.state.stopping
+        while not (stopping.is_set() or await request.is_disconnected()):
             record = store.get(job_id)
             if record is None:
                 yield f'event: end\ndata: {{"id": "{job_id}", "deleted": true}}\n\n'

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import time
 
 import pytest
 
@@ -158,3 +159,25 @@ def test_every_log_line_of_the_service_carries_its_time(make_server, pets_short)
     assert any("uvicorn.error: Application startup complete" in line for line in lines)
     unstamped = [line for line in lines if not stamped.match(line)]
     assert not unstamped, unstamped
+
+
+def test_a_stop_does_not_wait_for_clients_watching_events(make_server, shared_data, tmp_path):
+    # docker stop sends SIGTERM and kills 10 s later: a client following a job's events held
+    # the stop for uvicorn's whole graceful-shutdown timeout (10 s), and the kill came first
+    video = cut_video(shared_data / PETS_VIDEO, tmp_path / "pets_120.avi", 120)  # ~10 s of work
+    server = make_server(workers=1)
+    with server.client() as client:
+        job_id = submit(client, video, FAST_OPTIONS).json()["id"]
+        wait_for_frames(client, job_id, 2)
+        with client.stream("GET", f"/v1/jobs/{job_id}/events", timeout=30) as events:
+            lines = events.iter_lines()
+            assert next(lines).startswith("event: progress")
+            started = time.monotonic()
+            server.process.send_signal(signal.SIGTERM)
+            rest = list(lines)  # the stream ends when the service stops
+            server.process.wait(timeout=30)
+            took = time.monotonic() - started
+    assert took < 5, f"the stop took {took:.1f} s"
+    assert not any(line.startswith("event: end") for line in rest)  # the job did not end
+    assert "graceful shutdown exceeded" not in server.log()
+    assert "queued again: the service stopped while it ran" in server.log()
