@@ -50,6 +50,13 @@ def cut_video(source: Path, target: Path, frames: int, start: int = 0) -> Path:
 
 
 @pytest.fixture(scope="session")
+def long_video(shared_data, tmp_path_factory) -> Path:
+    """120 frames: a job that runs long enough to be caught mid-way (~10 s of work)."""
+    folder = tmp_path_factory.mktemp("pets")
+    return cut_video(shared_data / PETS_VIDEO, folder / "pets_120.avi", 120)
+
+
+@pytest.fixture(scope="session")
 def pets_cut(shared_data, tmp_path_factory) -> Path:
     """24 frames (2.4 s) of PETS09-S2L1 where people walk through the middle of the scene."""
     folder = tmp_path_factory.mktemp("pets")

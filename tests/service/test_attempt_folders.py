@@ -10,8 +10,6 @@ import pytest
 
 from service.jobs.store import JobStore
 from tests.service.conftest import (
-    PETS_VIDEO,
-    cut_video,
     submit,
     wait_for,
     wait_for_frames,
@@ -22,12 +20,6 @@ pytestmark = pytest.mark.slow
 
 # every format, so that every kind of partial file is there: MCAP, MP4, MOT, the JSON's points
 ALL_FORMATS = {"formats": ["json", "mcap", "mot", "mp4"]}
-
-
-@pytest.fixture
-def long_video(shared_data, tmp_path):
-    """120 frames: a job that runs long enough to be caught mid-way (~10 s of work)."""
-    return cut_video(shared_data / PETS_VIDEO, tmp_path / "pets_120.avi", 120)
 
 
 def _listing(server, job_id) -> list[str] | None:

@@ -21,7 +21,7 @@ from service.jobs.store import JobStore
 from service.settings import Settings
 from service.streams.store import StreamStore
 from service.testing import Server, free_port
-from tests.service.conftest import FAST_OPTIONS, PETS_VIDEO, cut_video, submit, wait_for_frames
+from tests.service.conftest import FAST_OPTIONS, submit, wait_for_frames
 
 pytestmark = pytest.mark.slow
 
@@ -116,15 +116,12 @@ def test_an_unexpected_error_in_a_request_answers_json_and_is_logged_once(make_s
     assert server.log().count("FileExistsError") == 1
 
 
-def test_a_second_service_on_the_same_data_folder_refuses_to_start(
-    make_server, shared_data, tmp_path
-):
+def test_a_second_service_on_the_same_data_folder_refuses_to_start(make_server, long_video):
     # Before: it started, logged "jobs interrupted by the last stop: 1 queued again" (false),
     # and took the first one's running job, which began again from frame 0.
-    video = cut_video(shared_data / PETS_VIDEO, tmp_path / "pets_120.avi", 120)  # ~10 s of work
     first = make_server(workers=1)
     with first.client() as client:
-        job_id = submit(client, video, FAST_OPTIONS).json()["id"]
+        job_id = submit(client, long_video, FAST_OPTIONS).json()["id"]
         before = wait_for_frames(client, job_id, 3)["progress"]["frames_done"]
         second = Server(first.data_dir, workers=1)
         try:

@@ -12,8 +12,6 @@ import pytest
 from service.jobs.store import JobStore
 from tests.service.conftest import (
     FAST_OPTIONS,
-    PETS_VIDEO,
-    cut_video,
     submit,
     wait_for,
     wait_for_frames,
@@ -64,15 +62,12 @@ def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_serv
     assert not list((first.data_dir / "results" / job_id).glob(".attempt-*"))
 
 
-def test_a_stop_signal_to_the_whole_group_requeues_the_running_job(
-    make_server, shared_data, tmp_path
-):
+def test_a_stop_signal_to_the_whole_group_requeues_the_running_job(make_server, long_video):
     # systemctl stop (KillMode=control-group) and Ctrl-C signal every process of the service:
     # the workers leave the stop to the service, which requeues their jobs
-    video = cut_video(shared_data / PETS_VIDEO, tmp_path / "pets_120.avi", 120)  # ~10 s of work
     first = make_server(workers=1)
     with first.client() as client:
-        job_id = submit(client, video, FAST_OPTIONS).json()["id"]
+        job_id = submit(client, long_video, FAST_OPTIONS).json()["id"]
         before = wait_for_frames(client, job_id, 3)["progress"]["frames_done"]
         worker = _worker_pid(first.data_dir, job_id)
         os.kill(worker, signal.SIGTERM)
@@ -161,13 +156,12 @@ def test_every_log_line_of_the_service_carries_its_time(make_server, pets_short)
     assert not unstamped, unstamped
 
 
-def test_a_stop_does_not_wait_for_clients_watching_events(make_server, shared_data, tmp_path):
+def test_a_stop_does_not_wait_for_clients_watching_events(make_server, long_video):
     # docker stop sends SIGTERM and kills 10 s later: a client following a job's events held
     # the stop for uvicorn's whole graceful-shutdown timeout (10 s), and the kill came first
-    video = cut_video(shared_data / PETS_VIDEO, tmp_path / "pets_120.avi", 120)  # ~10 s of work
     server = make_server(workers=1)
     with server.client() as client:
-        job_id = submit(client, video, FAST_OPTIONS).json()["id"]
+        job_id = submit(client, long_video, FAST_OPTIONS).json()["id"]
         wait_for_frames(client, job_id, 2)
         with client.stream("GET", f"/v1/jobs/{job_id}/events", timeout=30) as events:
             lines = events.iter_lines()
