@@ -135,7 +135,14 @@ class DenseScores:
 
 @runtime_checkable
 class Detector(Protocol):
-    """What every person detector offers."""
+    """What every person detector offers.
+
+    Detections that come from outside by frame number (a ``det.txt``, boxes handed in) have a
+    class attribute ``frame_indexed = True``: their :meth:`detect` answers for the next frame
+    and moves on, and their :meth:`detect_region` for the current one without moving, so a
+    caller must call :meth:`detect` once per frame (the people tracker's scheduler does, for
+    them, on every frame: their searches cost nothing).
+    """
 
     part_names: tuple[str, ...]
 

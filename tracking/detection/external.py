@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -152,6 +153,7 @@ class MotDetections:
     calibration: LogisticCalibration | None = None
     min_confidence: float = -np.inf
     part_names: tuple[str, ...] = ()
+    frame_indexed: ClassVar[bool] = True  # detect() reads frame after frame (Detector)
     _cursor: _Cursor = field(default_factory=_Cursor, repr=False)
     _by_frame: dict[int, np.ndarray] = field(init=False, repr=False)
     _boxes: np.ndarray = field(init=False, repr=False)
@@ -228,6 +230,7 @@ class SubmittedDetections:
     calibration: LogisticCalibration | None = None
     part_names: tuple[str, ...] = ()
     max_pending: int = 256
+    frame_indexed: ClassVar[bool] = True  # detect() moves to the next frame (Detector)
     _cursor: _Cursor = field(default_factory=_Cursor, repr=False)
     _pending: dict[int, Detections] = field(default_factory=dict, repr=False)
 

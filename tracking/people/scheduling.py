@@ -41,7 +41,8 @@ class DetectionScheduler:
             self._last_full is None
             or timestamp - self._last_full >= c.full_detection_interval - slack
         )
-        if due or len(predicted) == 0:
+        # a source indexed by frame must be read on every frame, or it falls behind the video
+        if due or len(predicted) == 0 or getattr(self._detector, "frame_indexed", False):
             self._last_full = timestamp
             return self._detector.detect(frame)
         regions = search_regions(predicted, frame.shape, c.region_margin, c.region_heights)
