@@ -211,6 +211,20 @@ def test_a_change_of_frame_size_starts_again():
     assert [t.track_id for t in out] == [2]
 
 
+@pytest.mark.parametrize("gap", [10.0, 1e9])
+def test_a_long_gap_between_frames_ends_the_tracks_and_tracking_goes_on(gap):
+    # a camera clock jumping from relative to Unix time: the prediction over 1e9 s grew the
+    # boxes until patch extraction failed deep inside numpy ("Maximum allowed size exceeded")
+    tracker = MultiPersonTracker(PeopleTrackerConfig(confirm_hits=1))
+    first = tracker.update(_frame(), 0.0, _detections([[40, 20, 30, 70]]))
+    tracker.update(_frame(), 0.1, _detections([[41, 20, 30, 70]]))
+    out = tracker.update(_frame(), 0.1 + gap, _detections([[120, 40, 30, 70]]))
+    assert [t.track_id for t in first] == [1]
+    # the old track is over (it could only be re-identified); the new person is tracked
+    assert len(out) == 1 and np.isfinite(out[0].box.as_array()).all()
+    assert 110 < out[0].box.x < 130
+
+
 @pytest.mark.parametrize(
     "boxes",
     [

@@ -179,7 +179,10 @@ class MultiPersonTracker:
         self._last_timestamp = timestamp
 
         if self._state is not None:
-            self._predict(dt)
+            # Past the longest time a track survives unseen, a longer prediction only grows the
+            # boxes (every track ends at this frame anyway); a camera clock jumping by years
+            # would grow them past any image.
+            self._predict(min(dt, self.config.occluded_max_missing))
         predicted = self._predicted_boxes()
         if detections is None:
             if self._scheduler is None:
