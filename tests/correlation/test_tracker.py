@@ -97,6 +97,18 @@ def test_the_default_preset_follows_small_targets(size):
     assert errors.max() < 3.0, f"{size}: max centre error {errors.max():.1f} px"
 
 
+@pytest.mark.parametrize("size", [(1, 1), (2, 2), (4, 4), (3, 8)])
+def test_a_target_under_six_pixels_keeps_its_size(size):
+    # The scale filter's floor of 6 px per side was a floor above 1 for them: a 1 px target
+    # became 5 px on the first update of an unchanged frame, a 3 x 8 one 6 x 16.
+    images, truth = moving_target_scene(frames=1, size=size)
+    tracker = CorrelationTracker(PRESETS["hog_cn_scale"])
+    tracker.initialize(images[0], Box(*truth[0]))
+    for _ in range(5):
+        box = tracker.update(images[0]).box
+    assert (box.w, box.h) == pytest.approx(size, rel=0.05)
+
+
 @pytest.mark.parametrize(
     ("box", "grid"),
     [

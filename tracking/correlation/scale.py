@@ -63,8 +63,9 @@ class ScaleFilter:
             max(round(w * shrink / cell), 1) * cell,
             max(round(h * shrink / cell), 1) * cell,
         )
-        # A target must keep a few pixels per side, whatever the scale bounds say.
-        self._min_scale = max(config.min_scale_factor, 6.0 / min(w, h))
+        # A target must keep a few pixels per side, whatever the scale bounds say; one that
+        # starts with fewer must not be made larger for it (the bound stops at its own size).
+        self._min_scale = min(max(config.min_scale_factor, 6.0 / min(w, h)), 1.0)
         self._max_scale = config.max_scale_factor
         self._numerator: np.ndarray | None = None
         self._denominator: np.ndarray | None = None
