@@ -91,6 +91,14 @@ def test_outside_regions_and_small_frames(detector, pets_frame):
         detector.detect(np.zeros((0, 5, 3), np.uint8))
 
 
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32, np.float64, np.bool_])
+def test_a_frame_that_is_not_uint8_is_refused(detector, pets_frame, dtype):
+    # was: clipped to 0..255 without a word (a 16-bit frame white, a 0..1 float frame black:
+    # no people found, no error)
+    with pytest.raises(TypeError, match="needs a uint8 frame"):
+        detector.detect(pets_frame.astype(dtype))
+
+
 @pytest.mark.parametrize(
     "options",
     [

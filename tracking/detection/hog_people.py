@@ -387,9 +387,12 @@ def _pyramid_scales(shape: tuple[int, ...], step: float) -> list[float]:
 
 
 def _as_uint8(frame: object) -> np.ndarray:
+    """``frame`` as OpenCV's HOG takes it; other types are refused rather than guessed at (a
+    16-bit frame clipped to 0..255 is white, a 0..1 float frame black: no people, no error)."""
     frame = validate_frame(frame)
     if frame.dtype != np.uint8:
-        if not np.issubdtype(frame.dtype, np.number) or frame.dtype == np.bool_:
-            raise ValueError(f"frame must be numeric, got {frame.dtype}")
-        frame = np.clip(np.rint(frame), 0, 255).astype(np.uint8)
+        raise TypeError(
+            f"the HOG people detector needs a uint8 frame (values 0-255), got dtype "
+            f"{frame.dtype}: convert it first"
+        )
     return np.ascontiguousarray(frame)
