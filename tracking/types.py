@@ -101,6 +101,47 @@ def validate_frame(frame: object) -> np.ndarray:
     return frame
 
 
+def validate_uint8_frame(frame: object, user: str) -> np.ndarray:
+    """:func:`validate_frame`, and a uint8 frame (values 0-255), as ``user`` needs it.
+
+    Raises
+    ------
+    TypeError
+        For another dtype: 16-bit or 0..1 float frames are not guessed at.
+    """
+    frame = validate_frame(frame)
+    if frame.dtype != np.uint8:
+        raise TypeError(
+            f"{user} needs a uint8 frame (values 0-255), got dtype {frame.dtype}: convert it first"
+        )
+    return frame
+
+
+def as_box(value: object) -> Box:
+    """``value`` as a :class:`Box` of plain floats: a Box, or four numbers ``(x, y, w, h)``.
+
+    Raises
+    ------
+    TypeError
+        For anything else.
+    """
+    if isinstance(value, Box):
+        values = (value.x, value.y, value.w, value.h)
+    else:
+        try:
+            values = tuple(value)  # type: ignore[arg-type]
+        except TypeError:
+            values = ()
+    if len(values) != 4 or not all(isinstance(v, (int, float, np.number)) for v in values):
+        raise TypeError(f"box must be a Box or four numbers (x, y, w, h), got {value!r}")
+    return Box(*(float(v) for v in values))
+
+
+MAX_BOX_FRAMES = 4
+"""A box may reach past the frame (a target partly out of view), but no side may be more than
+this many times the frame's: a larger one is a mistake, and its patches would not fit in memory."""
+
+
 def box_problem(box: Box, frame_shape: tuple[int, ...]) -> str | None:
     """Why ``box`` cannot start a track in a frame of ``frame_shape``, in plain numbers
     (``"900,10,20,20 lies entirely outside the 480x360 frame"``); ``None`` when it can."""
@@ -113,6 +154,8 @@ def box_problem(box: Box, frame_shape: tuple[int, ...]) -> str | None:
     height, width = frame_shape[:2]
     if box.x >= width or box.y >= height or box.x + box.w <= 0 or box.y + box.h <= 0:
         return f"{text} lies entirely outside the {width}x{height} frame"
+    if box.w > MAX_BOX_FRAMES * width or box.h > MAX_BOX_FRAMES * height:
+        return f"{text} is more than {MAX_BOX_FRAMES} times the size of the {width}x{height} frame"
     return None
 
 

@@ -172,6 +172,8 @@ FRAME = np.zeros((120, 160, 3), np.uint8)
         (FRAME, Box(-50, -50, 20, 20), "outside"),  # box above-left of the frame
         (FRAME, Box(np.nan, 10, 20, 20), "finite"),  # NaN coordinate
         (np.zeros((120, 160), np.uint8), Box(10, 10, 20, 20), "needs an RGB frame"),  # cn on gray
+        # a box overlapping the frame but absurdly large (was: a 116 TiB allocation)
+        (FRAME, Box(-1e6, -1e6, 2e6, 2e6), "more than 4 times the size"),
     ],
 )
 def test_bad_input_raises_a_clear_error(frame, box, message):
@@ -184,6 +186,31 @@ def test_gray_features_accept_a_grayscale_frame():
     gray = [f.mean(axis=2).astype(np.uint8) for f in images]
     boxes = run(CorrelationTracker(PRESETS["rcsk_gray"]), gray, truth[0])
     assert center_location_error(boxes, truth).max() < 6.0
+
+
+@pytest.mark.parametrize("preset", ["hog_cn_scale", "rcsk_gray"])
+@pytest.mark.parametrize("dtype", [np.int64, np.bool_, np.float64, np.uint16])
+def test_a_frame_that_is_not_uint8_is_refused(preset, dtype):
+    # was: cv2.error from deep inside resize for hog_cn_scale
+    with pytest.raises(TypeError, match="needs a uint8 frame"):
+        CorrelationTracker(PRESETS[preset]).initialize(FRAME.astype(dtype), Box(10, 10, 20, 20))
+
+
+def test_a_box_may_be_four_numbers_of_any_kind():
+    for given in [(10, 10, 20, 20), np.array([10, 10, 20, 20]), [np.int64(10), 10, 20.0, 20]]:
+        tracker = CorrelationTracker(PRESETS["rcsk_gray"])
+        tracker.initialize(FRAME, given)  # was: AttributeError 'tuple' object has no 'x'
+        assert type(tracker.update(FRAME).box.x) is float  # no numpy scalars leak out
+    with pytest.raises(TypeError, match="four numbers"):
+        CorrelationTracker(PRESETS["rcsk_gray"]).initialize(FRAME, "10,10,20,20")
+
+
+def test_a_frame_of_another_size_mid_sequence_is_refused():
+    # was: tracked on with the centre clamped into the smaller frame, the box jumping
+    tracker = CorrelationTracker(PRESETS["hog_cn_scale"])
+    tracker.initialize(FRAME, Box(40, 40, 20, 30))
+    with pytest.raises(ValueError, match="initialize the tracker again"):
+        tracker.update(FRAME[:60, :80])
 
 
 def test_frame_of_another_shape_mid_sequence_still_tracks_or_raises_clearly():

@@ -260,6 +260,20 @@ def test_malformed_frames_are_refused(frame, message):
         MultiPersonTracker().update(frame, 0.0, _detections([]))
 
 
+def test_frames_and_detections_of_the_wrong_type_are_refused_at_once():
+    # was: cv2.error deep in the colour signatures for uint16, a TypeError only once a track
+    # started for float, AttributeError for a list of boxes, and "cannot convert float NaN to
+    # integer" for NaN boxes
+    frame = _frame()
+    for odd in (frame.astype(np.uint16), frame.astype(np.float32)):
+        with pytest.raises(TypeError, match="needs a uint8 frame"):
+            MultiPersonTracker().update(odd, 0.0, _detections([[40, 20, 30, 70]]))
+    with pytest.raises(TypeError, match="detections must be a tracking"):
+        MultiPersonTracker().update(frame, 0.0, [[40, 20, 30, 70]])
+    with pytest.raises(ValueError, match="boxes must be finite"):
+        _detections([[np.nan, 20, 30, 70]])
+
+
 def test_nan_timestamp_is_refused():
     with pytest.raises(ValueError, match="finite"):
         MultiPersonTracker().update(_frame(), float("nan"), _detections([]))

@@ -13,7 +13,7 @@ from tracking.correlation.patches import extract_patch
 from tracking.correlation.scale import ScaleFilter
 from tracking.correlation.signals import peak_to_sidelobe_ratio, subpixel_peak
 from tracking.features.maps import FeatureMap
-from tracking.types import Box, TrackerOutput, validate_box, validate_frame
+from tracking.types import Box, TrackerOutput, as_box, validate_box, validate_uint8_frame
 
 
 @dataclass(slots=True)
@@ -95,6 +95,7 @@ class CorrelationTracker:
         self._geometry: _Geometry | None = None
         self._center = (0.0, 0.0)
         self._scale = 1.0
+        self._frame_size: tuple[int, ...] = ()
 
     @property
     def feature_map(self) -> FeatureMap:
@@ -108,15 +109,20 @@ class CorrelationTracker:
     def initialize(self, frame: np.ndarray, box: Box) -> None:
         """Learn the target in ``box`` of ``frame`` (Algorithm 2.1, lines 1-4).
 
+        ``box`` may also be four numbers ``(x, y, w, h)``.
+
         Raises
         ------
         ValueError
-            For an empty or wrongly shaped frame, a box of zero size or outside the frame, or
-            colour features on a grayscale frame.
+            For an empty or wrongly shaped frame, a box of zero size, outside the frame or
+            more than four times its size, or colour features on a grayscale frame.
+        TypeError
+            For a frame that is not uint8, or a box that is not a Box or four numbers.
         """
-        frame = validate_frame(frame)
-        validate_box(box, frame.shape)
+        frame = validate_uint8_frame(frame, "the correlation tracker")
+        box = validate_box(as_box(box), frame.shape)
         self._features.check_frame(frame)
+        self._frame_size = frame.shape[:2]
         self._geometry = self._plan_geometry(box)
         self._center = box.center
         self._scale = 1.0
@@ -134,9 +140,19 @@ class CorrelationTracker:
             self._scale_filter.initialize(frame, self._center, self._scale)
 
     def update(self, frame: np.ndarray) -> TrackerOutput:
-        """Locate the target in ``frame`` and learn from it (Algorithm 2.1, lines 6-12)."""
+        """Locate the target in ``frame`` and learn from it (Algorithm 2.1, lines 6-12).
+
+        ``frame`` must have the size of the first one (ValueError otherwise).
+        """
         self._require_target()
-        frame = validate_frame(frame)
+        frame = validate_uint8_frame(frame, "the correlation tracker")
+        if frame.shape[:2] != self._frame_size:
+            # the target's position and patch were planned in the first frame's geometry
+            (h0, w0), (h, w) = self._frame_size, frame.shape[:2]
+            raise ValueError(
+                f"the frame is {w}x{h}, but the target was learnt in a {w0}x{h0} frame: "
+                "initialize the tracker again for frames of another size"
+            )
         self._features.check_frame(frame)
         found = self.respond(frame)
         response = found.response

@@ -44,6 +44,8 @@ class Detections:
         n = self.boxes.shape[0]
         if self.boxes.shape != (n, 4):
             raise ValueError(f"boxes must have shape (N, 4), got {self.boxes.shape}")
+        if not np.isfinite(self.boxes).all():  # parts may be NaN (not found); boxes may not
+            raise ValueError("boxes must be finite numbers (x, y, w, h)")
         if self.scores.shape != (n,) or self.probabilities.shape != (n,):
             raise ValueError(
                 f"scores and probabilities must have shape ({n},), got "

@@ -46,7 +46,7 @@ from tracking.detection.regions import (
     clip_boxes,
     clip_region,
 )
-from tracking.types import Box, is_int, validate_frame
+from tracking.types import Box, is_int, validate_uint8_frame
 
 __all__ = ["HOG_PEOPLE_CALIBRATION", "HogPeopleConfig", "HogPeopleDetector"]
 
@@ -389,10 +389,4 @@ def _pyramid_scales(shape: tuple[int, ...], step: float) -> list[float]:
 def _as_uint8(frame: object) -> np.ndarray:
     """``frame`` as OpenCV's HOG takes it; other types are refused rather than guessed at (a
     16-bit frame clipped to 0..255 is white, a 0..1 float frame black: no people, no error)."""
-    frame = validate_frame(frame)
-    if frame.dtype != np.uint8:
-        raise TypeError(
-            f"the HOG people detector needs a uint8 frame (values 0-255), got dtype "
-            f"{frame.dtype}: convert it first"
-        )
-    return np.ascontiguousarray(frame)
+    return np.ascontiguousarray(validate_uint8_frame(frame, "the HOG people detector"))

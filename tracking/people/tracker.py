@@ -29,7 +29,7 @@ from tracking.people.occlusion import covered_share, hidden_points, occluders
 from tracking.people.part_trackers import PartTrackers
 from tracking.people.scheduling import DetectionScheduler, widened
 from tracking.tracks import PartEstimate, TrackEstimate
-from tracking.types import Box, validate_frame
+from tracking.types import Box, validate_uint8_frame
 
 logger = logging.getLogger(__name__)
 
@@ -154,8 +154,13 @@ class MultiPersonTracker:
             For a malformed frame, a timestamp before the previous one, or no detections and no
             detector.
         """
-        frame = validate_frame(frame)
+        frame = validate_uint8_frame(frame, "the people tracker")
         self._features.check_frame(frame)
+        if detections is not None and not isinstance(detections, Detections):
+            raise TypeError(
+                "detections must be a tracking.detection.Detections (detections_from_arrays "
+                f"makes one from boxes and scores), got {type(detections).__name__}"
+            )
         timestamp = float(timestamp)
         if not math.isfinite(timestamp):
             raise ValueError(f"timestamp must be a finite number of seconds, got {timestamp}")
