@@ -15,7 +15,8 @@ class BoxModel(BaseModel):
     ground truth does): clip it to the frame before cropping the image.
     """
 
-    model_config = ConfigDict(extra="forbid", title="Box")
+    # NaN and infinities would be written as null, which no reader of the JSON can take back
+    model_config = ConfigDict(extra="forbid", title="Box", allow_inf_nan=False)
 
     x: float = Field(description="Left edge in pixels, 0-based.")
     y: float = Field(description="Top edge in pixels, 0-based.")

@@ -37,7 +37,7 @@ OCCLUDED = (
 class PartState(BaseModel):
     """One body part of a tracked person in one frame."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     name: str = Field(
         description="Stable part name, e.g. 'head', 'left_shoulder'. Left and right are the "
@@ -67,7 +67,7 @@ class PartState(BaseModel):
 class TrackState(BaseModel):
     """One tracked object in one frame."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     track_id: int = Field(ge=0, description="Stable id of the object within one video or stream.")
     box: BoxModel
@@ -80,7 +80,7 @@ class TrackState(BaseModel):
 class FrameTracksMessage(BaseModel):
     """Everything tracked in one frame: the message of the MCAP ``/tracks`` channel."""
 
-    model_config = ConfigDict(extra="forbid", title="FrameTracks")
+    model_config = ConfigDict(extra="forbid", title="FrameTracks", allow_inf_nan=False)
 
     frame_index: int = Field(ge=0, description="0-based index of the frame in its video.")
     timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")
@@ -90,7 +90,7 @@ class FrameTracksMessage(BaseModel):
 class TrajectoryPoint(BaseModel):
     """One object in one frame, as part of its trajectory."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     frame_index: int = Field(ge=0, description="0-based index of the frame in the video.")
     timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")

@@ -11,7 +11,9 @@ import pytest
 from pydantic import ValidationError
 
 from api_schemas import JobOptions, Trajectories
+from api_schemas.common import BoxModel
 from api_schemas.export import SCHEMA_PATH, build_schema, render
+from api_schemas.tracks import PartState
 from tests.conftest import REPO_ROOT
 
 
@@ -86,3 +88,12 @@ def test_trajectories_reject_scores_outside_unit_interval():
         Trajectories.model_validate(document)
     point["score"] = 0.5
     Trajectories.model_validate(document)
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_coordinates_must_be_finite(value):
+    # was accepted, then written as null, which the same models could not read back
+    with pytest.raises(ValidationError, match="finite number"):
+        BoxModel(x=value, y=0, w=1, h=1)
+    with pytest.raises(ValidationError, match="finite number"):
+        PartState(name="head", x=value, y=0, visible=True)
