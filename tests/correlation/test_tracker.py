@@ -239,4 +239,4 @@ def test_bad_configuration_is_refused(fields):
 
 def test_unknown_feature_is_refused():
     with pytest.raises(ValueError, match="unknown feature"):
-        CorrelationTracker(CorrelationConfig(feature="gray+sift"))
+        CorrelationConfig(feature="gray+sift")  # by the configuration, before any tracker

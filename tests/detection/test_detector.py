@@ -239,6 +239,7 @@ def test_frames_taller_than_1080_px_are_searched_at_1080(detector, pets):
         {"nms_overlap": 1.5},
         {"nms_criterion": "area"},
         {"workers": 0},
+        {"threshold": float("nan")},  # was accepted: no detection ever scores above NaN
     ],
 )
 def test_bad_config_is_rejected(options):

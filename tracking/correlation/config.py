@@ -133,6 +133,10 @@ class CorrelationConfig:
     scale: ScaleConfig | None = None
 
     def __post_init__(self) -> None:
+        # imported here: the configuration stays cheap to import for those who only read it
+        from tracking.features.maps import feature_components
+
+        feature_components(self.feature)  # an unknown feature fails here, not in the tracker
         if self.learner not in ("mosse", "csk", "rcsk"):
             raise ValueError(f"learner must be 'mosse', 'csk' or 'rcsk', got {self.learner!r}")
         if self.kernel not in ("linear", "polynomial", "gaussian"):

@@ -159,7 +159,10 @@ class Detector(Protocol):
 
         ``heights`` is the ``(min, max)`` height in pixels of the people to look for (the
         tracker asks for about a person's predicted height); ``None`` leaves it to the
-        detector. Detectors that do not search (boxes from outside) ignore it.
+        detector, whose default is made for a region around one person (a range of the
+        region's own height: people much smaller than a large region are not looked for, so
+        use :meth:`detect` for the whole frame). Detectors that do not search (boxes from
+        outside) ignore it.
         """
         ...
 

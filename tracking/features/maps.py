@@ -29,6 +29,15 @@ def shared_color_names(w2c_path: str | None) -> ColorNameTable:
     return ColorNameTable.from_config(w2c_path)
 
 
+def feature_components(spec: str) -> tuple[str, ...]:
+    """The components of a feature spec such as ``"gray+cn"`` (ValueError for an unknown one)."""
+    components = tuple(part.strip() for part in str(spec).split("+") if part.strip())
+    valid = (*FEATURE_NAMES, *_CELL_FEATURES)
+    if not components or any(c not in valid for c in components):
+        raise ValueError(f"unknown feature {spec!r}: components must be among {', '.join(valid)}")
+    return components
+
+
 class FeatureMap:
     """Turns an RGB (or grayscale) patch into a ``(H // c, W // c, D)`` float32 feature map.
 
@@ -46,13 +55,7 @@ class FeatureMap:
     def __init__(
         self, spec: str, cell_size: int = 1, color_names: ColorNameTable | None = None
     ) -> None:
-        components = tuple(part.strip() for part in spec.split("+") if part.strip())
-        valid = (*FEATURE_NAMES, *_CELL_FEATURES)
-        unknown = [c for c in components if c not in valid]
-        if not components or unknown:
-            raise ValueError(
-                f"unknown feature {spec!r}: components must be among {', '.join(valid)}"
-            )
+        components = feature_components(spec)
         if "hog" in components and cell_size < 2:
             raise ValueError(f"the 'hog' feature needs cell_size >= 2, got {cell_size}")
         if cell_size < 1:

@@ -95,7 +95,10 @@ class MultiPersonTracker:
         Runs when :meth:`update` gets no detections (full frame or regions of interest, on the
         configured schedule). ``None``: detections must be handed in every frame.
     body:
-        The body model; by default the detector's (a DPM model's parts) or the embedded one.
+        The body model; by default the embedded one (:data:`EMBEDDED_BODY`: head, shoulders,
+        hips, knees and feet of an upright adult). A detector's part boxes are measurements
+        of the body model's parts of the same name; parts of other names (another model's)
+        are not used.
     """
 
     def __init__(

@@ -98,6 +98,8 @@ class DpmConfig:
     cascade_thresholds: Path | None = None
 
     def __post_init__(self) -> None:
+        if self.threshold is not None and math.isnan(self.threshold):  # would detect nothing
+            raise ValueError("threshold must be a number or None, got nan")
         if self.upscale is not None and not (math.isfinite(self.upscale) and self.upscale > 0):
             raise ValueError(f"upscale must be a positive number or None, got {self.upscale}")
         if not is_int(self.auto_max_height) or self.auto_max_height < 1:
