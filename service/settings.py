@@ -236,7 +236,8 @@ class InvalidSettings(ValueError):
 
 def load_settings(options: dict[str, Any] | None = None) -> Settings:
     """The settings from the environment with command-line ``options`` (field name -> value)
-    over them.
+    over them. A ``VTRACK_*`` variable that is no setting is named on stderr
+    (:func:`unknown_variables`) and ignored.
 
     Raises
     ------

@@ -261,7 +261,7 @@ class HogPeopleDetector:
 
     def detect(self, frame: np.ndarray) -> Detections:
         """People in the whole frame (RGB or grayscale uint8)."""
-        image = _as_uint8(frame)
+        image = _checked_frame(frame)
         boxes, scores = self._run(image, (0.0, 0.0), self.config.upscale_for(image.shape[0]))
         return self._detections(boxes, scores)
 
@@ -281,7 +281,7 @@ class HogPeopleDetector:
         self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
     ) -> Detections:
         """People whose box centre lies in ``region`` (runs the detector on a crop around it)."""
-        image = _as_uint8(frame)
+        image = _checked_frame(frame)
         clipped = clip_region(checked_region(region), image.shape)
         if clipped is None:
             return self._detections(np.zeros((0, 4)), np.zeros(0))
@@ -313,7 +313,7 @@ class HogPeopleDetector:
         Level ``l`` is the frame scaled by ``upscale / scale_step^l``; its person height is
         ``box_scale[1] * 128 / scale`` pixels and its grid stride ``win_stride / scale``.
         """
-        image = _as_uint8(frame)
+        image = _checked_frame(frame)
         clipped = clip_region(checked_region(region), image.shape)
         if clipped is None:
             return None
@@ -386,7 +386,7 @@ def _pyramid_scales(shape: tuple[int, ...], step: float) -> list[float]:
     return scales
 
 
-def _as_uint8(frame: object) -> np.ndarray:
+def _checked_frame(frame: object) -> np.ndarray:
     """``frame`` as OpenCV's HOG takes it; other types are refused rather than guessed at (a
     16-bit frame clipped to 0..255 is white, a 0..1 float frame black: no people, no error)."""
     return np.ascontiguousarray(validate_uint8_frame(frame, "the HOG people detector"))
