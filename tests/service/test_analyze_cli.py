@@ -247,7 +247,7 @@ def test_ctrl_c_ends_analyze_with_one_line_and_no_partial_results(shared_data, t
     out = tmp_path / "out"
     video = shared_data / PETS_VIDEO  # 795 frames: a minute of work to interrupt
     status, stderr = vtrack_interrupted("analyze", video, "--out-dir", out, cwd=REPO_ROOT)
-    assert status == 130 and "Traceback" not in stderr
+    assert status == 130 and "Traceback" not in stderr, stderr
     assert re.search(r"\nvtrack: interrupted after [1-9]\d* frames; nothing written\n$", stderr)
     assert not out.exists()  # the folder this run made is gone with the partial files
 

@@ -202,7 +202,7 @@ def test_ctrl_c_ends_track_leaving_the_output_file_as_it_was(shared_data, tmp_pa
     out.write_text("an earlier run\n")
     video = shared_data / PETS_VIDEO  # 795 frames: seconds of work to interrupt
     status, stderr = vtrack_interrupted("track", video, "--box", "150,130,28,65", "--out", out)
-    assert status == 130 and "Traceback" not in stderr
+    assert status == 130 and "Traceback" not in stderr, stderr
     assert re.search(r"\nvtrack: interrupted after [1-9]\d* frames; nothing written\n$", stderr)
     assert list(tmp_path.iterdir()) == [out] and out.read_text() == "an earlier run\n"
 

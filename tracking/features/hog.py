@@ -49,6 +49,7 @@ from collections.abc import Sequence
 import numba
 import numpy as np
 
+from tracking.compiled import call_kernel
 from tracking.types import is_int
 
 __all__ = ["NUM_FEATURES", "fhog", "fhog_cells", "hog_feature_map"]
@@ -567,7 +568,7 @@ def _fhog_cells(
         return []
     n_features = NUM_FEATURES + int(truncation_feature)
     sizes = np.array(sbins, dtype=np.int64)
-    return _features(_pixels(image), sizes, pad, n_features, margin[0], margin[1])
+    return call_kernel(_features, _pixels(image), sizes, pad, n_features, margin[0], margin[1])
 
 
 def hog_feature_map(image: np.ndarray, cell_size: int = 4) -> np.ndarray:

@@ -34,6 +34,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.compiled import call_kernel
 from tracking.detection.dpm.kernels import (
     KernelFilters,
     cascade_roots,
@@ -317,8 +318,8 @@ def cascade_level(
         root_at = kernel.root_anchor + origin
         if approximate:
             n_stages = 2 + 2 * n_parts
-            found, found_cols, scores, place, stages, margins = cascade_roots(
-                start, approx_roots[ci], flat_root, kernel.root, root_at,
+            found, found_cols, scores, place, stages, margins = call_kernel(
+                cascade_roots, start, approx_roots[ci], flat_root, kernel.root, root_at,
                 flat(projected[part_level]), part_maps, kernel.approx_parts, kernel.parts,
                 projection.basis.shape[1], root_features.shape[2], anchors, kernel.steps,
                 kernel.deformations, window,
@@ -335,8 +336,8 @@ def cascade_level(
                 placements[ci, 1 + p, found, found_cols] = place[:, p]
             records.append((stages, margins))
         else:
-            scores, place = exact_component(
-                start, flat_root, kernel.root, root_at, part_maps, kernel.parts,
+            scores, place = call_kernel(
+                exact_component, start, flat_root, kernel.root, root_at, part_maps, kernel.parts,
                 root_features.shape[2], anchors, kernel.steps, kernel.deformations, window,
                 float(threshold),
             )  # fmt: skip
