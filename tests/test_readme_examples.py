@@ -1,0 +1,62 @@
+"""The Python examples of the README run as written, on real frames."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+
+import cv2
+import numpy as np
+
+from tests.conftest import REPO_ROOT
+
+PETS = ("mot", "PETS09-S2L1")
+
+
+def _examples() -> list[str]:
+    """The ``python`` blocks of the README's section on using the trackers from Python."""
+    readme = (REPO_ROOT / "README.md").read_text()
+    section = readme.split("## Using the trackers from Python", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```python\n(.*?)```", section, flags=re.DOTALL)
+
+
+def _pets_frames(shared_data, count: int) -> list[np.ndarray]:
+    folder = shared_data.joinpath(*PETS, "img1")
+    return [cv2.imread(str(p))[:, :, ::-1].copy() for p in sorted(folder.glob("*.jpg"))[:count]]
+
+
+def test_the_readme_has_both_examples():
+    assert [("CorrelationTracker" in e, "MultiPersonTracker" in e) for e in _examples()] == [
+        (True, False),
+        (False, True),
+    ]
+
+
+def test_the_single_target_example_follows_the_box_it_is_given(shared_data):
+    frames = _pets_frames(shared_data, 10)
+    truth = np.loadtxt(shared_data.joinpath(*PETS, "gt", "gt.txt"), delimiter=",")
+    first = truth[(truth[:, 0] == 1) & (truth[:, 1] == truth[truth[:, 0] == 1][0, 1])][0]
+    namespace = {"first_frame_rgb": frames[0], "frames": frames[1:]}
+    namespace.update(zip("xywh", map(float, first[2:6]), strict=True))
+    exec(_examples()[0], namespace)
+    box = namespace["out"].box
+    assert abs(box.x - first[2]) < first[4] and abs(box.y - first[3]) < first[5]
+
+
+def test_the_people_example_prints_the_people_of_a_video(shared_data, tmp_path):
+    video = tmp_path / "street.avi"
+    frames = _pets_frames(shared_data, 12)
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 7.0, (768, 576))
+    for frame in frames:
+        writer.write(frame[:, :, ::-1])
+    writer.release()
+    code = _examples()[1].replace('"street.avi"', repr(str(video)))
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(code, {})
+    rows = [line.split(" ", 2) for line in printed.getvalue().splitlines()]
+    # PETS09-S2L1 starts with several people walking: tracks are confirmed within 12 frames
+    assert rows and {int(index) for index, _, _ in rows} <= set(range(12))
+    assert len({track for _, track, _ in rows}) >= 2
+    assert all(rest.startswith("Box(") for _, _, rest in rows)
