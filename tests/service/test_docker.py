@@ -9,6 +9,8 @@ the image's own HEALTHCHECK command. The compose file must parse and name files 
 
 from __future__ import annotations
 
+import contextlib
+import importlib.metadata
 import json
 import os
 import shlex
@@ -230,3 +232,52 @@ def test_compose_environment_parses_and_reaches_the_router(monkeypatch):
     settings = Settings()
     router = compose["services"]["zenoh"]["ports"][0].split(":")[1]
     assert settings.zenoh.connect == (f"tcp/zenoh:{router}",)
+
+
+def test_compose_router_is_of_the_release_line_the_project_installs():
+    # before: eclipse/zenoh:1.0.0 beside a client that pip resolved to 1.10
+    import tomllib
+
+    from packaging.requirements import Requirement
+
+    image = yaml.safe_load((DOCKER / "compose.yaml").read_text())["services"]["zenoh"]["image"]
+    router = image.removeprefix("eclipse/zenoh:")
+    project = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]
+    (spec,) = [
+        Requirement(r).specifier
+        for r in project["dependencies"]
+        if Requirement(r).name == "eclipse-zenoh"
+    ]
+    major, minor, _ = map(int, router.split("."))
+    assert spec.contains(router) and not spec.contains(f"{major}.{minor + 1}.0")
+    assert importlib.metadata.version("eclipse-zenoh").split(".")[:2] == [str(major), str(minor)]
+
+
+def test_the_router_configuration_relays_between_the_service_and_a_camera():
+    import zenoh
+
+    from service.streams.session import ZenohOptions, load_config_file, open_session
+
+    router_endpoint = f"tcp/127.0.0.1:{free_port()}"
+    config = load_config_file(DOCKER / "zenoh-router.json5")  # the router of compose.yaml
+    config.insert_json5("listen/endpoints", json.dumps([router_endpoint]))
+    # as compose.yaml's service (a peer connected to the router) and a camera using it alone
+    service = ZenohOptions(listen=(f"tcp/127.0.0.1:{free_port()}",), connect=(router_endpoint,))
+    camera = ZenohOptions(mode="client", listen=(), connect=(router_endpoint,))
+    received: list[bytes] = []
+    with contextlib.ExitStack() as stack:
+        stack.callback(zenoh.open(config).close)
+        hub = open_session(service.hub_config())
+        stack.callback(hub.close)
+        member = open_session(camera.member_config())  # a client: it reaches the router only
+        stack.callback(member.close)
+        subscriber = hub.declare_subscriber(
+            "vtrack/cameras/door/frames", lambda sample: received.append(sample.payload.to_bytes())
+        )
+        stack.callback(subscriber.undeclare)
+
+        def delivered() -> bool:
+            member.put("vtrack/cameras/door/frames", b"frame")
+            return bool(received)
+
+        wait_for(delivered, 10, "a camera's frame relayed by the router", interval=0.2)
