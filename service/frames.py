@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import configparser
 import math
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +15,9 @@ import numpy as np
 
 DEFAULT_FPS = 25.0
 """Frame rate assumed for image folders and videos that declare none."""
+
+_NOT_A_FRAME_RATE = 1000.0
+"""A stated rate this high is a millisecond time base, not frames per second."""
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm")
 
@@ -76,7 +80,7 @@ class FrameSource:
     count_stated:
         Whether the container states ``frame_count`` (image folders: always).
     duration:
-        The container's duration in seconds, ``None`` when it states none.
+        The video's duration in seconds, ``None`` when the file states none.
     """
 
     path: Path
@@ -217,8 +221,12 @@ def open_frames(path: str | Path) -> FrameSource:
         fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
     finally:
         capture.release()
+    if fps is not None and fps >= _NOT_A_FRAME_RATE:
+        fps = None  # the time base stated as a rate: WebM recorded in browsers says 1000
     height, width = first.shape[:2]
     stated, duration = _container_length(path)
+    if not stated and duration:  # OpenCV's estimate spans the container, audio included
+        count = round(duration * (fps or DEFAULT_FPS))
     return FrameSource(
         path,
         max(count, 0),
@@ -231,7 +239,8 @@ def open_frames(path: str | Path) -> FrameSource:
 
 
 def _container_length(path: Path) -> tuple[bool, float | None]:
-    """Whether the container states its frame count, and its duration in seconds.
+    """Whether the container states its video's frame count, and the video's duration in
+    seconds (``None`` when neither the video stream nor the container tells it).
 
     OpenCV reports a count either way, estimating ``duration x rate`` where the container
     states none; that estimate is no promise (a variable-rate video holds fewer frames), so a
@@ -239,11 +248,30 @@ def _container_length(path: Path) -> tuple[bool, float | None]:
     """
     try:
         with av.open(str(path)) as container:
-            stated = container.streams.video[0].frames > 0
-            duration = container.duration / av.time_base if container.duration else None
+            video = container.streams.video[0]
+            return video.frames > 0, _video_duration(container, video)
     except (av.FFmpegError, IndexError):  # OpenCV decodes it: keep its count as stated
         return True, None
-    return stated, duration
+
+
+_MATROSKA_DURATION = re.compile(r"^(\d+):(\d{2}):(\d{2}(?:\.\d+)?)$")
+
+
+def _video_duration(container: av.container.InputContainer, video: av.VideoStream) -> float | None:
+    """The duration of the video stream: its own, else the per-track ``DURATION`` tag that
+    Matroska and WebM writers add, else the container's if the video is its only stream.
+
+    A container's duration spans all its streams: with an audio track that runs on after the
+    last picture (common in recordings), it would make a complete video look truncated.
+    """
+    if video.duration and video.time_base:
+        return float(video.duration * video.time_base)
+    if match := _MATROSKA_DURATION.match(video.metadata.get("DURATION", "")):
+        hours, minutes, seconds = match.groups()
+        return int(hours) * 3600 + int(minutes) * 60 + float(seconds)
+    if len(container.streams) == 1 and container.duration:
+        return container.duration / av.time_base
+    return None
 
 
 def _sequence_fps(folder: Path) -> float | None:

@@ -82,12 +82,12 @@ def vfr_video(shared_data, tmp_path_factory):
     return write_stamped(frames, VFR_MS, tmp_path_factory.mktemp("vfr") / "dropped_frames.mp4")
 
 
-def write_stamped(frames, stamps_ms, path: Path) -> Path:
+def write_stamped(frames, stamps_ms, path: Path, rate: int = 10) -> Path:
     """480x360 ``frames`` at presentation times ``stamps_ms`` in ``path``'s container (MPEG-4
-    video; written by PyAV: OpenCV's writer has one frame rate)."""
+    video stating ``rate`` frames per second; written by PyAV: OpenCV's writer has one rate)."""
     millisecond = fractions.Fraction(1, 1000)
     with av.open(str(path), "w") as container:
-        stream = container.add_stream("mpeg4", rate=10)
+        stream = container.add_stream("mpeg4", rate=rate)
         stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
         stream.time_base = millisecond
         for image, ms in zip(frames, stamps_ms, strict=True):

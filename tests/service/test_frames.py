@@ -4,12 +4,15 @@ a variable-frame-rate video keep their real spacing in the results and in the mo
 from __future__ import annotations
 
 from itertools import islice
+from pathlib import Path
 
+import av
+import numpy as np
 import pytest
 
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
-from service.frames import open_frames
+from service.frames import DEFAULT_FPS, open_frames
 from service.outputs.json_out import read_trajectories
 from tests.service.conftest import PETS_VIDEO, VFR_MS, write_stamped
 
@@ -87,3 +90,50 @@ def test_a_motchallenge_folder_plays_at_its_frame_rate(shared_data, name, fps, c
         assert (source.fps, source.frame_count) == (fps, count)
         stamps = [f.timestamp for f in islice(source.timed(2), 3)]
         assert stamps == pytest.approx([0, 2 / fps, 4 / fps])
+
+
+def _with_audio(video: Path, seconds: float, path: Path) -> Path:
+    """``video``'s frames (stream-copied) beside an AAC track of ``seconds`` of silence."""
+    with av.open(str(video)) as source, av.open(str(path), "w") as out:
+        stream = out.add_stream_from_template(source.streams.video[0])
+        audio = out.add_stream("aac", rate=48000)
+        audio.layout = "mono"
+        for packet in source.demux(source.streams.video[0]):
+            if packet.dts is not None:
+                packet.stream = stream
+                out.mux(packet)
+        samples = audio.codec_context.frame_size
+        for start in range(0, int(seconds * 48000), samples):
+            frame = av.AudioFrame.from_ndarray(
+                np.zeros((1, samples), np.float32), format="fltp", layout="mono"
+            )
+            frame.sample_rate, frame.pts = 48000, start
+            out.mux(audio.encode(frame))
+        out.mux(audio.encode())
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".mkv", ".mp4"])
+def test_sound_that_runs_on_after_the_pictures_is_no_truncation(shared_data, tmp_path, suffix):
+    # before (Matroska): "the video ended after 3.90 s of the 4.50 s its container announces
+    # (truncated or damaged file)": the container's duration spans the audio too
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), 40))
+    silent = write_stamped(frames, range(0, 4000, 100), tmp_path / f"silent{suffix}")
+    video = _with_audio(silent, 4.5, tmp_path / f"recording{suffix}")
+    source = open_frames(video)
+    assert source.duration == pytest.approx(4.0, abs=0.11)
+    assert source.frame_count == 40  # for Matroska an estimate, now from the video's duration
+    result = analyze(video, JobOptions(formats=["json"]), tmp_path / "out")
+    assert (result.video.frames_read, result.warnings) == (40, [])
+
+
+def test_a_millisecond_time_base_is_not_taken_for_the_frame_rate(shared_data, tmp_path):
+    # WebM from browsers (MediaRecorder) states 1000 frames per second: it was reported as the
+    # video's rate, and 40 frames were announced as 3900 (progress stuck near 1%)
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), 40))
+    path = write_stamped(frames, range(0, 4000, 100), tmp_path / "browser.mkv", rate=1000)
+    source = open_frames(path)
+    # no rate, so the count that Matroska does not state is estimated at the default rate
+    assert source.fps is None and source.frame_count == round(3.9 * DEFAULT_FPS)
+    stamps = [f.timestamp for f in source.timed()]
+    assert stamps == pytest.approx([i / 10 for i in range(40)])
