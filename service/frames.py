@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import configparser
+import contextlib
 import math
 import re
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -216,7 +218,10 @@ def open_frames(path: str | Path) -> FrameSource:
     try:
         ok, first = capture.read() if capture.isOpened() else (False, None)
         if not ok or first is None:
-            raise FrameSourceError(f"{path} is not a video OpenCV can decode")
+            reason = undecodable_reason(path)
+            raise FrameSourceError(
+                f"{path} is not a video OpenCV can decode" + (f": {reason}" if reason else "")
+            )
         count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
         fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
     finally:
@@ -236,6 +241,47 @@ def open_frames(path: str | Path) -> FrameSource:
         count_stated=stated,
         duration=duration,
     )
+
+
+def undecodable_reason(path: Path) -> str | None:
+    """Why a file whose first frame does not decode holds no video, where that can be told:
+    no video track, or an MP4 without its index; ``None`` otherwise."""
+    with contextlib.suppress(OSError):  # unreadable: OpenCV's failure says enough
+        if _mp4_without_index(path):
+            return (
+                "it is an MP4/MOV file without its index (no 'moov' box), as a recording is "
+                "when the phone or camera stopped before finishing the file"
+            )
+    try:
+        with av.open(str(path)) as container:
+            kinds = sorted({stream.type for stream in container.streams})
+            if not container.streams.video:
+                return f"it holds no video track (its tracks: {', '.join(kinds) or 'none'})"
+    except av.FFmpegError:
+        pass
+    return None
+
+
+def _mp4_without_index(path: Path) -> bool:
+    """Whether ``path`` is an ISO media file (MP4, MOV) whose top-level boxes have no
+    ``moov``, the index of its samples, which writers add when they finish the file."""
+    with path.open("rb") as file:
+        if file.read(8)[4:8] != b"ftyp":
+            return False
+        offset = 0
+        while True:
+            file.seek(offset)
+            header = file.read(16)
+            if len(header) < 8:
+                return True
+            size, kind = struct.unpack(">I4s", header[:8])
+            if kind == b"moov":
+                return False
+            if size == 1 and len(header) == 16:  # a 64-bit size follows
+                size = struct.unpack(">Q", header[8:])[0]
+            if size < 8:  # 0: the box runs to the end of the file
+                return True
+            offset += size
 
 
 def _container_length(path: Path) -> tuple[bool, float | None]:

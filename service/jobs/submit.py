@@ -14,7 +14,7 @@ from starlette.concurrency import run_in_threadpool
 from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
 from service.analysis import OptionsError, PipelineResources, check_options
-from service.frames import FrameSource, FrameSourceError, open_frames
+from service.frames import FrameSource, FrameSourceError, open_frames, undecodable_reason
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
 from service.storage import FREE_SPACE, storage_problem
@@ -77,10 +77,11 @@ def probe_video(path: Path, size: int) -> FrameSource:
     try:
         return open_frames(path)
     except FrameSourceError:
+        reason = undecodable_reason(path) or "no frame could be read from it"
         raise HTTPException(
             status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
-            "the uploaded file is not a video this service can decode (no frame could be "
-            "read from it): send a video file such as MP4 (H.264) or AVI (MJPEG)",
+            f"the uploaded file is not a video this service can decode: {reason}; send a "
+            "video file such as MP4 (H.264) or AVI (MJPEG)",
         ) from None
 
 

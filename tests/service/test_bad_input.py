@@ -8,16 +8,28 @@ from __future__ import annotations
 
 import json
 import socket
+from itertools import islice
 
+import av
+import numpy as np
 import pytest
 
 from api_schemas.common import ErrorResponse
-from tests.service.conftest import PETS_VIDEO, Server, submit, wait_for, wait_for_state
+from service.frames import open_frames
+from tests.service.conftest import (
+    PETS_VIDEO,
+    Server,
+    submit,
+    wait_for,
+    wait_for_state,
+    write_stamped,
+)
 
 pytestmark = pytest.mark.slow
 
 TOKEN = "s3cret-token"
 LIMIT = 400_000
+AAC_FRAME = 1024  # samples per AAC frame
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +56,30 @@ def _write(path, data):
     return path
 
 
+def _unfinished_mp4(folder, video):
+    """An MP4 cut before its index, which writers add last: a recording that was not finished."""
+    frames = list(islice(open_frames(video), 10))
+    stamps = range(0, 100 * len(frames), 100)
+    whole = write_stamped(frames, stamps, folder / "whole.mp4").read_bytes()
+    assert whole.rfind(b"moov") > len(whole) * 0.8  # the index is at the end
+    return _write(folder / "VID_0001.mp4", whole[: len(whole) * 4 // 5])
+
+
+def _voice_memo(folder, video):
+    """An M4A holding one second of sound and no picture."""
+    path = folder / "memo.m4a"
+    with av.open(str(path), "w") as out:
+        audio = out.add_stream("aac", rate=48000)
+        audio.layout = "mono"
+        for start in range(0, 48000, AAC_FRAME):
+            samples = np.zeros((1, AAC_FRAME), np.float32)
+            frame = av.AudioFrame.from_ndarray(samples, format="fltp", layout="mono")
+            frame.sample_rate, frame.pts = 48000, start
+            out.mux(audio.encode(frame))
+        out.mux(audio.encode())
+    return path
+
+
 @pytest.mark.parametrize(
     ("make_video", "options", "status", "message"),
     [
@@ -55,6 +91,9 @@ def _write(path, data):
         (lambda d, v: _write(d / "empty.avi", b""), None, 415, "is empty"),
         # Only the first 2 kB of a real video: the header without a frame.
         (lambda d, v: _write(d / "head.avi", v.read_bytes()[:2048]), None, 415, "not a video"),
+        # before: the same words as for junk, for a phone recording and for sound
+        (_unfinished_mp4, None, 415, "an MP4/MOV file without its index (no 'moov' box)"),
+        (_voice_memo, None, 415, "it holds no video track (its tracks: audio)"),
         # A misspelt option.
         (lambda d, v: v, {"formats": ["json"], "frame_stp": 2}, 422, "unknown option 'frame_stp'"),
         # An unknown nested option.

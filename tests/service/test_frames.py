@@ -102,10 +102,9 @@ def _with_audio(video: Path, seconds: float, path: Path) -> Path:
             if packet.dts is not None:
                 packet.stream = stream
                 out.mux(packet)
-        samples = audio.codec_context.frame_size
-        for start in range(0, int(seconds * 48000), samples):
+        for start in range(0, int(seconds * 48000), 1024):  # samples per AAC frame
             frame = av.AudioFrame.from_ndarray(
-                np.zeros((1, samples), np.float32), format="fltp", layout="mono"
+                np.zeros((1, 1024), np.float32), format="fltp", layout="mono"
             )
             frame.sample_rate, frame.pts = 48000, start
             out.mux(audio.encode(frame))
