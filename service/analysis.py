@@ -252,6 +252,13 @@ def _summary(
         )
     if truncation := truncation_warning(source, read):
         warnings.append(truncation)
+    confirm_hits = options.tracker.confirm_hits or PeopleTrackerConfig().confirm_hits
+    if options.mode == "people" and processed < confirm_hits:
+        warnings.append(
+            f"only {processed} frame(s) were tracked, and a person is reported once seen in "
+            f"{confirm_hits} (tracker.confirm_hits): for a clip this short, set "
+            "tracker.confirm_hits to 1"
+        )
     missing = h264.h264_unavailable()
     if missing is not None and OutputFormat.mp4 in options.formats:
         warnings.append(f"the annotated video is mp4v, which browsers do not play: {missing}")

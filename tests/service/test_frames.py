@@ -136,3 +136,18 @@ def test_a_millisecond_time_base_is_not_taken_for_the_frame_rate(shared_data, tm
     assert source.fps is None and source.frame_count == round(3.9 * DEFAULT_FPS)
     stamps = [f.timestamp for f in source.timed()]
     assert stamps == pytest.approx([i / 10 for i in range(40)])
+
+
+def test_a_clip_shorter_than_a_confirmation_says_so(shared_data, tmp_path):
+    # before: a one-frame clip of five people succeeded with no track and no word why
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), 1))
+    clip = write_stamped(frames, [0], tmp_path / "one_frame.mp4")
+    result = analyze(clip, JobOptions(formats=["json"]), tmp_path / "out")
+    assert read_trajectories(result.files["json"]).tracks == []
+    assert result.warnings == [
+        "only 1 frame(s) were tracked, and a person is reported once seen in 3 "
+        "(tracker.confirm_hits): for a clip this short, set tracker.confirm_hits to 1"
+    ]
+    options = JobOptions(formats=["json"], tracker={"confirm_hits": 1})
+    result = analyze(clip, options, tmp_path / "again")
+    assert read_trajectories(result.files["json"]).tracks and result.warnings == []
