@@ -254,10 +254,10 @@ def _summary(
         warnings.append(truncation)
     confirm_hits = options.tracker.confirm_hits or PeopleTrackerConfig().confirm_hits
     if options.mode == "people" and processed < confirm_hits:
+        tracked = "1 frame was" if processed == 1 else f"{processed} frames were"
         warnings.append(
-            f"only {processed} frame(s) were tracked, and a person is reported once seen in "
-            f"{confirm_hits} (tracker.confirm_hits): for a clip this short, set "
-            "tracker.confirm_hits to 1"
+            f"only {tracked} tracked, and a person is reported once seen in {confirm_hits} "
+            "(tracker.confirm_hits): for a clip this short, set tracker.confirm_hits to 1"
         )
     missing = h264.h264_unavailable()
     if missing is not None and OutputFormat.mp4 in options.formats:

@@ -254,9 +254,9 @@ def undecodable_reason(path: Path) -> str | None:
             )
     try:
         with av.open(str(path)) as container:
-            kinds = sorted({stream.type for stream in container.streams})
             if not container.streams.video:
-                return f"it holds no video track (its tracks: {', '.join(kinds) or 'none'})"
+                kinds = ", ".join(sorted({stream.type for stream in container.streams}))
+                return f"it holds no video track (its tracks: {kinds or 'none'})"
     except av.FFmpegError:
         pass
     return None

@@ -145,7 +145,7 @@ def test_a_clip_shorter_than_a_confirmation_says_so(shared_data, tmp_path):
     result = analyze(clip, JobOptions(formats=["json"]), tmp_path / "out")
     assert read_trajectories(result.files["json"]).tracks == []
     assert result.warnings == [
-        "only 1 frame(s) were tracked, and a person is reported once seen in 3 "
+        "only 1 frame was tracked, and a person is reported once seen in 3 "
         "(tracker.confirm_hits): for a clip this short, set tracker.confirm_hits to 1"
     ]
     options = JobOptions(formats=["json"], tracker={"confirm_hits": 1})
