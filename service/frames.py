@@ -25,7 +25,18 @@ IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pg
 
 
 class FrameSourceError(ValueError):
-    """A path that is not a readable video or image folder."""
+    """A path that is not a readable video or image folder.
+
+    Attributes
+    ----------
+    reason:
+        Why a file holds no video, where that can be told (:func:`_undecodable_reason`),
+        without the path: for messages to those who sent the file under another name.
+    """
+
+    def __init__(self, message: str, reason: str | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 @dataclass(frozen=True, slots=True)
@@ -218,9 +229,10 @@ def open_frames(path: str | Path) -> FrameSource:
     try:
         ok, first = capture.read() if capture.isOpened() else (False, None)
         if not ok or first is None:
-            reason = undecodable_reason(path)
+            reason = _undecodable_reason(path)
             raise FrameSourceError(
-                f"{path} is not a video OpenCV can decode" + (f": {reason}" if reason else "")
+                f"{path} is not a video OpenCV can decode" + (f": {reason}" if reason else ""),
+                reason,
             )
         count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
         fps = float(capture.get(cv2.CAP_PROP_FPS)) or None
@@ -243,7 +255,7 @@ def open_frames(path: str | Path) -> FrameSource:
     )
 
 
-def undecodable_reason(path: Path) -> str | None:
+def _undecodable_reason(path: Path) -> str | None:
     """Why a file whose first frame does not decode holds no video, where that can be told:
     no video track, or an MP4 without its index; ``None`` otherwise."""
     with contextlib.suppress(OSError):  # unreadable: OpenCV's failure says enough

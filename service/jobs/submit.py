@@ -14,7 +14,7 @@ from starlette.concurrency import run_in_threadpool
 from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
 from service.analysis import OptionsError, PipelineResources, check_options
-from service.frames import FrameSource, FrameSourceError, open_frames, undecodable_reason
+from service.frames import FrameSource, FrameSourceError, open_frames
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
 from service.storage import FREE_SPACE, storage_problem
@@ -76,8 +76,8 @@ def probe_video(path: Path, size: int) -> FrameSource:
         )
     try:
         return open_frames(path)
-    except FrameSourceError:
-        reason = undecodable_reason(path) or "no frame could be read from it"
+    except FrameSourceError as error:
+        reason = error.reason or "no frame could be read from it"
         raise HTTPException(
             status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
             f"the uploaded file is not a video this service can decode: {reason}; send a "

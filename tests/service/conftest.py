@@ -16,6 +16,7 @@ from pathlib import Path
 import av
 import cv2
 import httpx
+import numpy as np
 import pytest
 
 from service.frames import open_frames
@@ -80,6 +81,21 @@ def vfr_video(shared_data, tmp_path_factory):
     """An MPEG-4 file of real PETS frames stamped with ``VFR_MS``."""
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), len(VFR_MS)))
     return write_stamped(frames, VFR_MS, tmp_path_factory.mktemp("vfr") / "dropped_frames.mp4")
+
+
+def mux_silence(container, seconds: float) -> None:
+    """Add a mono AAC track of ``seconds`` of silence to ``container`` (PyAV, open for writing;
+    its other streams must be added before)."""
+    audio = container.add_stream("aac", rate=48000)
+    audio.layout = "mono"
+    samples = 1024  # per AAC frame
+    for start in range(0, round(seconds * 48000), samples):
+        frame = av.AudioFrame.from_ndarray(
+            np.zeros((1, samples), np.float32), format="fltp", layout="mono"
+        )
+        frame.sample_rate, frame.pts = 48000, start
+        container.mux(audio.encode(frame))
+    container.mux(audio.encode())
 
 
 def write_stamped(frames, stamps_ms, path: Path, rate: int = 10) -> Path:

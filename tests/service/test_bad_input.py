@@ -11,7 +11,6 @@ import socket
 from itertools import islice
 
 import av
-import numpy as np
 import pytest
 
 from api_schemas.common import ErrorResponse
@@ -19,6 +18,7 @@ from service.frames import open_frames
 from tests.service.conftest import (
     PETS_VIDEO,
     Server,
+    mux_silence,
     submit,
     wait_for,
     wait_for_state,
@@ -29,7 +29,6 @@ pytestmark = pytest.mark.slow
 
 TOKEN = "s3cret-token"
 LIMIT = 400_000
-AAC_FRAME = 1024  # samples per AAC frame
 
 
 @pytest.fixture(scope="module")
@@ -69,14 +68,7 @@ def _voice_memo(folder, video):
     """An M4A holding one second of sound and no picture."""
     path = folder / "memo.m4a"
     with av.open(str(path), "w") as out:
-        audio = out.add_stream("aac", rate=48000)
-        audio.layout = "mono"
-        for start in range(0, 48000, AAC_FRAME):
-            samples = np.zeros((1, AAC_FRAME), np.float32)
-            frame = av.AudioFrame.from_ndarray(samples, format="fltp", layout="mono")
-            frame.sample_rate, frame.pts = 48000, start
-            out.mux(audio.encode(frame))
-        out.mux(audio.encode())
+        mux_silence(out, 1.0)
     return path
 
 

@@ -7,14 +7,13 @@ from itertools import islice
 from pathlib import Path
 
 import av
-import numpy as np
 import pytest
 
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
 from service.frames import DEFAULT_FPS, open_frames
 from service.outputs.json_out import read_trajectories
-from tests.service.conftest import PETS_VIDEO, VFR_MS, write_stamped
+from tests.service.conftest import PETS_VIDEO, VFR_MS, mux_silence, write_stamped
 
 pytestmark = pytest.mark.slow
 
@@ -96,19 +95,11 @@ def _with_audio(video: Path, seconds: float, path: Path) -> Path:
     """``video``'s frames (stream-copied) beside an AAC track of ``seconds`` of silence."""
     with av.open(str(video)) as source, av.open(str(path), "w") as out:
         stream = out.add_stream_from_template(source.streams.video[0])
-        audio = out.add_stream("aac", rate=48000)
-        audio.layout = "mono"
+        mux_silence(out, seconds)
         for packet in source.demux(source.streams.video[0]):
             if packet.dts is not None:
                 packet.stream = stream
                 out.mux(packet)
-        for start in range(0, int(seconds * 48000), 1024):  # samples per AAC frame
-            frame = av.AudioFrame.from_ndarray(
-                np.zeros((1, 1024), np.float32), format="fltp", layout="mono"
-            )
-            frame.sample_rate, frame.pts = 48000, start
-            out.mux(audio.encode(frame))
-        out.mux(audio.encode())
     return path
 
 
