@@ -247,7 +247,7 @@ def _summary(
     frames_read = read.frames
     if source.fps is None:
         warnings.append(
-            "the video declares no frame rate; frames without a presentation time of their "
+            "the video states no usable frame rate; frames without a presentation time of their "
             f"own are stamped {source.timing_fps:g} per second"
         )
     if truncation := truncation_warning(source, read):

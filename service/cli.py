@@ -146,7 +146,9 @@ def _track(args: argparse.Namespace) -> int:
         if args.format == "csv":
             print("frame,x,y,w,h,peak,psr", file=out_file)
         frames = source.timed(1, read)
-        with tqdm(frames, total=source.frame_count, unit="frame", disable=args.quiet) as bar:
+        with tqdm(
+            frames, total=source.frame_count or None, unit="frame", disable=args.quiet
+        ) as bar:
             for frame in bar:
                 if written == 0:
                     tracker.initialize(frame.image, box)

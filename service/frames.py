@@ -241,17 +241,19 @@ def open_frames(path: str | Path) -> FrameSource:
     if fps is not None and fps >= _NOT_A_FRAME_RATE:
         fps = None  # the time base stated as a rate: WebM recorded in browsers says 1000
     height, width = first.shape[:2]
-    stated, duration = _container_length(path)
-    if not stated and duration:  # OpenCV's estimate spans the container, audio included
-        count = round(duration * (fps or DEFAULT_FPS))
+    facts = _container_facts(path)
+    if facts.untimed:
+        fps = facts.header_rate  # OpenCV reports FFmpeg's default 25 whatever the stream says
+    if not facts.count_stated and facts.duration:  # OpenCV's estimate spans the container
+        count = round(facts.duration * (fps or DEFAULT_FPS))
     return FrameSource(
         path,
         max(count, 0),
         fps,
         width=width,
         height=height,
-        count_stated=stated,
-        duration=duration,
+        count_stated=facts.count_stated,
+        duration=facts.duration,
     )
 
 
@@ -296,20 +298,46 @@ def _mp4_without_index(path: Path) -> bool:
             offset += size
 
 
-def _container_length(path: Path) -> tuple[bool, float | None]:
-    """Whether the container states its video's frame count, and the video's duration in
-    seconds (``None`` when neither the video stream nor the container tells it).
+@dataclass(frozen=True, slots=True)
+class _ContainerFacts:
+    """What the container says of its video beyond OpenCV's reading.
 
-    OpenCV reports a count either way, estimating ``duration x rate`` where the container
-    states none; that estimate is no promise (a variable-rate video holds fewer frames), so a
-    video read to its end is judged truncated by the duration instead.
+    Attributes
+    ----------
+    count_stated:
+        Whether it states the video's frame count. OpenCV reports a count either way,
+        estimating ``duration x rate`` where the container states none; that estimate is no
+        promise (a variable-rate video holds fewer frames), so a video read to its end is
+        judged truncated by the duration instead.
+    duration:
+        The video's duration in seconds, ``None`` when neither the video stream nor the
+        container tells it.
+    untimed:
+        Whether the video is an elementary stream without timestamps (a raw ``.h264``,
+        ``.h265`` or ``.m4v`` export).
+    header_rate:
+        The frame rate the codec's own headers state (H.264's VUI timing), ``None`` if none.
     """
+
+    count_stated: bool = True
+    duration: float | None = None
+    untimed: bool = False
+    header_rate: float | None = None
+
+
+def _container_facts(path: Path) -> _ContainerFacts:
     try:
         with av.open(str(path)) as container:
             video = container.streams.video[0]
-            return video.frames > 0, _video_duration(container, video)
+            header_rate = video.codec_context.framerate
+            return _ContainerFacts(
+                video.frames > 0,
+                _video_duration(container, video),
+                av.format.Flags.no_timestamps in av.format.Flags(container.format.flags),
+                float(header_rate) if header_rate else None,
+            )
     except (av.FFmpegError, IndexError):  # OpenCV decodes it: keep its count as stated
-        return True, None
+        return _ContainerFacts()
 
 
 _MATROSKA_DURATION = re.compile(r"^(\d+):(\d{2}):(\d{2}(?:\.\d+)?)$")

@@ -127,6 +127,32 @@ def test_a_millisecond_time_base_is_not_taken_for_the_frame_rate(shared_data, tm
     assert source.fps is None and source.frame_count == round(3.9 * DEFAULT_FPS)
     stamps = [f.timestamp for f in source.timed()]
     assert stamps == pytest.approx([i / 10 for i in range(40)])
+    result = analyze(path, JobOptions(formats=["json"]), tmp_path / "out")
+    assert result.warnings == [  # before: "declares no frame rate", of a video stating 1000
+        "the video states no usable frame rate; frames without a presentation time of their "
+        "own are stamped 25 per second"
+    ]
+
+
+
+@pytest.mark.parametrize(("muxer", "codec"), [("h264", "libx264"), ("m4v", "mpeg4")])
+def test_a_raw_elementary_stream_plays_at_its_header_rate(shared_data, tmp_path, muxer, codec):
+    # DVRs export raw .h264: no container, no timestamps, the rate only in the codec's headers.
+    # Before, it was reported and stamped at FFmpeg's default 25 frames per second.
+    path = tmp_path / f"export.{muxer}"
+    with av.open(str(path), "w", format=muxer) as container:
+        stream = container.add_stream(codec, rate=5)
+        stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
+        for index, image in enumerate(islice(open_frames(shared_data / PETS_VIDEO), 12)):
+            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
+            frame.pts = index
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode())
+    source = open_frames(path)
+    assert source.fps == 5
+    assert [f.timestamp for f in source.timed()] == pytest.approx([i / 5 for i in range(12)])
+    result = analyze(path, JobOptions(formats=["json"]), tmp_path / "out")
+    assert (result.video.fps, result.video.frames_read, result.warnings) == (5, 12, [])
 
 
 def test_a_clip_shorter_than_a_confirmation_says_so(shared_data, tmp_path):
