@@ -33,7 +33,7 @@ from tracking.gap_filling import GapFiller
 from tracking.people import PeopleTrackerConfig
 from tracking.people.config import default_part_appearance
 from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
-from tracking.types import Box, validate_box
+from tracking.types import Box, box_problem
 
 log = logging.getLogger(__name__)
 
@@ -120,10 +120,8 @@ def check_options(
             )
         if frame_size is not None and options.first_box is not None:
             b = options.first_box
-            try:
-                validate_box(Box(b.x, b.y, b.w, b.h), (frame_size[1], frame_size[0]))
-            except ValueError as error:
-                raise OptionsError(f"first_box: {error}") from None
+            if problem := box_problem(Box(b.x, b.y, b.w, b.h), (frame_size[1], frame_size[0])):
+                raise OptionsError(f"first_box {problem}")
         return
     people_config(options, resources)
     if options.detector.name == "dpm" and (

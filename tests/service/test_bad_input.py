@@ -106,12 +106,12 @@ def _voice_memo(folder, video):
         (lambda d, v: v, {"formats": ["avi"]}, 422, "formats.0"),
         # Single-target mode without its first box.
         (lambda d, v: v, {"mode": "single_target"}, 422, "needs first_box"),
-        # A first box outside the 480x360 frame.
+        # A first box outside the 480x360 frame (before: "first_box: box 900,10,20,40 ...").
         (
             lambda d, v: v,
             {"mode": "single_target", "first_box": {"x": 900, "y": 10, "w": 20, "h": 40}},
             422,
-            "outside",
+            "first_box 900,10,20,40 lies entirely outside the 480x360 frame",
         ),
         # An unknown correlation preset.
         (

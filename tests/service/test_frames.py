@@ -134,7 +134,6 @@ def test_a_millisecond_time_base_is_not_taken_for_the_frame_rate(shared_data, tm
     ]
 
 
-
 @pytest.mark.parametrize(("muxer", "codec"), [("h264", "libx264"), ("m4v", "mpeg4")])
 def test_a_raw_elementary_stream_plays_at_its_header_rate(shared_data, tmp_path, muxer, codec):
     # DVRs export raw .h264: no container, no timestamps, the rate only in the codec's headers.
