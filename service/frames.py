@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import configparser
 import contextlib
 import math
 import re
@@ -14,6 +13,8 @@ from pathlib import Path
 import av
 import cv2
 import numpy as np
+
+from tracking.detection.sequences import MotFormatError, read_seqinfo
 
 DEFAULT_FPS = 25.0
 """Frame rate assumed for image folders and videos that declare none."""
@@ -363,13 +364,12 @@ def _video_duration(container: av.container.InputContainer, video: av.VideoStrea
 def _sequence_fps(folder: Path) -> float | None:
     """The frame rate of a MOTChallenge sequence (``frameRate`` of the ``seqinfo.ini`` beside
     or above its images), ``None`` for other folders."""
-    for ini in (folder / "seqinfo.ini", folder.parent / "seqinfo.ini"):
-        if ini.is_file():
-            parser = configparser.ConfigParser()
-            try:
-                parser.read(ini)
-                fps = parser.getfloat("Sequence", "frameRate", fallback=0.0)
-            except (configparser.Error, ValueError):
-                return None
+    for sequence in (folder, folder.parent):
+        try:
+            info = read_seqinfo(sequence)
+            fps = float(info.get("frameRate", "0")) if info else None
+        except (MotFormatError, ValueError):
+            return None
+        if fps is not None:
             return fps if fps > 0 else None
     return None

@@ -107,6 +107,30 @@ def test_ground_truth_boxes_are_0_based(tmp_path):
     assert sequence.gt[1].tolist() == [[4, 6, 10, 20]]  # the flag-0 row is left out
 
 
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[Sequence\nname=x\n", "seqinfo.ini: File contains no section headers"),
+        ("[Other]\nname=x\n", "seqinfo.ini: no \\[Sequence\\] section"),
+    ],
+)
+def test_a_malformed_seqinfo_is_a_format_error(tmp_path, text, message):
+    # before: a configparser error escaped, or a file without [Sequence] was quietly ignored
+    (tmp_path / "seqinfo.ini").write_text(text)
+    with pytest.raises(MotFormatError, match=message):
+        MotSequence.open(tmp_path)
+
+
+def test_seqinfo_names_the_image_folder(tmp_path):
+    (tmp_path / "frames").mkdir()
+    (tmp_path / "gt").mkdir()
+    cv2.imwrite(str(tmp_path / "frames" / "000001.png"), np.zeros((8, 8, 3), np.uint8))
+    (tmp_path / "gt" / "gt.txt").write_text("1,1,1,1,4,4,1,-1,-1,-1\n")
+    (tmp_path / "seqinfo.ini").write_text("[Sequence]\nname=S\nimDir=frames\nimExt=.png\n")
+    sequence = MotSequence.open(tmp_path)
+    assert (sequence.name, [p.name for p in sequence.frames]) == ("S", ["000001.png"])
+
+
 def test_pets_ground_truth_is_the_file_moved_by_one_pixel(pets):
     file_rows = read_mot_rows(pets.path / "gt" / "gt.txt")
     np.testing.assert_array_equal(pets.gt[0], file_rows[file_rows[:, 0] == 1, 2:6] - [1, 1, 0, 0])

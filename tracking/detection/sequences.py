@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import configparser
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -45,6 +46,7 @@ __all__ = [
     "mot_to_image_boxes",
     "parse_mot_rows",
     "read_mot_rows",
+    "read_seqinfo",
 ]
 
 MOT_PIXEL_ORIGIN = 1.0
@@ -53,6 +55,28 @@ MOT_PIXEL_ORIGIN = 1.0
 
 class MotFormatError(ValueError):
     """A MOTChallenge file or folder is missing or malformed."""
+
+
+def read_seqinfo(folder: str | os.PathLike[str]) -> Mapping[str, str]:
+    """The ``[Sequence]`` entries of ``folder/seqinfo.ini`` (``name``, ``frameRate``,
+    ``imDir``, ...; keys in any case), ``{}`` when the folder has no such file.
+
+    Raises
+    ------
+    MotFormatError
+        If the file cannot be parsed or has no ``[Sequence]`` section.
+    """
+    ini = Path(folder) / "seqinfo.ini"
+    if not ini.is_file():
+        return {}
+    parser = configparser.ConfigParser()
+    try:
+        parser.read(ini, encoding="utf-8")
+    except (configparser.Error, UnicodeDecodeError) as exc:
+        raise MotFormatError(f"{ini}: {exc}") from exc
+    if not parser.has_section("Sequence"):
+        raise MotFormatError(f"{ini}: no [Sequence] section")
+    return parser["Sequence"]
 
 
 def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndarray:
@@ -159,17 +183,10 @@ class MotSequence:
         path = Path(path)
         if not path.is_dir():
             raise MotFormatError(f"not a MOTChallenge sequence folder: {path}")
-        name = path.name
-        ini = path / "seqinfo.ini"
-        ext = ".jpg"
-        image_dir = "img1"
-        if ini.is_file():
-            parser = configparser.ConfigParser()
-            parser.read(ini, encoding="utf-8")
-            if parser.has_section("Sequence"):
-                name = parser.get("Sequence", "name", fallback=name)
-                ext = parser.get("Sequence", "imExt", fallback=ext)
-                image_dir = parser.get("Sequence", "imDir", fallback=image_dir)
+        info = read_seqinfo(path)
+        name = info.get("name", path.name)
+        ext = info.get("imExt", ".jpg")
+        image_dir = info.get("imDir", "img1")
         frames = tuple(sorted((path / image_dir).glob(f"*{ext}")))
         if not frames:
             raise MotFormatError(f"{path}: no frames {image_dir}/*{ext}")

@@ -30,7 +30,6 @@ environment (``benchmarks/_mot_env.py``) and reads the files written here.
 
 from __future__ import annotations
 
-import configparser
 import math
 import os
 from collections.abc import Iterable
@@ -45,6 +44,7 @@ from tracking.detection.sequences import (
     image_to_mot_boxes,
     mot_to_image_boxes,
     read_mot_rows,
+    read_seqinfo,
 )
 from tracking.tracks import TrackEstimate
 
@@ -125,26 +125,20 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
         positive number, or there are fewer images than ``seqLength``.
     """
     path = Path(path)
-    ini = path / "seqinfo.ini"
-    if not ini.is_file():
+    if not (path / "seqinfo.ini").is_file():
         raise MotFileError(f"{path}: no seqinfo.ini (a MOTChallenge sequence folder has one)")
-    parser = configparser.ConfigParser()
-    try:
-        parser.read(ini, encoding="utf-8")
-    except configparser.Error as exc:
-        raise MotFileError(f"{ini}: {exc}") from exc
-    if not parser.has_section("Sequence"):
-        raise MotFileError(f"{ini}: no [Sequence] section")
-    section = parser["Sequence"]
+    section = read_seqinfo(path)
     try:
         frame_rate = float(section.get("frameRate", "nan"))
         length = int(section["seqLength"]) if "seqLength" in section else None
         width = int(section.get("imWidth", "0"))
         height = int(section.get("imHeight", "0"))
     except ValueError as exc:
-        raise MotFileError(f"{ini}: {exc}") from exc
+        raise MotFileError(f"{path / 'seqinfo.ini'}: {exc}") from exc
     if not (math.isfinite(frame_rate) and frame_rate > 0):
-        raise MotFileError(f"{ini}: frameRate must be a positive number, got {frame_rate}")
+        raise MotFileError(
+            f"{path / 'seqinfo.ini'}: frameRate must be a positive number, got {frame_rate}"
+        )
     image_dir = path / section.get("imDir", "img1")
     suffix = section.get("imExt", ".jpg").lower()
     frames = sorted(p for p in image_dir.glob("*") if p.suffix.lower() == suffix)
