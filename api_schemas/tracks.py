@@ -126,6 +126,15 @@ class VideoInfo(BaseModel):
         ge=0, description="Frames that decoded, skipped ones included (fewer when truncated)."
     )
     frame_step: int = Field(ge=1, description="Every frame_step-th frame was tracked.")
+    pixel_aspect_ratio: float = Field(
+        default=1.0,
+        gt=0,
+        description=(
+            "Width over height of one stored pixel, as the container states it (12/11 for PAL "
+            "D1 recorders, 1 for square pixels). Boxes and part points are in stored pixels: "
+            "multiply x and w by it for the picture as a player shows it."
+        ),
+    )
 
 
 class Trajectories(BaseModel):

@@ -193,6 +193,7 @@ def analyze(
         job_id=job_id,
         filename=filename,
         mcap_images=options.mcap_images,
+        pixel_aspect=source.pixel_aspect,
     )
     writers = open_writers(list(options.formats), scratch, info)
     filler = GapFiller(options.fill_gaps) if options.fill_gaps > 0 else None
@@ -274,6 +275,7 @@ def _summary(
         frames_announced=source.frame_count if source.count_stated else 0,
         frames_read=frames_read,
         frame_step=options.frame_step,
+        pixel_aspect_ratio=source.pixel_aspect,
     )
     return RunSummary(video=video, frames_processed=processed, warnings=warnings)
 

@@ -95,6 +95,10 @@ class FrameSource:
         Whether the container states ``frame_count`` (image folders: always).
     duration:
         The video's duration in seconds, ``None`` when the file states none.
+    pixel_aspect:
+        Width over height of one stored pixel (the container's sample aspect ratio): 12/11
+        for PAL D1 recorders (704x576 shown as 4:3), 1 for square pixels. Frames come in
+        stored pixels; a player shows them ``pixel_aspect`` times wider.
     """
 
     path: Path
@@ -105,6 +109,7 @@ class FrameSource:
     height: int = 0
     count_stated: bool = True
     duration: float | None = None
+    pixel_aspect: float = 1.0
 
     def __iter__(self) -> Iterator[np.ndarray]:
         """RGB uint8 frames ``(H, W, 3)``, in order."""
@@ -255,6 +260,7 @@ def open_frames(path: str | Path) -> FrameSource:
         height=height,
         count_stated=facts.count_stated,
         duration=facts.duration,
+        pixel_aspect=facts.pixel_aspect,
     )
 
 
@@ -318,12 +324,15 @@ class _ContainerFacts:
         ``.h265`` or ``.m4v`` export).
     header_rate:
         The frame rate the codec's own headers state (H.264's VUI timing), ``None`` if none.
+    pixel_aspect:
+        The video's sample aspect ratio (1 where it states none).
     """
 
     count_stated: bool = True
     duration: float | None = None
     untimed: bool = False
     header_rate: float | None = None
+    pixel_aspect: float = 1.0
 
 
 def _container_facts(path: Path) -> _ContainerFacts:
@@ -331,11 +340,13 @@ def _container_facts(path: Path) -> _ContainerFacts:
         with av.open(str(path)) as container:
             video = container.streams.video[0]
             header_rate = video.codec_context.framerate
+            sample_aspect = video.sample_aspect_ratio  # None, or 0/1, when not stated
             return _ContainerFacts(
                 video.frames > 0,
                 _video_duration(container, video),
                 av.format.Flags.no_timestamps in av.format.Flags(container.format.flags),
                 float(header_rate) if header_rate else None,
+                float(sample_aspect) if sample_aspect else 1.0,
             )
     except (av.FFmpegError, IndexError):  # OpenCV decodes it: keep its count as stated
         return _ContainerFacts()

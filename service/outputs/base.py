@@ -39,6 +39,7 @@ class StreamInfo:
     job_id: str | None = None
     filename: str | None = None
     mcap_images: Literal["h264", "jpeg"] = "h264"
+    pixel_aspect: float = 1.0
 
 
 @dataclass(slots=True)

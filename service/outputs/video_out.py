@@ -89,9 +89,13 @@ class _Encoder(Protocol):
 
 
 class H264Encoder:
-    """BGR frames to an H.264 MP4 (PyAV's libx264), each at its presentation time."""
+    """BGR frames to an H.264 MP4 (PyAV's libx264), each at its presentation time, with the
+    source's pixel aspect ratio, so players show non-square pixels (PAL D1 recorders) as the
+    source plays."""
 
-    def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
+    def __init__(
+        self, path: Path, width: int, height: int, fps: float, pixel_aspect: float = 1.0
+    ) -> None:
         import av
 
         self._frames = FrameStamper("bgr24")
@@ -101,6 +105,9 @@ class H264Encoder:
                 "libx264", rate=Fraction(fps).limit_denominator(1001), options=dict(H264_OPTIONS)
             )
             configure(stream.codec_context, width, height)
+            if pixel_aspect != 1.0:
+                aspect = Fraction(pixel_aspect).limit_denominator(1000)
+                stream.codec_context.sample_aspect_ratio = aspect
         except BaseException:
             self._container.close()
             raise
@@ -133,11 +140,14 @@ class Mp4vEncoder:
         self._writer.release()
 
 
-def open_encoder(path: Path, width: int, height: int, fps: float) -> _Encoder:
-    """H.264 where PyAV can write it, else ``mp4v`` (see the module docstring)."""
+def open_encoder(
+    path: Path, width: int, height: int, fps: float, pixel_aspect: float = 1.0
+) -> _Encoder:
+    """H.264 where PyAV can write it, else ``mp4v`` (see the module docstring; OpenCV's writer
+    has square pixels only)."""
     reason = h264.h264_unavailable()
     if reason is None:
-        return H264Encoder(path, width, height, fps)
+        return H264Encoder(path, width, height, fps, pixel_aspect)
     log.warning("annotated video falls back to mp4v, which browsers do not play: %s", reason)
     return Mp4vEncoder(path, width, height, fps)
 
@@ -147,7 +157,7 @@ class VideoWriter:
         self.path = path
         fps = max(info.fps / info.frame_step, 1.0)
         self._size = (info.width, info.height)
-        self._encoder = open_encoder(path, info.width, info.height, fps)
+        self._encoder = open_encoder(path, info.width, info.height, fps, info.pixel_aspect)
         self._drawer = TrackDrawer()
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:

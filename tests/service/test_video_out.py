@@ -4,6 +4,7 @@ time, and the tracks drawn where the JSON result puts them."""
 from __future__ import annotations
 
 import struct
+from fractions import Fraction
 from itertools import islice
 from pathlib import Path
 
@@ -157,3 +158,30 @@ def test_without_x264_the_results_fall_back_and_the_job_says_so(monkeypatch, vfr
         "encoder",
         "the mcap holds JPEG images instead of H.264 video: PyAV's FFmpeg has no libx264 encoder",
     ]
+
+
+def test_non_square_pixels_are_reported_and_kept_in_the_annotated_video(shared_data, tmp_path):
+    # A recorder storing 4:3 pictures 360 px wide (pixels 4/3 as wide as tall). Before, the
+    # result did not say so and the annotated MP4 played squeezed, with square pixels.
+    path = tmp_path / "squeezed.mp4"
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream("libx264", rate=10)
+        stream.width, stream.height, stream.pix_fmt = 360, 360, "yuv420p"
+        stream.codec_context.sample_aspect_ratio = Fraction(4, 3)
+        for image in islice(open_frames(shared_data / PETS_VIDEO), 10):
+            squeezed = cv2.resize(image, (360, 360), interpolation=cv2.INTER_AREA)
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(squeezed, format="rgb24")))
+        container.mux(stream.encode())
+    assert open_frames(path).pixel_aspect == pytest.approx(4 / 3)
+    result = analyze(path, JobOptions(formats=["json", "mp4"]), tmp_path / "out")
+    video = read_trajectories(result.files["json"]).video
+    assert (video.width, video.height, video.pixel_aspect_ratio) == (360, 360, pytest.approx(4 / 3))
+    with av.open(str(result.files["mp4"])) as container:
+        assert container.streams.video[0].sample_aspect_ratio == Fraction(4, 3)
+
+
+def test_square_pixels_stay_square(annotated):
+    video = read_trajectories(annotated.files["json"]).video
+    assert video.pixel_aspect_ratio == 1.0
+    with av.open(str(annotated.files["mp4"])) as container:
+        assert container.streams.video[0].sample_aspect_ratio in (None, 0, 1)
