@@ -249,8 +249,7 @@ def _summary(
             "the video states no usable frame rate; frames without a presentation time of their "
             f"own are stamped {source.timing_fps:g} per second"
         )
-    if truncation := truncation_warning(source, read):
-        warnings.append(truncation)
+    warnings.extend(damage_warnings(source, read))
     confirm_hits = options.tracker.confirm_hits or PeopleTrackerConfig().confirm_hits
     if options.mode == "people" and processed < confirm_hits:
         tracked = "1 frame was" if processed == 1 else f"{processed} frames were"
@@ -280,28 +279,39 @@ def _summary(
     return RunSummary(video=video, frames_processed=processed, warnings=warnings)
 
 
-def truncation_warning(source: FrameSource, read: ReadProgress) -> str | None:
-    """What to tell the user when the video ended before what its container announces (a
-    truncated or damaged file); ``None`` when it did not.
+def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
+    """What to tell the user of frames the video lacks: at its start, before its first
+    keyframe (a clip cut from a longer recording), and at its end, before what its container
+    announces (a truncated or damaged file); ``[]`` when it lacks none.
 
     A stated frame count is a promise; where the container states none (Matroska, WebM),
     OpenCV's count is the duration times the rate, which a variable-rate video does not reach,
     so there the last frame's time is held against the duration, allowing two frame periods
     (the last frame lasts one; containers round).
     """
+    warnings = []
+    if source.lead_frames:
+        frames = "frame" if source.lead_frames == 1 else f"{source.lead_frames} frames"
+        warnings.append(
+            f"the first {frames} ({source.lead_seconds:.2f} s) could not be decoded: the video "
+            "starts without a keyframe, as a clip cut from a longer recording does; tracking "
+            "starts at its first keyframe, and frame numbers and times count from there"
+        )
     if source.count_stated:
-        if not (source.frame_count and read.frames < source.frame_count):
-            return None
-        read_part = f"{read.frames} of the {source.frame_count} frames"
+        frames = source.lead_frames + read.frames
+        if not (source.frame_count and frames < source.frame_count):
+            return warnings
+        read_part = f"{frames} of the {source.frame_count} frames"
     else:
-        slack = 2.0 / source.timing_fps
-        if not (source.duration and read.end_time + slack < source.duration):
-            return None
-        read_part = f"{read.end_time:.2f} s of the {source.duration:.2f} s"
-    return (
+        end_time = source.lead_seconds + read.end_time
+        if not (source.duration and end_time + 2.0 / source.timing_fps < source.duration):
+            return warnings
+        read_part = f"{end_time:.2f} s of the {source.duration:.2f} s"
+    warnings.append(
         f"the video ended after {read_part} its container announces (truncated or damaged "
         "file); the frames that decoded were tracked"
     )
+    return warnings
 
 
 def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:

@@ -172,9 +172,9 @@ def _track(args: argparse.Namespace) -> int:
         if partial:
             out_file.close()
             partial.unlink(missing_ok=True)  # gone already when the run completed
-    from service.analysis import truncation_warning  # as `vtrack analyze` judges it
+    from service.analysis import damage_warnings  # as `vtrack analyze` judges it
 
-    if warning := truncation_warning(source, read):
+    for warning in damage_warnings(source, read):
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if args.out:
         print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)

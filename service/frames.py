@@ -99,6 +99,11 @@ class FrameSource:
         Width over height of one stored pixel (the container's sample aspect ratio): 12/11
         for PAL D1 recorders (704x576 shown as 4:3), 1 for square pixels. Frames come in
         stored pixels; a player shows them ``pixel_aspect`` times wider.
+    lead_frames, lead_seconds:
+        Frames before the video's first keyframe, and how long they last: a clip cut from a
+        longer recording without its keyframe starts with pictures that reference ones it
+        lacks, and decoding starts at the first keyframe. The frames read are numbered and
+        timed from there.
     """
 
     path: Path
@@ -110,6 +115,8 @@ class FrameSource:
     count_stated: bool = True
     duration: float | None = None
     pixel_aspect: float = 1.0
+    lead_frames: int = 0
+    lead_seconds: float = 0.0
 
     def __iter__(self) -> Iterator[np.ndarray]:
         """RGB uint8 frames ``(H, W, 3)``, in order."""
@@ -252,6 +259,7 @@ def open_frames(path: str | Path) -> FrameSource:
         fps = facts.header_rate  # OpenCV reports FFmpeg's default 25 whatever the stream says
     if not facts.count_stated and facts.duration:  # OpenCV's estimate spans the container
         count = round(facts.duration * (fps or DEFAULT_FPS))
+    lead_seconds = facts.lead_seconds or facts.lead_frames / (fps or DEFAULT_FPS)  # untimed
     return FrameSource(
         path,
         max(count, 0),
@@ -261,6 +269,8 @@ def open_frames(path: str | Path) -> FrameSource:
         count_stated=facts.count_stated,
         duration=facts.duration,
         pixel_aspect=facts.pixel_aspect,
+        lead_frames=facts.lead_frames,
+        lead_seconds=lead_seconds,
     )
 
 
@@ -326,6 +336,8 @@ class _ContainerFacts:
         The frame rate the codec's own headers state (H.264's VUI timing), ``None`` if none.
     pixel_aspect:
         The video's sample aspect ratio (1 where it states none).
+    lead_frames, lead_seconds:
+        As :class:`FrameSource`'s (:func:`_lead_before_keyframe`).
     """
 
     count_stated: bool = True
@@ -333,6 +345,8 @@ class _ContainerFacts:
     untimed: bool = False
     header_rate: float | None = None
     pixel_aspect: float = 1.0
+    lead_frames: int = 0
+    lead_seconds: float = 0.0
 
 
 def _container_facts(path: Path) -> _ContainerFacts:
@@ -347,9 +361,37 @@ def _container_facts(path: Path) -> _ContainerFacts:
                 av.format.Flags.no_timestamps in av.format.Flags(container.format.flags),
                 float(header_rate) if header_rate else None,
                 float(sample_aspect) if sample_aspect else 1.0,
+                *_lead_before_keyframe(container, video),
             )
     except (av.FFmpegError, IndexError):  # OpenCV decodes it: keep its count as stated
         return _ContainerFacts()
+
+
+_KEYFRAME_SEARCH = 1000
+"""Packets searched for a video's first keyframe; beyond, its start is taken as whole."""
+
+
+def _lead_before_keyframe(
+    container: av.container.InputContainer, video: av.VideoStream
+) -> tuple[int, float]:
+    """The packets before ``video``'s first keyframe and their duration in seconds (from the
+    first packet's time to the keyframe's); ``(0, 0.0)`` when the first packet is a keyframe,
+    or no keyframe is flagged in the first :data:`_KEYFRAME_SEARCH` packets (nothing to tell).
+    """
+    first_time = None
+    for count, packet in enumerate(container.demux(video)):
+        if count >= _KEYFRAME_SEARCH:
+            break
+        if packet.size == 0:  # the demuxer's flush packet
+            continue
+        time = packet.pts if packet.pts is not None else packet.dts
+        if first_time is None:
+            first_time = time
+        if packet.is_keyframe:
+            if count == 0 or time is None or first_time is None:
+                return count, 0.0
+            return count, float((time - first_time) * video.time_base)
+    return 0, 0.0
 
 
 _MATROSKA_DURATION = re.compile(r"^(\d+):(\d{2}):(\d{2}(?:\.\d+)?)$")

@@ -154,6 +154,39 @@ def test_a_raw_elementary_stream_plays_at_its_header_rate(shared_data, tmp_path,
     assert (result.video.fps, result.video.frames_read, result.warnings) == (5, 12, [])
 
 
+@pytest.mark.parametrize("suffix", [".mp4", ".ts"])
+def test_a_clip_cut_without_its_keyframe_says_its_start_is_missing(shared_data, tmp_path, suffix):
+    # Keyframes every 10 frames; the clip keeps the stream from its 6th frame, so its first 5
+    # frames reference a keyframe it lacks. Before, the warning blamed the end: "the video
+    # ended after 15 of the 20 frames its container announces (truncated or damaged file)".
+    whole = tmp_path / "whole.mp4"
+    with av.open(str(whole), "w") as container:
+        stream = container.add_stream("libx264", rate=10, options={"g": "10", "bf": "0"})
+        stream.width, stream.height, stream.pix_fmt = 480, 360, "yuv420p"
+        for image in islice(open_frames(shared_data / PETS_VIDEO), 25):
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(image, format="rgb24")))
+        container.mux(stream.encode())
+    clip = tmp_path / f"clip{suffix}"
+    with av.open(str(whole)) as source, av.open(str(clip), "w") as out:
+        stream = out.add_stream_from_template(source.streams.video[0])
+        packets = [p for p in source.demux(source.streams.video[0]) if p.size][5:]
+        start = packets[0].pts
+        for packet in packets:
+            packet.pts -= start
+            packet.dts -= start
+            packet.stream = stream
+            out.mux(packet)
+    source = open_frames(clip)
+    assert (source.lead_frames, source.lead_seconds) == (5, pytest.approx(0.5))
+    result = analyze(clip, JobOptions(formats=["json"]), tmp_path / "out")
+    assert result.video.frames_read == 15
+    assert result.warnings == [
+        "the first 5 frames (0.50 s) could not be decoded: the video starts without a keyframe, "
+        "as a clip cut from a longer recording does; tracking starts at its first keyframe, and "
+        "frame numbers and times count from there"
+    ]
+
+
 def test_a_clip_shorter_than_a_confirmation_says_so(shared_data, tmp_path):
     # before: a one-frame clip of five people succeeded with no track and no word why
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), 1))
