@@ -73,7 +73,8 @@ class DetectorOptions(BaseModel):
         "frame 720-1080 px high, at most 2.0 (360 px high: 2.0; 480-720 px: 1.5; 1080 px: "
         "1.0; 2160 px: 0.5). DPM: it finds people down to "
         "about 60 px / upscale tall; None: 1, or less for frames over 1080 px high, which are "
-        "searched at 1080 px (2160 px: 0.5, a quarter of the pixels).",
+        "searched at 1080 px (2160 px: 0.5, a quarter of the pixels). The enlarged frame may "
+        "have at most 7680x4320 pixels (a 4K video: upscale 2 at most).",
     )
 
 

@@ -245,7 +245,7 @@ def _analyze(args: argparse.Namespace) -> int:
 
     from api_schemas.common import error_message
     from api_schemas.jobs import JobOptions
-    from service.analysis import PipelineResources, analyze, publish
+    from service.analysis import PipelineResources, analyze, check_options, publish
 
     raw, given = _analyze_options(args)
     try:
@@ -274,6 +274,7 @@ def _analyze(args: argparse.Namespace) -> int:
             b = options.first_box
             if problem := box_problem(Box(b.x, b.y, b.w, b.h), (source.height, source.width)):
                 raise ValueError(f"{given.get(('first_box',), '--options: first_box')} {problem}")
+        check_options(options, resources, (source.width, source.height))  # before the bar
         created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it
     except (OSError, ValueError) as error:  # FrameSourceError is a ValueError

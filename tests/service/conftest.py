@@ -114,6 +114,19 @@ def write_stamped(frames, stamps_ms, path: Path, rate: int = 10) -> Path:
     return path
 
 
+def write_gray(path: Path, width: int, height: int, frames: int = 2) -> Path:
+    """``frames`` uniform gray frames of ``width`` x ``height`` (MPEG-4 in ``path``'s
+    container): a large video in a few kilobytes."""
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream("mpeg4", rate=10)
+        stream.width, stream.height, stream.pix_fmt = width, height, "yuv420p"
+        for _ in range(frames):
+            image = np.full((height, width, 3), 90, np.uint8)
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(image, format="rgb24")))
+        container.mux(stream.encode())
+    return path
+
+
 @pytest.fixture
 def make_server(tmp_path) -> Iterator[Callable[..., Server]]:
     """Start servers for one test; all are stopped after it."""

@@ -17,7 +17,7 @@ import pytest
 from mcap.reader import make_reader
 
 from tests.conftest import REPO_ROOT
-from tests.service.conftest import PETS_VIDEO, cut_video, schema_for
+from tests.service.conftest import PETS_VIDEO, cut_video, schema_for, write_gray
 from tests.service.test_cli import vtrack_interrupted
 
 DPM_MODEL = Path("dpm") / "INRIA" / "inriaperson_final.mat"
@@ -170,6 +170,18 @@ def test_analyze_rejects_bad_arguments(pets_short, tmp_path, args, message):
     result = vtrack("analyze", pets_short, "--out-dir", tmp_path / "o", *args)
     assert result.returncode == 2
     assert message in result.stderr
+
+
+def test_analyze_refuses_an_enlargement_beyond_8k_before_its_progress_bar(tmp_path):
+    uhd = write_gray(tmp_path / "uhd.mp4", 3840, 2160)
+    result = vtrack("analyze", uhd, "--out-dir", tmp_path / "o", "--upscale", "4")
+    assert result.returncode == 2
+    assert result.stderr == (
+        "vtrack: detector.upscale 4 enlarges this 3840x2160 video to 15360x8640, beyond the "
+        "7680x4320 the detector takes: use at most 2, or leave it unset to let the detector "
+        "choose\n"
+    )
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.slow

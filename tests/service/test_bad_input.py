@@ -22,6 +22,7 @@ from tests.service.conftest import (
     submit,
     wait_for,
     wait_for_state,
+    write_gray,
     write_stamped,
 )
 
@@ -159,6 +160,18 @@ def test_bad_options_list_each_failed_check_for_programs(client, pets_short):
         (["options", "tracker", "particles"], "greater_than_equal"),
     ]
     assert all(e["msg"].startswith("Input should be") for e in body["errors"])
+
+
+def test_an_enlargement_beyond_8k_is_refused_with_the_largest_that_fits(client, tmp_path):
+    # before: a 4K video at detector.upscale 4 was queued, and took about 25 s and 3.6 GB of
+    # its worker's memory per frame
+    uhd = write_gray(tmp_path / "uhd.mp4", 3840, 2160)
+    response = submit(client, uhd, {"detector": {"upscale": 4}})
+    assert response.status_code == 422, response.text
+    assert response.json()["detail"] == (
+        "detector.upscale 4 enlarges this 3840x2160 video to 15360x8640, beyond the 7680x4320 "
+        "the detector takes: use at most 2, or leave it unset to let the detector choose"
+    )
 
 
 def test_options_that_are_not_json(client, pets_short):

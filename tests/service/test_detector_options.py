@@ -75,3 +75,16 @@ def test_tracker_options_reach_the_tracker_configuration():
     assert config.particles == PeopleTrackerConfig().particles  # unset: the default
     with pytest.raises(ValidationError, match="report_missing"):
         JobOptions.model_validate({"tracker": {"report_missing": -1}})
+
+
+@pytest.mark.parametrize(
+    ("size", "upscale", "refused"),
+    [((3840, 2160), 2.0, False), ((3840, 2160), 2.01, True), ((1920, 1080), 4.0, False)],
+)
+def test_upscale_is_limited_to_an_8k_enlarged_frame(size, upscale, refused):
+    options = JobOptions.model_validate({"detector": {"upscale": upscale}})
+    if refused:
+        with pytest.raises(OptionsError, match="use at most 2,"):
+            check_options(options, PipelineResources(), size)
+    else:
+        check_options(options, PipelineResources(), size)
