@@ -112,6 +112,20 @@ MAX_ENLARGED_PIXELS = 7680 * 4320
 (15360x8640) took about 25 s and 3.6 GB per frame in one worker."""
 
 
+def enlargement_problem(upscale: float | None, frame_size: tuple[int, int]) -> str | None:
+    """Why ``detector.upscale`` cannot run on frames of ``frame_size`` (width, height): they
+    would be enlarged beyond :data:`MAX_ENLARGED_PIXELS`; ``None`` when it can."""
+    width, height = frame_size
+    if upscale is None or width * height * upscale**2 <= MAX_ENLARGED_PIXELS:
+        return None
+    largest = math.floor(math.sqrt(MAX_ENLARGED_PIXELS / (width * height)) * 100) / 100
+    return (
+        f"detector.upscale {upscale:g} enlarges frames of {width}x{height} to "
+        f"{round(width * upscale)}x{round(height * upscale)}, beyond the 7680x4320 the detector "
+        f"takes: use at most {largest:g}, or leave it unset to let the detector choose"
+    )
+
+
 def check_options(
     options: JobOptions, resources: PipelineResources, frame_size: tuple[int, int] | None = None
 ) -> None:
@@ -131,17 +145,10 @@ def check_options(
                 raise OptionsError(f"first_box {problem}")
         return
     people_config(options, resources)
-    upscale = options.detector.upscale
-    if frame_size is not None and upscale is not None:
-        width, height = frame_size
-        if width * height * upscale**2 > MAX_ENLARGED_PIXELS:
-            largest = math.sqrt(MAX_ENLARGED_PIXELS / (width * height))
-            raise OptionsError(
-                f"detector.upscale {upscale:g} enlarges this {width}x{height} video to "
-                f"{round(width * upscale)}x{round(height * upscale)}, beyond the 7680x4320 "
-                f"the detector takes: use at most {math.floor(largest * 100) / 100:g}, or "
-                "leave it unset to let the detector choose"
-            )
+    if frame_size is not None and (
+        problem := enlargement_problem(options.detector.upscale, frame_size)
+    ):
+        raise OptionsError(problem)
     if options.detector.name == "dpm" and (
         resources.dpm_model is None or not resources.dpm_model.is_file()
     ):

@@ -28,7 +28,7 @@ import zenoh
 from api_schemas.jobs import JobOptions
 from api_schemas.streams import StreamCounters, StreamSpec, StreamState, StreamTracksMessage
 from api_schemas.tracks import VideoInfo
-from service.analysis import PipelineResources, build_pipeline
+from service.analysis import PipelineResources, build_pipeline, enlargement_problem
 from service.convert import track_state
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
@@ -433,7 +433,11 @@ class StreamWorker:
                 f"previous frame ({self._last_timestamp:.3f}): the camera started over",
                 camera_restarted_at=frame.arrived,
             )
-        if not self._same_size(attachment.sequence, (image.shape[1], image.shape[0])):
+        size = (image.shape[1], image.shape[0])
+        if problem := enlargement_problem(self.spec.detector.upscale, size):
+            self._malformed_sample(f"frame {attachment.sequence}: {problem}")
+            return
+        if not self._same_size(attachment.sequence, size):
             return
         detections, source = self._detections_for(attachment.sequence)
         assert self._pipeline is not None

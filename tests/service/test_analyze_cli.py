@@ -177,7 +177,7 @@ def test_analyze_refuses_an_enlargement_beyond_8k_before_its_progress_bar(tmp_pa
     result = vtrack("analyze", uhd, "--out-dir", tmp_path / "o", "--upscale", "4")
     assert result.returncode == 2
     assert result.stderr == (
-        "vtrack: detector.upscale 4 enlarges this 3840x2160 video to 15360x8640, beyond the "
+        "vtrack: detector.upscale 4 enlarges frames of 3840x2160 to 15360x8640, beyond the "
         "7680x4320 the detector takes: use at most 2, or leave it unset to let the detector "
         "choose\n"
     )

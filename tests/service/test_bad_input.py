@@ -169,7 +169,7 @@ def test_an_enlargement_beyond_8k_is_refused_with_the_largest_that_fits(client, 
     response = submit(client, uhd, {"detector": {"upscale": 4}})
     assert response.status_code == 422, response.text
     assert response.json()["detail"] == (
-        "detector.upscale 4 enlarges this 3840x2160 video to 15360x8640, beyond the 7680x4320 "
+        "detector.upscale 4 enlarges frames of 3840x2160 to 15360x8640, beyond the 7680x4320 "
         "the detector takes: use at most 2, or leave it unset to let the detector choose"
     )
 

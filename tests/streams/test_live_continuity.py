@@ -199,3 +199,21 @@ def test_a_bad_frame_is_dropped_and_the_tracks_go_on(
         after = ids_of(m for m in messages if m.sequence >= 22)
         assert before & after, "the people tracked before the bad frames lost their ids"
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_frames_the_upscale_would_enlarge_beyond_8k_are_refused_one_by_one(server, session):
+    # before: a 1440p camera at detector.upscale 4 was tracked at 10240x5760, seconds per frame
+    camera = "qhd"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera, detector={"upscale": 4})
+        image = np.full((1440, 2560, 3), 90, np.uint8)
+        attachment = frame_attachment(0, time.time())
+        put_frame(session, keys, encode_jpeg(image), attachment, zenoh.Encoding.IMAGE_JPEG)
+        wait_for(lambda: status(client, camera)["counters"]["malformed"] == 1, 30, "the frame")
+        assert status(client, camera)["errors"] == [
+            "frame 0: detector.upscale 4 enlarges frames of 2560x1440 to 10240x5760, beyond the "
+            "7680x4320 the detector takes: use at most 3, or leave it unset to let the detector "
+            "choose"
+        ]
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
