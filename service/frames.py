@@ -14,7 +14,7 @@ import av
 import cv2
 import numpy as np
 
-from tracking.detection.sequences import MotFormatError, read_seqinfo
+from tracking.seqinfo import MotFormatError, read_seqinfo
 
 DEFAULT_FPS = 25.0
 """Frame rate assumed for image folders and videos that declare none."""

@@ -22,7 +22,6 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from api_schemas.jobs import JobOptions
 from api_schemas.streams import (
     StreamCounters,
     StreamDetail,
@@ -36,7 +35,7 @@ from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
 from service.streams.tools import trackers_of
-from service.streams.worker import StreamContext, stream_main
+from service.streams.worker import StreamContext, job_options, stream_main
 from service.worker_processes import describe_exit, shared_flag, single_threaded_blas
 
 log = logging.getLogger(__name__)
@@ -162,7 +161,7 @@ class StreamManager:
             Options that cannot run here (e.g. detector 'dpm' without a model).
         """
         self._require_zenoh()
-        check_options(_as_job_options(spec), self._resources)
+        check_options(job_options(spec), self._resources)
         keys = self._keys(spec.camera)
         others = [i for i in trackers_of(self._hub, keys) if i != self.instance]
         if others:
@@ -396,7 +395,3 @@ class StreamManager:
 
 def _utc(timestamp: float) -> datetime:
     return datetime.fromtimestamp(timestamp, tz=UTC)
-
-
-def _as_job_options(spec: StreamSpec) -> JobOptions:
-    return JobOptions(detector=spec.detector, tracker=spec.tracker)

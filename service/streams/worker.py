@@ -361,8 +361,7 @@ class StreamWorker:
         self._reserved = up_to
 
     def _new_pipeline(self) -> FramePipeline:
-        options = JobOptions(detector=self.spec.detector, tracker=self.spec.tracker)
-        return build_pipeline(options, self.context.resources)
+        return build_pipeline(job_options(self.spec), self.context.resources)
 
     def _restart(self, why: str, camera_restarted_at: float | None = None) -> None:
         """Start the tracker over; ids keep counting up so no id is ever reused.
@@ -675,6 +674,11 @@ def _recording_name(folder: Path, camera: str) -> Path:
         if not (path.exists() or path.with_suffix(".mcap.partial").exists()):
             return path
         millis += 1
+
+
+def job_options(spec: StreamSpec) -> JobOptions:
+    """The options of a job that tracks as the stream ``spec`` asks (its detector, its tracker)."""
+    return JobOptions(detector=spec.detector, tracker=spec.tracker)
 
 
 def stream_main(context: StreamContext, parent_pid: int, stop, updates) -> None:

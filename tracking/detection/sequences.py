@@ -29,14 +29,14 @@ the two is made here and only here:
 
 from __future__ import annotations
 
-import configparser
 import os
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
+
+from tracking.seqinfo import MotFormatError, read_seqinfo
 
 __all__ = [
     "MOT_PIXEL_ORIGIN",
@@ -51,32 +51,6 @@ __all__ = [
 
 MOT_PIXEL_ORIGIN = 1.0
 """Coordinate of the first pixel in MOTChallenge files (0 in the project's boxes)."""
-
-
-class MotFormatError(ValueError):
-    """A MOTChallenge file or folder is missing or malformed."""
-
-
-def read_seqinfo(folder: str | os.PathLike[str]) -> Mapping[str, str]:
-    """The ``[Sequence]`` entries of ``folder/seqinfo.ini`` (``name``, ``frameRate``,
-    ``imDir``, ...; keys in any case), ``{}`` when the folder has no such file.
-
-    Raises
-    ------
-    MotFormatError
-        If the file cannot be parsed or has no ``[Sequence]`` section.
-    """
-    ini = Path(folder) / "seqinfo.ini"
-    if not ini.is_file():
-        return {}
-    parser = configparser.ConfigParser()
-    try:
-        parser.read(ini, encoding="utf-8")
-    except (configparser.Error, UnicodeDecodeError) as exc:
-        raise MotFormatError(f"{ini}: {exc}") from exc
-    if not parser.has_section("Sequence"):
-        raise MotFormatError(f"{ini}: no [Sequence] section")
-    return parser["Sequence"]
 
 
 def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndarray:
