@@ -128,6 +128,9 @@ class StreamState(StrEnum):
     """Frames are arriving and being tracked."""
     idle = "idle"
     """No frame for ``idle_after`` seconds; tracks end after ``end_tracks_after``."""
+    standby = "standby"
+    """Another service instance tracks the camera (its liveliness token says so); this one
+    starts tracking when that token disappears. ``error`` names the other instance."""
     failed = "failed"
     """The worker keeps dying; see ``error``."""
     stopped = "stopped"
@@ -189,7 +192,8 @@ class StreamSpec(BaseModel):
 
 
 class StreamCounters(BaseModel):
-    """What a stream has seen since it started."""
+    """What a stream has seen since this service process started it (a worker that died and
+    was restarted adds to them; a new service starts from zero)."""
 
     frames_in: int = Field(ge=0, description="Frame samples received.")
     frames_processed: int = Field(ge=0, description="Frames tracked (a tracks message each).")
@@ -222,7 +226,11 @@ class StreamStatus(BaseModel):
     errors: list[str] = Field(
         default_factory=list, description="The latest problems (bad payloads...), newest last."
     )
-    error: str | None = Field(default=None, description="Why the stream failed.")
+    error: str | None = Field(
+        default=None,
+        description="Why the stream failed, or stands by; after its worker died, why (until "
+        "its successor has run for 30 s).",
+    )
     worker_pid: int | None = None
     worker_starts: int = Field(ge=0, description="Worker processes started for this stream.")
     keys: dict[str, str] = Field(description="Zenoh key expressions of this stream.")

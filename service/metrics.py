@@ -74,7 +74,8 @@ class ServiceCollector(Collector):
         yield by_state
         frames = CounterMetricFamily(
             "vtrack_stream_frames",
-            "Frames of live streams since their worker started, by camera and fate "
+            "Frames of live streams since this service started them (worker restarts "
+            "included), by camera and fate "
             "(in, processed, skipped, malformed).",
             labels=["camera", "fate"],
         )

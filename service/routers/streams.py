@@ -108,9 +108,16 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
 def get_recording(stream_id: str, name: str, streams: StreamsDep) -> FileResponse:
     recordings = {p.name: p for p in _call(stream_id, streams.recordings)}
     if name not in recordings:
+        if recordings or _call(stream_id, streams.status).spec.record:
+            why = (
+                "a recording is finished at the end of its segment (record_segment), when the "
+                "tracks end and when the stream stops; finished: "
+                f"{sorted(recordings) or 'none yet'}"
+            )
+        else:
+            why = 'the stream does not record (start it with "record": true)'
         raise HTTPException(
             status.HTTP_404_NOT_FOUND,
-            f"stream {stream_id!r} has no finished recording {name!r}; a recording is finished "
-            f"when the stream stops (its status lists them: {sorted(recordings) or 'none yet'})",
+            f"stream {stream_id!r} has no finished recording {name!r}: {why}",
         )
     return FileResponse(recordings[name], media_type="application/octet-stream", filename=name)

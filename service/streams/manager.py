@@ -4,7 +4,9 @@
 cameras and workers meet at), starts a spawned worker per stream, and keeps each stream's latest
 status from the reports its worker sends over a queue. A supervisor thread restarts a worker
 that died, waiting longer after each quick death, and gives up (state ``failed``) after
-:data:`MAX_QUICK_DEATHS` in a row.
+:data:`MAX_QUICK_DEATHS` in a row. An arbiter thread keeps one tracker per camera across
+instances: a stream whose camera another instance tracks stands by until that instance's
+liveliness token disappears.
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ MAX_QUICK_DEATHS = 5
 QUICK = 30.0
 STOP_GRACE = 10.0
 """Seconds a stopping worker gets to close its recording and session before it is killed."""
+ARBITRATION_INTERVAL = 2.0
+"""Seconds between two looks at the cameras' liveliness tokens."""
 
 
 class StreamConflict(Exception):
@@ -68,8 +72,14 @@ class _Stream:
     state: StreamState = StreamState.starting
     stopping: bool = False
     error: str | None = None
+    death: str | None = None  # why the last worker died, while its successor is young
+    yield_to: list[str] | None = None  # instances its stopping worker makes way for
+    discovering: bool = False  # not started until the arbiter has looked for other instances
+    untracked: int = 0  # looks in a row that found no other instance tracking the camera
     worker_error: str | None = None  # what the current worker said before it ended
     report: dict[str, Any] = field(default_factory=dict)
+    # the counters of the stream's earlier workers, to which the current one's add
+    carried: dict[str, int] = field(default_factory=dict)
 
 
 class StreamManager:
@@ -95,12 +105,14 @@ class StreamManager:
         self._frame_limit = frame_limit
         self._log_level = log_level
         self._check_interval = check_interval
-        self.instance = uuid.uuid4().hex[:12]
+        # ordered by start time (milliseconds in fixed-width hex), so that of two instances that
+        # track one camera the older, which had it first, keeps it (see _arbitrate)
+        self.instance = f"{time.time_ns() // 1_000_000:011x}{uuid.uuid4().hex[:5]}"
         self._ctx = multiprocessing.get_context("spawn")
         self._streams: dict[str, _Stream] = {}
         self._lock = threading.RLock()
         self._stopping = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
         self._hub = None
         self.unavailable: str | None = None
 
@@ -126,18 +138,28 @@ class StreamManager:
             if record.stopped_at is not None:
                 stream.state = StreamState.stopped
             self._streams[record.id] = stream
-            if record.stopped_at is None:
-                self._spawn(stream)
-        self._thread = threading.Thread(target=self._supervise, name="vtrack-streams")
-        self._thread.daemon = True
-        self._thread.start()
+            if record.stopped_at is None and self._zenoh.connect:
+                # Joining a network: other instances' tokens arrive once gossip has connected
+                # this hub to their workers; the arbiter's first look, a moment later, decides.
+                stream.discovering = True
+            elif record.stopped_at is None:
+                self._stand_by_or_spawn(stream, self._other_trackers(record.spec.camera))
+        self._threads = [
+            threading.Thread(target=loop, name=name, daemon=True)
+            for loop, name in (
+                (self._supervise, "vtrack-streams"),
+                (self._arbitrate, "vtrack-arbiter"),
+            )
+        ]
+        for thread in self._threads:
+            thread.start()
         log.info("Zenoh session %s open; %d streams", self._hub.zid(), len(self._streams))
 
     def shutdown(self) -> None:
         """Stop every worker; the streams start again with the next service."""
         self._stopping.set()
-        if self._thread is not None:
-            self._thread.join()
+        for thread in self._threads:
+            thread.join()
         with self._lock:
             streams = list(self._streams.values())
         for stream in streams:
@@ -162,12 +184,11 @@ class StreamManager:
         """
         self._require_zenoh()
         check_options(job_options(spec), self._resources)
-        keys = self._keys(spec.camera)
-        others = [i for i in trackers_of(self._hub, keys) if i != self.instance]
-        if others:
+        if others := self._other_trackers(spec.camera):
             raise StreamConflict(
                 f"camera {spec.camera} is tracked already by another instance "
-                f"({', '.join(others)}; see the liveliness tokens {keys.trackers})"
+                f"({', '.join(others)}; see the liveliness tokens "
+                f"{self._keys(spec.camera).trackers})"
             )
         with self._lock:
             existing = self._streams.get(spec.camera)
@@ -192,7 +213,7 @@ class StreamManager:
                 stream.record.id, stream.record.spec, stream.record.created_at, stopped
             )
             stream.state = StreamState.stopped
-            stream.restart_at = None
+            stream.restart_at = stream.yield_to = stream.death = None
             return self._status(stream)
 
     def remove(self, stream_id: str) -> None:
@@ -255,6 +276,35 @@ class StreamManager:
             raise StreamNotFound(stream_id)
         return stream
 
+    def _other_trackers(self, camera: str) -> list[str]:
+        """Other instances whose liveliness token says they track ``camera`` (a query: call it
+        without holding the lock)."""
+        return [i for i in trackers_of(self._hub, self._keys(camera)) if i != self.instance]
+
+    def _stand_by(self, stream: _Stream, others: list[str]) -> None:
+        self._fold(stream)
+        stream.report = {}  # the other instance's tracks are the current ones
+        stream.state = StreamState.standby
+        stream.restart_at = stream.yield_to = stream.death = None
+        stream.untracked = 0
+        stream.error = (
+            f"camera {stream.record.spec.camera} is tracked by another instance "
+            f"({', '.join(others)}); this one takes over when that one stops"
+        )
+        log.info("stream %s: standing by for %s", stream.record.id, ", ".join(others))
+
+    def _stand_by_or_spawn(self, stream: _Stream, others: list[str]) -> None:
+        if others:
+            self._stand_by(stream, others)
+        else:
+            stream.error = None
+            self._spawn(stream)
+
+    def _fold(self, stream: _Stream) -> None:
+        """Add an ended worker's counters to the stream's, so that they survive it."""
+        ended = stream.report.pop("counters", None) or {}
+        stream.carried = {k: stream.carried.get(k, 0) + v for k, v in ended.items()}
+
     def _spawn(self, stream: _Stream) -> None:
         spec = stream.record.spec
         context = StreamContext(
@@ -283,6 +333,8 @@ class StreamManager:
         stream.starts += 1
         stream.state = StreamState.starting
         stream.restart_at = None
+        if stream.death is not None:  # said until the new worker has lived QUICK seconds
+            stream.error = f"{stream.death}; restarted"
         log.info("stream %s: worker %d started", spec.camera, stream.process.pid)
 
     def _halt(self, stream: _Stream) -> None:
@@ -296,6 +348,7 @@ class StreamManager:
             process.kill()
             process.join(5.0)
         self._drain(stream)
+        self._fold(stream)
         process.close()
         stream.process = None
         stream.updates.close()
@@ -322,8 +375,51 @@ class StreamManager:
             except Exception:
                 log.exception("stream supervision failed; trying again")
 
+    def _arbitrate(self) -> None:
+        """One tracker per camera across instances. A standing-by stream starts once no other
+        instance tracks its camera. Of two instances that both track a camera (each started it
+        before the other's token reached it, or a standby took over while the tracker's worker
+        was restarting), the younger stops its worker and stands by."""
+        while not self._stopping.wait(ARBITRATION_INTERVAL):
+            try:
+                with self._lock:
+                    streams = list(self._streams.values())
+                for stream in streams:
+                    if stream.state in (StreamState.stopped, StreamState.failed):
+                        continue
+                    others = self._other_trackers(stream.record.spec.camera)
+                    with self._lock:
+                        if (
+                            stream.stopping
+                            or stream.state in (StreamState.stopped, StreamState.failed)
+                            or self._streams.get(stream.record.id) is not stream
+                        ):
+                            continue  # stopped, failed or removed meanwhile
+                        if stream.discovering:
+                            stream.discovering = False
+                            self._stand_by_or_spawn(stream, others)
+                            continue
+                        if stream.state is StreamState.standby:
+                            # Untracked at two looks in a row: a tracker whose worker is
+                            # restarting (1-2 s) is not taken over, one that is gone is.
+                            stream.untracked = 0 if others else stream.untracked + 1
+                            if stream.untracked >= 2:
+                                self._stand_by_or_spawn(stream, others)
+                            continue
+                        first = [i for i in others if i < self.instance]  # older instances
+                        if not first or stream.yield_to:
+                            continue
+                        log.warning("stream %s: also tracked by %s", stream.record.id, first)
+                        if stream.process is None:  # dead, waiting to restart
+                            self._stand_by(stream, first)
+                        else:  # the supervisor stands it by once the worker is gone
+                            stream.yield_to = first
+                            stream.stop.value = True
+            except Exception:
+                log.exception("stream arbitration failed; trying again")
+
     def _check(self, stream: _Stream) -> None:
-        if stream.state is StreamState.stopped or stream.stopping:
+        if stream.state in (StreamState.stopped, StreamState.standby) or stream.stopping:
             return
         if stream.process is None:
             if stream.restart_at is not None and time.monotonic() >= stream.restart_at:
@@ -333,14 +429,18 @@ class StreamManager:
         if stream.process.is_alive():
             if stream.quick_deaths and time.monotonic() - stream.started_at > QUICK:
                 stream.quick_deaths = 0
-                stream.error = None
+                stream.error = stream.death = None
             return
         how = describe_exit(stream.process.exitcode)
         lived = time.monotonic() - stream.started_at
         stream.process.close()
         stream.process = None
+        if stream.yield_to:  # stopped to make way for another instance: no death
+            self._stand_by(stream, stream.yield_to)
+            return
+        self._fold(stream)
         stream.quick_deaths = stream.quick_deaths + 1 if lived < QUICK else 1
-        reason = stream.worker_error or f"the worker process died ({how})"
+        reason = stream.death = stream.worker_error or f"the worker process died ({how})"
         if stream.quick_deaths >= MAX_QUICK_DEATHS:
             stream.state = StreamState.failed
             stream.error = f"{reason}; gave up after {stream.quick_deaths} quick restarts"
@@ -352,7 +452,12 @@ class StreamManager:
         log.warning("stream %s: %s", stream.record.id, stream.error)
 
     def _state(self, stream: _Stream) -> StreamState:
-        if stream.state in (StreamState.stopped, StreamState.failed, StreamState.starting):
+        if stream.state in (
+            StreamState.stopped,
+            StreamState.failed,
+            StreamState.starting,
+            StreamState.standby,
+        ):
             return stream.state
         if stream.process is None:
             return StreamState.starting
@@ -361,14 +466,9 @@ class StreamManager:
     def _status(self, stream: _Stream) -> StreamStatus:
         report = stream.report
         record = stream.record
-        counters = report.get("counters") or StreamCounters(
-            frames_in=0,
-            frames_processed=0,
-            frames_skipped=0,
-            malformed=0,
-            detections_in=0,
-            detections_used=0,
-            restarts=0,
+        current = report.get("counters") or {}
+        counters = StreamCounters(
+            **{k: stream.carried.get(k, 0) + current.get(k, 0) for k in StreamCounters.model_fields}
         )
         last = report.get("last_frame_at")
         recordings = sorted(self.recordings_dir(record.id).glob("*.mcap"))

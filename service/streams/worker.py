@@ -217,6 +217,7 @@ class StreamWorker:
         self._reserved = 0  # ids up to this are reserved in the database
         self._reserve_retry_at = 0.0  # time.monotonic()
         self._current_json: bytes | None = None  # the latest tracks message
+        self._no_tracks = "has no tracks yet"  # the query's answer without one
         self._state = StreamState.waiting
         self._pipeline: FramePipeline | None = None
         self._recorder: McapWriter | None = None
@@ -271,7 +272,7 @@ class StreamWorker:
     def _on_query(self, query: zenoh.Query) -> None:
         current = self._current_json
         if current is None:
-            query.reply_err(f"camera {self.spec.camera} has no tracks yet")
+            query.reply_err(f"camera {self.spec.camera} {self._no_tracks}")
         else:
             query.reply(self.keys.current, current, encoding=zenoh.Encoding.APPLICATION_JSON)
 
@@ -385,6 +386,8 @@ class StreamWorker:
             # same sequence number (those of frames that were skipped, never taken).
             self._upstream.forget_before(camera_restarted_at)
         self._recording_resumes = None  # stream time may start over
+        if self._current_json is not None:
+            self._no_tracks = f"has no tracks: they ended ({why})"
         self._current_json = None
         self._restarts += 1
 

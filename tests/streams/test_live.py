@@ -6,6 +6,8 @@ loopback. Waits poll with a deadline; nothing sleeps hoping something has happen
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import threading
 import time
@@ -21,6 +23,7 @@ from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions
 from service.streams.simulated_cameras import RtspCamera, access_units
 from service.streams.tools import (
+    TrackerReplyError,
     current_tracks,
     member_session,
     publish_frames,
@@ -284,6 +287,9 @@ def test_a_camera_that_stops_goes_idle_its_tracks_end_and_it_resumes(
             "the tracks to end",
         )
         assert ended["tracks"] is None
+        # the tracker's answer says why; before: "camera door has no tracks yet"
+        with pytest.raises(TrackerReplyError, match="has no tracks: they ended \\(no frame for"):
+            current_tracks(session, keys)
         before = follower.received()
         assert before and any(m.tracks for m in before)
         # The camera comes back, counting from 0 again.
@@ -426,6 +432,9 @@ def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
         assert len(final["recordings"]) == 1
         recording = client.get(final["recordings"][0])
         assert recording.status_code == 200
+        missing = client.get(f"/v1/streams/{camera}/recordings/nothing.mcap")
+        assert missing.status_code == 404
+        assert f"finished: ['{final['recordings'][0].rsplit('/', 1)[1]}']" in missing.text
         topics = read_mcap_topics(recording.content)
         assert topics["/tracks"] == final["counters"]["frames_processed"]
         assert topics["/camera/image"] == topics["/tracks"]
@@ -603,6 +612,72 @@ def test_streams_from_settings_start_with_the_service_and_survive_a_restart(tmp_
                 other.stop()
     finally:
         server.stop()
+
+
+def test_a_camera_configured_on_two_instances_has_one_tracker_and_a_standby(tmp_path):
+    configured = json.dumps([{"camera": "gate"}])
+    first = Server(tmp_path / "first", workers=1, streams=configured).start()
+    servers = [first]
+    try:
+        with first.client() as client:
+            wait_for(lambda: status(client, "gate")["state"] == "waiting", 60, "gate to start")
+        connect = json.dumps(list(first.zenoh_listen))
+        servers.append(
+            Server(
+                tmp_path / "second", workers=1, streams=configured, zenoh_connect=connect
+            ).start()
+        )
+
+        def gate_everywhere() -> list[dict]:
+            statuses = []
+            for server in servers:
+                with server.client() as client:
+                    statuses.append(status(client, "gate"))
+            return statuses
+
+        # before: both tracked gate, their tracks interleaved on one key with clashing ids.
+        # The one that had it first keeps it.
+        _, standby = wait_for(
+            lambda: (
+                (found := gate_everywhere())
+                and [s["state"] for s in found] == ["waiting", "standby"]
+                and found
+            ),
+            60,
+            "the first instance to track gate and the second to stand by",
+        )
+        assert standby["worker_pid"] is None
+        assert standby["error"].startswith("camera gate is tracked by another instance")
+        # The first's worker dies three times quickly: its restart waits 4 s, in which the
+        # standby sees no token and takes over; once the first's new worker is back, the two
+        # track gate, and the second, the younger, stands by again.
+        with first.client() as client:
+            for starts in (2, 3, 4):
+                os.kill(status(client, "gate")["worker_pid"], signal.SIGKILL)
+                wait_for(
+                    lambda starts=starts: status(client, "gate")["worker_starts"] == starts,
+                    60,
+                    f"worker {starts} of the first instance",
+                )
+        wait_for(
+            lambda: (
+                [(s["state"], s["worker_starts"]) for s in gate_everywhere()]
+                == [("waiting", 4), ("standby", 1)]
+            ),
+            60,
+            "the second to have taken over and made way again",
+        )
+        first.stop()
+        with servers[1].client() as client:
+            took_over = wait_for(
+                lambda: (s := status(client, "gate"))["state"] == "waiting" and s,
+                60,
+                "the standby to take over",
+            )
+        assert took_over["error"] is None and took_over["worker_pid"] is not None
+    finally:
+        for server in servers:
+            server.stop()
 
 
 def test_zenoh_port_taken_streams_unavailable_jobs_go_on(tmp_path, server):
@@ -784,8 +859,13 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
     with server.client() as client:
         start_stream(client, session, camera)
         first = status(client, camera)
+        # before: "a recording is finished when the stream stops", of a stream that records none
+        missing = client.get(f"/v1/streams/{camera}/recordings/{camera}.mcap")
+        assert missing.status_code == 404 and "the stream does not record" in missing.text
         environment = Path(f"/proc/{first['worker_pid']}/environ").read_bytes().split(b"\0")
         assert b"OPENBLAS_NUM_THREADS=1" in environment, "workers run single-threaded BLAS"
+        publish_frames(session, keys, iter(pets_frames[:5]), 10.0, wait_for_subscriber=10)
+        wait_for(lambda: status(client, camera)["counters"]["frames_in"] == 5, 60, "5 frames")
         os.kill(first["worker_pid"], signal.SIGKILL)
         restarted = wait_for(
             lambda: (
@@ -797,13 +877,16 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
             "a new worker",
         )
         assert restarted["worker_pid"] != first["worker_pid"]
-        assert "SIGKILL" in restarted["error"]
+        # before: "...; restarting in 1 s" while the new worker ran
+        assert restarted["error"] == "the worker process died (killed by SIGKILL); restarted"
+        # the counters go on; before: from zero with each worker
+        assert restarted["counters"]["frames_in"] == 5
         assert reach_tracker(session, keys, timeout=30)
-        publish_frames(session, keys, iter(pets_frames[:5]), 10.0, wait_for_subscriber=10)
+        publish_frames(session, keys, iter(pets_frames[5:10]), 10.0, wait_for_subscriber=10)
         wait_for(
-            lambda: status(client, camera)["counters"]["frames_processed"] >= 1,
+            lambda: status(client, camera)["counters"]["frames_in"] == 10,
             60,
-            "the new worker to track",
+            "the new worker to count on",
         )
 
 

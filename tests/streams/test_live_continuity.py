@@ -68,10 +68,11 @@ def ids_of_a_run(
     session = member_session(ZenohOptions(listen=server.zenoh_listen))
     try:
         with server.client() as client:
-            wait_for(
+            before = wait_for(
                 lambda: (
                     (s := status(client, camera))["worker_starts"] == worker_starts
                     and s["state"] == "waiting"
+                    and s["counters"]
                 ),
                 60,
                 f"worker {worker_starts} of {camera} to listen",
@@ -79,9 +80,13 @@ def ids_of_a_run(
             assert reach_tracker(session, keys, timeout=30)
             follower = Follower(session, keys)
             publish_run(session, keys, frames, public, first)
-            taken = all_taken(client, camera, len(frames))
+            # the counters go on across workers of one service
+            taken = all_taken(client, camera, before["frames_in"] + len(frames))
             wait_for(
-                lambda: len(follower.received()) == taken["frames_processed"],
+                lambda: (
+                    len(follower.received())
+                    == taken["frames_processed"] - before["frames_processed"]
+                ),
                 10,
                 "the tracks messages",
             )
@@ -108,6 +113,8 @@ def test_track_ids_go_on_after_the_service_restarts_and_after_a_worker_dies(
         with server.client() as client:
             os.kill(status(client, camera)["worker_pid"], signal.SIGKILL)
         revived = ids_of_a_run(server, camera, pets_frames[30:45], 30, public_detections, 2)
+        with server.client() as client:  # before: 15, the new worker's own
+            assert status(client, camera)["counters"]["frames_in"] == 30
     finally:
         server.stop()
     assert first and restarted and revived, "people are tracked in every run"
