@@ -9,9 +9,16 @@ from __future__ import annotations
 
 from datetime import datetime
 from enum import StrEnum
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from api_schemas.common import BoxModel
 
@@ -147,6 +154,16 @@ class PeopleTrackerOptions(BaseModel):
     )
 
 
+_MODE_OF = {
+    "first_box": ("single_target", "people are found by the detector"),
+    "preset": ("single_target", "people are followed by the particle filter (tracker options)"),
+    "detector": ("people", "a single target is followed from its first box by its preset"),
+    "tracker": ("people", "a single target is followed from its first box by its preset"),
+    "fill_gaps": ("people", "a single target is never dropped"),
+}
+"""The mode each mode-specific option belongs to, and why it means nothing in the other."""
+
+
 class JobOptions(BaseModel):
     """Options of a tracking job: the ``options`` JSON part of ``POST /v1/jobs``.
 
@@ -202,14 +219,23 @@ class JobOptions(BaseModel):
         "for what it does to the scores.",
     )
 
+    # An option of the other mode would be ignored: set to anything but its default, it is
+    # refused where it was given (the error's loc names it), as a misspelt one is. Only given
+    # fields are validated, and mode, declared first, before them.
+    @field_validator("first_box", "preset", "detector", "tracker", "fill_gaps")
+    @classmethod
+    def _of_the_mode(cls, value: Any, info: ValidationInfo) -> Any:
+        mode, reason = _MODE_OF[info.field_name]
+        given = info.data.get("mode")
+        default = cls.model_fields[info.field_name].get_default(call_default_factory=True)
+        if given is not None and given != mode and value != default:
+            raise ValueError(f"only for mode '{mode}': {reason}")
+        return value
+
     @model_validator(mode="after")
     def _mode_fields(self) -> JobOptions:
         if self.mode == "single_target" and self.first_box is None:
             raise ValueError("mode 'single_target' needs first_box: the object's first box")
-        if self.mode == "single_target" and self.fill_gaps:
-            raise ValueError("fill_gaps is for mode 'people': a single target is never dropped")
-        if self.mode == "people" and self.first_box is not None:
-            raise ValueError("first_box is for mode 'single_target'; set mode or drop first_box")
         if len(set(self.formats)) != len(self.formats):
             raise ValueError("formats must not repeat a format")
         return self

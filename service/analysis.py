@@ -22,7 +22,7 @@ from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
 from service.frames import FrameSource, ReadProgress, open_frames
-from service.outputs import RunSummary, h264, open_writers
+from service.outputs import RESULT_FILES, RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detector
@@ -340,11 +340,18 @@ def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
 
 
 def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:
-    """Move a finished run's files from its scratch folder into ``folder`` (atomic renames)."""
+    """Move a finished run's files from its scratch folder into ``folder`` (atomic renames).
+
+    The folder then holds this run's results only: a result file of a format the run did not
+    write, left there by an earlier run, is removed rather than passed off as this run's.
+    """
     folder.mkdir(parents=True, exist_ok=True)
     published = {}
     for fmt, path in result.files.items():
         target = folder / path.name
         os.replace(path, target)
         published[fmt] = target
+    for fmt, name in RESULT_FILES.items():
+        if fmt not in published:
+            (folder / name).unlink(missing_ok=True)
     return published

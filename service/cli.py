@@ -11,10 +11,12 @@ import errno
 import importlib.metadata
 import json
 import os
+import re
 import shutil
 import socket
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
@@ -23,6 +25,9 @@ from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.output_paths import output_file, output_folder
 from tracking.types import Box, TrackerOutput, box_problem
+
+if TYPE_CHECKING:
+    from api_schemas.jobs import JobOptions
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
@@ -115,6 +120,7 @@ def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> st
 
 
 def _track(args: argparse.Namespace) -> int:
+    _warn_unknown_variables()
     try:
         source = open_frames(args.source)
     except FrameSourceError as error:
@@ -176,7 +182,7 @@ def _track(args: argparse.Namespace) -> int:
 
     for warning in damage_warnings(source, read):
         print(f"vtrack: warning: {warning}", file=sys.stderr)
-    if args.out:
+    if args.out and not args.quiet:
         print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)
     return 0
 
@@ -240,6 +246,25 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
     return raw, given
 
 
+def _tracked_with(options: JobOptions, dpm_model: Path | None) -> str:
+    """What found and followed the tracks, for the closing line: the detector in particular,
+    since a DPM set in VTRACK_DPM_MODEL is used only when the options ask for it."""
+    if options.mode == "single_target":
+        return f"the {options.preset} tracker"
+    if options.detector.name == "dpm" and dpm_model is not None:
+        return f"the DPM {dpm_model.name}"
+    return "the embedded detector (OpenCV's HOG people detector)"
+
+
+def _warn_unknown_variables() -> None:
+    """Name a misspelt ``VTRACK_*`` variable, as ``vtrack serve`` does (these commands read
+    VTRACK_DPM_MODEL and VTRACK_COLOR_NAMES)."""
+    from service.settings import unknown_variables
+
+    for line in unknown_variables(os.environ):
+        print(f"vtrack: {line}", file=sys.stderr)
+
+
 def _analyze(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
@@ -247,16 +272,25 @@ def _analyze(args: argparse.Namespace) -> int:
     from api_schemas.jobs import JobOptions
     from service.analysis import PipelineResources, analyze, check_options, publish
 
+    _warn_unknown_variables()
     raw, given = _analyze_options(args)
     try:
         options = JobOptions.model_validate(raw)
     except ValidationError as error:
         first = error.errors()[0]
         loc = tuple(str(part) for part in first["loc"])
-        where = [flag for key, flag in given.items() if loc[: len(key)] == key]
-        if not where and loc:
-            where = [f"--options: {'.'.join(loc)}"]
+        # the flag that set the refused field, or set a field inside it (--upscale: detector)
+        flags = [
+            flag for key, flag in given.items() if key[: len(loc)] == loc or loc[: len(key)] == key
+        ]
+        where = list(dict.fromkeys(flags))[:1]
         message = error_message(first)
+        if where:  # the options' modes, as this command's flags choose them
+            message = message.replace("mode 'single_target'", "--box").replace(
+                "mode 'people'", "tracking people (without --box)"
+            )
+        elif loc:
+            where = [f"--options: {'.'.join(loc)}"]
         print(f"vtrack: {': '.join([*where, message])}", file=sys.stderr)
         return 2
     try:
@@ -319,12 +353,13 @@ def _analyze(args: argparse.Namespace) -> int:
     bar.close()
     for warning in result.warnings:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
-    rate = result.frames_processed / max(result.seconds, 1e-9)
-    print(
-        f"vtrack: tracked {result.frames_processed} frames in {result.seconds:.1f} s "
-        f"({rate:.1f} frames/s)",
-        file=sys.stderr,
-    )
+    if not args.quiet:
+        rate = result.frames_processed / max(result.seconds, 1e-9)
+        print(
+            f"vtrack: tracked {result.frames_processed} frames in {result.seconds:.1f} s "
+            f"({rate:.1f} frames/s) with {_tracked_with(options, dpm_model)}",
+            file=sys.stderr,
+        )
     for fmt, path in files.items():
         print(f"{fmt.value}\t{path}")
     return 0
@@ -410,6 +445,7 @@ def _version() -> str:
         return "(not installed)"
 
 
+QUIET_HELP = "no progress bar or closing summary (warnings and errors still print)"
 W2C_HELP = "van de Weijer w2c.mat Color Names table (VTRACK_COLOR_NAMES; default: embedded)"
 
 
@@ -420,7 +456,8 @@ def build_parser() -> argparse.ArgumentParser:
     track = commands.add_parser(
         "track",
         help="follow one target through a video or image folder from its first box",
-        description="Follow one target with a circulant-structure tracker (RCSK by default).",
+        description="Follow one target with a correlation-filter tracker (preset hog_cn_scale "
+        "by default: HOG and Color Names with scale adaptation).",
     )
     track.add_argument("source", help="video file, image folder, or OTB sequence folder")
     track.add_argument(
@@ -429,12 +466,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="first-frame box x,y,w,h in pixels, 0-based (default: an OTB folder's ground truth)",
     )
     track.add_argument(
-        "--preset", default="hog_cn_scale", choices=sorted(PRESETS), help="tracker variant"
+        "--preset",
+        default="hog_cn_scale",
+        choices=sorted(PRESETS),
+        help="tracker variant (default hog_cn_scale)",
     )
     track.add_argument("--w2c", type=Path, help=W2C_HELP)
     track.add_argument("--out", type=Path, help="write the boxes here instead of stdout")
     track.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
-    track.add_argument("--quiet", action="store_true", help="no progress bar")
+    track.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     track.set_defaults(handler=_track)
 
     analyze = commands.add_parser(
@@ -499,7 +539,7 @@ def build_parser() -> argparse.ArgumentParser:
         '\'{"tracker": {"report_missing": 0.15}}\'); the flags above win over it',
     )
     analyze.add_argument("--w2c", type=Path, help=W2C_HELP)
-    analyze.add_argument("--quiet", action="store_true", help="no progress bar")
+    analyze.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     analyze.set_defaults(handler=_analyze)
 
     serve = commands.add_parser(
@@ -524,8 +564,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _attach_box_values(argv: list[str]) -> list[str]:
+    """``--box -5,-5,20,20`` as ``--box=-5,-5,20,20``: argparse takes a value that starts with
+    "-" and is not a plain number for an option, so a box partly left of or above the frame was
+    refused with "expected one argument"."""
+    attached: list[str] = []
+    tokens = iter(argv)
+    for token in tokens:
+        attached.append(token)
+        if token == "--":  # the rest is positional
+            attached += tokens
+        elif token == "--box" and (value := next(tokens, None)) is not None:
+            if re.match(r"-[\d.]", value):
+                attached[-1] = f"--box={value}"
+            else:
+                attached.append(value)
+    return attached
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(_attach_box_values(sys.argv[1:] if argv is None else argv))
     try:
         status = args.handler(args)
         sys.stdout.flush()  # a reader gone before the last buffered lines shows here

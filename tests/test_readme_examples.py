@@ -8,6 +8,7 @@ import re
 
 import cv2
 import numpy as np
+import pytest
 
 from tests.conftest import REPO_ROOT
 
@@ -60,3 +61,10 @@ def test_the_people_example_prints_the_people_of_a_video(shared_data, tmp_path):
     assert rows and {int(index) for index, _, _ in rows} <= set(range(12))
     assert len({track for _, track, _ in rows}) >= 2
     assert all(rest.startswith("Box(") for _, _, rest in rows)
+
+
+def test_the_people_example_says_when_it_cannot_read_the_video(tmp_path):
+    code = _examples()[1].replace('"street.avi"', repr(str(tmp_path / "missing.avi")))
+    # before: it printed nothing, as for a video without people
+    with pytest.raises(SystemExit, match="cannot read"):
+        exec(code, {})

@@ -65,4 +65,9 @@ def warm_up() -> float:
 
 
 if __name__ == "__main__":
+    import argparse
+
+    argparse.ArgumentParser(
+        prog="python -m tracking.warmup", description=__doc__.split("\n\n")[0]
+    ).parse_args()  # no options; --help says what it does instead of doing it
     print(f"numba kernels ready ({warm_up():.1f} s)")

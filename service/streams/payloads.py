@@ -152,7 +152,8 @@ def parse_detections(payload: bytes) -> UpstreamDetections:
 def to_detections(message: UpstreamDetections) -> Detections:
     """Upstream detections as the tracker takes them."""
     boxes = [[d.x, d.y, d.w, d.h] for d in message.detections]
-    return detections_from_arrays(boxes, [d.score for d in message.detections])
+    scores = np.array([d.score for d in message.detections])
+    return detections_from_arrays(boxes, scores, np.clip(scores, 0.0, 1.0))  # as the schema says
 
 
 def encode_jpeg(rgb: np.ndarray, quality: int = 90) -> bytes:

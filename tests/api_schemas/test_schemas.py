@@ -16,6 +16,8 @@ from api_schemas.export import SCHEMA_PATH, build_schema, render
 from api_schemas.tracks import PartState
 from tests.conftest import REPO_ROOT
 
+BOX = {"x": 1, "y": 1, "w": 5, "h": 5}
+
 
 def test_exported_schema_is_up_to_date():
     assert SCHEMA_PATH.read_text() == render(), (
@@ -51,7 +53,15 @@ def test_default_options_and_their_schema_agree():
         ({"formats": []}, "at least 1 item"),  # nothing to write
         ({"formats": ["json", "json"]}, "must not repeat"),  # a format twice
         ({"mode": "single_target"}, "needs first_box"),  # single target without its box
-        ({"first_box": {"x": 1, "y": 1, "w": 5, "h": 5}}, "is for mode 'single_target'"),
+        ({"first_box": {"x": 1, "y": 1, "w": 5, "h": 5}}, "only for mode 'single_target'"),
+        # an option of the other mode, which was ignored
+        ({"preset": "rcsk_cn"}, "only for mode 'single_target'"),
+        (
+            {"mode": "single_target", "first_box": BOX, "detector": {"upscale": 2}},
+            "only for mode 'people'",
+        ),
+        ({"mode": "single_target", "first_box": BOX, "tracker": {"particles": 50}}, "'people'"),
+        ({"mode": "single_target", "first_box": BOX, "fill_gaps": 1}, "never dropped"),
         (
             {"mode": "single_target", "first_box": {"x": 1, "y": 1, "w": 0, "h": 5}},
             "greater than 0",
@@ -61,6 +71,17 @@ def test_default_options_and_their_schema_agree():
 def test_invalid_options_are_rejected(options, message):
     with pytest.raises(ValidationError, match=message):
         JobOptions.model_validate(options)
+
+
+def test_an_option_of_the_other_mode_is_refused_where_it_was_given():
+    # its default, given explicitly, changes nothing and passes
+    JobOptions.model_validate(
+        {"mode": "single_target", "first_box": BOX, "detector": {}, "fill_gaps": 0}
+    )
+    JobOptions.model_validate({"preset": "hog_cn_scale", "tracker": {"particles": 50}})
+    with pytest.raises(ValidationError) as caught:
+        JobOptions.model_validate({"mode": "single_target", "first_box": BOX, "fill_gaps": 1})
+    assert [e["loc"] for e in caught.value.errors()] == [("fill_gaps",)]
 
 
 def test_trajectories_reject_scores_outside_unit_interval():

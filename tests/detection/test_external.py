@@ -140,11 +140,15 @@ def test_submitted_detections_per_frame():
     sub = SubmittedDetections()
     assert isinstance(sub, Detector)
     sub.submit(0, [[10, 10, 20, 40]], [0.7])
-    sub.submit(2, [[30, 10, 20, 40], [80, 10, 20, 40]], [2.0, -1.0])
+    two = [[30, 10, 20, 40], [80, 10, 20, 40]]
+    # raw scores alone: refused (they were clipped to certain and impossible)
+    with pytest.raises(ValueError, match=r"must lie in \[0, 1\] \(got -1 to 2\)"):
+        sub.submit(2, two, [2.0, -1.0])
+    sub.submit(2, two, [2.0, -1.0], [0.9, 0.2])
     assert sub.detect(None).boxes.tolist() == [[10, 10, 20, 40]]  # frame 0
     assert len(sub.detect(None)) == 0  # frame 1: nothing handed in
-    third = sub.detect(None)  # frame 2: scores clipped to [0, 1] as probabilities
-    np.testing.assert_array_equal(third.probabilities, [1.0, 0.0])
+    third = sub.detect(None)  # frame 2
+    np.testing.assert_array_equal(third.probabilities, [0.9, 0.2])
     with pytest.raises(ValueError, match="already past"):
         sub.submit(1, [[0, 0, 1, 1]], [1.0])
     assert sub.dense_scores(None, Box(0, 0, 1, 1)) is None
@@ -179,6 +183,6 @@ def test_detections_from_arrays_validates(kwargs, message):
 
 def test_detections_from_arrays_with_parts():
     d = detections_from_arrays(
-        [[0, 0, 10, 20]], [3.0], parts=np.ones((1, 1, 4)), part_names=("head",)
+        [[0, 0, 10, 20]], [0.8], parts=np.ones((1, 1, 4)), part_names=("head",)
     )
-    assert d.part_names == ("head",) and d.probabilities.tolist() == [1.0]
+    assert d.part_names == ("head",) and d.probabilities.tolist() == [0.8]

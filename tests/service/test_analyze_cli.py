@@ -152,7 +152,13 @@ def test_analyze_follows_parts_with_part_trackers_on_request(pets_short, tmp_pat
         # first box outside the frame; before: "first_box: box Box(x=900.0, ...) lies ..."
         (["--box", "900,10,20,20"], "--box 900,10,20,20 lies entirely outside the 480x360 frame"),
         (["--fill-gaps", "-1"], "--fill-gaps: Input should be greater than or equal to 0"),
-        (["--box", "150,130,28,65", "--fill-gaps", "0.5"], "fill_gaps is for mode 'people'"),
+        (  # an option of the other mode, named by its flag; before: "fill_gaps is for mode..."
+            ["--box", "150,130,28,65", "--fill-gaps", "0.5"],
+            "--fill-gaps: only for tracking people (without --box): a single target is never",
+        ),
+        # before: ignored, exit status 0
+        (["--preset", "rcsk_cn"], "--preset: only for --box: people are followed by"),
+        (["--box", "150,130,28,65", "--upscale", "2"], "--upscale: only for tracking people"),
         (["--options", "{"], "--options: not JSON"),
         (["--options", "[1]"], "--options: a JSON object of job options"),
         (["--options", '{"trackr": {}}'], "--options: trackr: Extra inputs are not permitted"),
@@ -208,6 +214,7 @@ def test_analyze_detects_with_the_dpm_model_of_the_flag_or_the_environment(
         "analyze", pets_short, "--out-dir", out, "--format", "json", *arguments, env=env
     )
     assert result.returncode == 0, result.stderr
+    assert "with the DPM " in result.stderr  # the closing line says which detector ran
     document = json.loads((out / "trajectories.json").read_text())
     # only the DPM places body parts; the embedded detector's are predicted from the box
     parts = [p for t in document["tracks"] for f in t["frames"] for p in f["parts"]]
@@ -324,3 +331,34 @@ def test_analyze_fills_short_gaps_in_the_trajectories_only(pets_45, tmp_path):
         ]
     assert len(recorded) == sum(len(ps) for ps in before.values())
     assert not any(track["interpolated"] for track in recorded)
+
+
+def test_analyze_leaves_only_this_runs_results_and_says_what_detected(pets_short, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("tracks.mcap", "tracks_mot.txt", "annotated.mp4", "notes.txt"):
+        (out / name).write_text("an earlier run's file")  # notes.txt: not a result
+    # a model set for the service but not asked for, and a misspelt variable
+    env = {"VTRACK_DPM_MODEL": str(tmp_path / "model.mat"), "VTRACK_DMP_MODEL": "x"}
+    result = vtrack("analyze", pets_short, "--out-dir", out, "--format", "json", env=env)
+    assert result.returncode == 0, result.stderr
+    # before: the earlier mcap, mot and mp4 stayed beside the new json
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "trajectories.json"]
+    assert "with the embedded detector (OpenCV's HOG people detector)" in result.stderr
+    assert "ignoring VTRACK_DMP_MODEL: not a setting (did you mean VTRACK_DPM_MODEL?)" in (
+        result.stderr
+    )
+    quiet = vtrack("analyze", pets_short, "--out-dir", out, "--format", "json", "--quiet")
+    assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
+
+
+def test_analyze_takes_a_box_partly_left_of_and_above_the_frame(pets_short, tmp_path):
+    out = tmp_path / "out"
+    # before: "argument --box: expected one argument", the value read as an option
+    result = vtrack(
+        "analyze", pets_short, "--out-dir", out, "--format", "json", "--box", "-5,-5,30,60"
+    )
+    assert result.returncode == 0, result.stderr
+    first = json.loads((out / "trajectories.json").read_text())["tracks"][0]["frames"][0]
+    assert first["box"] == {"x": -5, "y": -5, "w": 30, "h": 60}
+    assert "with the hog_cn_scale tracker" in result.stderr

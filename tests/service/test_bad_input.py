@@ -131,8 +131,10 @@ def _voice_memo(folder, video):
                 "fill_gaps": 1,
             },
             422,
-            "fill_gaps is for mode 'people'",
+            "fill_gaps: only for mode 'people': a single target is never dropped",
         ),
+        # an option of the other mode, which was ignored
+        (lambda d, v: v, {"preset": "rcsk_cn"}, 422, "preset: only for mode 'single_target'"),
         # The DPM detector on a service without a model.
         (lambda d, v: v, {"detector": {"name": "dpm"}}, 422, "VTRACK_DPM_MODEL"),
     ],

@@ -96,6 +96,16 @@ def test_tracks_a_video_file_and_writes_csv(scene_video, tmp_path):
     assert np.abs(centres - true_centres).max() < 6.0
 
 
+def test_a_box_partly_left_of_and_above_the_frame_is_taken_as_given(scene_video, tmp_path):
+    path, _ = scene_video
+    out = tmp_path / "boxes.csv"
+    # before: "argument --box: expected one argument" (argparse took the value for an option)
+    result = vtrack("track", path, "--box", "-5,-5,20,20", "--out", out, "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert out.read_text().splitlines()[1] == "1,-5.00,-5.00,20.00,20.00,,"
+    assert result.stderr == ""  # --quiet: no bar and no closing line
+
+
 def test_otb_folder_takes_its_first_ground_truth_box_and_prints_json(shared_data, tmp_path):
     # A 15-frame cut of Crossing, in OTB layout, in a temporary folder.
     source = shared_data / "otb" / "Crossing"

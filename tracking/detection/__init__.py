@@ -23,6 +23,7 @@ from tracking.detection.dpm import (
     DPM_TRACKING_CONFIG,
     DpmConfig,
     DpmDetector,
+    DpmModel,
     ModelFileError,
     load_dpm_model,
 )
@@ -50,6 +51,7 @@ __all__ = [
     "Detector",
     "DpmConfig",
     "DpmDetector",
+    "DpmModel",
     "HogPeopleConfig",
     "HogPeopleDetector",
     "LogisticCalibration",

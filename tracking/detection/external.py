@@ -52,7 +52,8 @@ def detections_from_arrays(
         ``(N,)`` finite raw scores.
     probabilities:
         ``(N,)`` in ``[0, 1]``; default: ``calibration`` of the scores if given, else the scores
-        clipped to ``[0, 1]``.
+        themselves, which must then lie in ``[0, 1]`` (raw scores of another range need one of
+        the two: clipped, they would all read as certain or impossible).
     calibration:
         Maps scores to probabilities when ``probabilities`` is not given.
     parts:
@@ -88,8 +89,13 @@ def detections_from_arrays(
             raise ValueError("probabilities must lie in [0, 1]")
     elif calibration is not None:
         p = calibration.probability(s)
+    elif np.all((s >= 0) & (s <= 1)):
+        p = s.copy()
     else:
-        p = np.clip(s, 0.0, 1.0)
+        raise ValueError(
+            f"scores are read as probabilities and must lie in [0, 1] (got {s.min():g} to "
+            f"{s.max():g}): give raw scores with probabilities= or calibration="
+        )
     if parts is None:
         q = np.zeros((n, len(part_names), 4))
         if part_names:
@@ -191,8 +197,12 @@ class MotDetections:
         """Detections of 0-based frame ``index`` (file rows with ``frame == index + 1``), boxes
         with a 0-based corner (the file's ``x - 1, y - 1``)."""
         picked = self._by_frame.get(int(index), np.zeros(0, dtype=np.int64))
+        confidence = self.rows[picked, 6]
         return detections_from_arrays(
-            self._boxes[picked], self.rows[picked, 6], calibration=self.calibration
+            self._boxes[picked],
+            confidence,
+            None if self.calibration else np.clip(confidence, 0.0, 1.0),
+            calibration=self.calibration,
         )
 
     def seek(self, index: int) -> None:

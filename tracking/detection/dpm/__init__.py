@@ -4,6 +4,7 @@ from tracking.detection.dpm.config import DPM_TRACKING_CONFIG, DpmConfig
 from tracking.detection.dpm.detector import (
     DEFAULT_DPM_CALIBRATION,
     KNOWN_CALIBRATIONS,
+    KNOWN_CASCADES,
     DpmDetector,
 )
 from tracking.detection.dpm.model import (
@@ -19,6 +20,7 @@ __all__ = [
     "DEFAULT_DPM_CALIBRATION",
     "DPM_TRACKING_CONFIG",
     "KNOWN_CALIBRATIONS",
+    "KNOWN_CASCADES",
     "DpmComponent",
     "DpmConfig",
     "DpmDetector",

@@ -194,10 +194,17 @@ def save_cascade(
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tracking.detection.dpm.cascade_fit", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--model", required=True, help="voc-release5 model file (.mat)")
-    parser.add_argument("--sequences", nargs="+", required=True, help="OTB sequence folders")
-    parser.add_argument("--step", type=int, default=4)
+    parser.add_argument(
+        "--sequences",
+        nargs="+",
+        required=True,
+        help="OTB-layout folders (img/ and groundtruth_rect.txt) whose target is a person",
+    )
+    parser.add_argument("--step", type=int, default=4, help="every N-th frame (default 4)")
     parser.add_argument("--out", help="default: <model>.cascade.json beside the model")
     args = parser.parse_args(argv)
     if args.step < 1:
