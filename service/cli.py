@@ -280,10 +280,11 @@ def _analyze(args: argparse.Namespace) -> int:
         first = error.errors()[0]
         loc = tuple(str(part) for part in first["loc"])
         # the flag that set the refused field, or set a field inside it (--upscale: detector)
-        flags = [
-            flag for key, flag in given.items() if key[: len(loc)] == loc or loc[: len(key)] == key
-        ]
-        where = list(dict.fromkeys(flags))[:1]
+        where = [
+            flag
+            for key, flag in given.items()
+            if loc and (key[: len(loc)] == loc or loc[: len(key)] == key)
+        ][:1]
         message = error_message(first)
         if where:  # the options' modes, as this command's flags choose them
             message = message.replace("mode 'single_target'", "--box").replace(

@@ -159,6 +159,10 @@ def test_analyze_follows_parts_with_part_trackers_on_request(pets_short, tmp_pat
         # before: ignored, exit status 0
         (["--preset", "rcsk_cn"], "--preset: only for --box: people are followed by"),
         (["--box", "150,130,28,65", "--upscale", "2"], "--upscale: only for tracking people"),
+        (  # a rule across options, named by no flag (the --format beside it is fine)
+            ["--options", '{"mode": "single_target"}', "--format", "json"],
+            "vtrack: mode 'single_target' needs first_box",
+        ),
         (["--options", "{"], "--options: not JSON"),
         (["--options", "[1]"], "--options: a JSON object of job options"),
         (["--options", '{"trackr": {}}'], "--options: trackr: Extra inputs are not permitted"),
