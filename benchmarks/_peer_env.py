@@ -84,7 +84,8 @@ def ensure_env(env_dir: Path, requirements: list[str], check_snippet: str, purpo
 
     An existing environment is reused when its marker file lists the same ``requirements`` and
     its interpreter runs ``check_snippet``; otherwise it is rebuilt (``venv --clear``, with this
-    interpreter's Python) and the requirements are installed with pip.
+    interpreter's Python) and the requirements are installed with pip. A folder that is not
+    empty and holds no marker file is not an environment this function made, and is refused.
 
     Parameters
     ----------
@@ -101,7 +102,8 @@ def ensure_env(env_dir: Path, requirements: list[str], check_snippet: str, purpo
     ------
     PeerEnvError
         If the environment cannot be created or pip cannot install the requirements (for
-        example without network access); the message carries pip's last lines.
+        example without network access; the message carries pip's last lines), or if
+        ``env_dir`` holds something else.
     """
     python = env_python(env_dir)
     marker = env_dir / MARKER_FILE
@@ -112,14 +114,21 @@ def ensure_env(env_dir: Path, requirements: list[str], check_snippet: str, purpo
     if recorded == {"requirements": requirements} and _works(python, check_snippet):
         return python
 
+    # venv --clear empties the folder: only one this function made (it holds the marker,
+    # written before pip runs) or an empty one, never e.g. the project's own .venv
+    if not marker.is_file() and env_dir.exists() and any(env_dir.iterdir()):
+        raise PeerEnvError(
+            f"{env_dir} is not empty and is not {purpose} made by the benchmarks (no "
+            f"{MARKER_FILE} in it); it is left alone: remove it or choose another folder"
+        )
     logger.info("creating %s %s with %s", purpose, env_dir, " ".join(requirements))
-    marker.unlink(missing_ok=True)
     try:
         created = _run([sys.executable, "-m", "venv", "--clear", str(env_dir)], timeout=300.0)
         if created.returncode != 0:
             raise PeerEnvError(
                 f"could not create a virtual environment at {env_dir}:\n{_tail(created.stderr)}"
             )
+        marker.write_text(json.dumps({"creating": requirements}))
         installed = _run(
             [
                 str(python),

@@ -56,7 +56,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import re
@@ -84,6 +83,11 @@ from tracking.detection.metrics import (
     log_average_miss_rate,
 )
 from tracking.types import Box
+
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
@@ -518,7 +522,7 @@ def main(argv: list[str] | None = None) -> int:
         "speed_fps": speed,
     }
     if args.json:
-        print(json.dumps(report, indent=2))
+        print_json(report, indent=2)
     else:
         print_table(report)
     return 0

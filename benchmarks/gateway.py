@@ -28,7 +28,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import os
 import sys
@@ -55,6 +54,11 @@ from service.streams.simulated_cameras import (  # noqa: E402
 )
 from service.streams.tools import member_session, publish_frames, video_frames  # noqa: E402
 from service.testing import free_port  # noqa: E402
+
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
 
 MODES = ("forward", "h264", "jpeg", "raw")
 
@@ -235,20 +239,55 @@ def capture_times(seconds: float, seed: int = 0) -> dict:
     return out
 
 
+def _at_least(minimum: float, kind: type = int) -> Callable[[str], float]:
+    """An argparse type: a number of ``kind`` no smaller than ``minimum``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not value >= minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {text}")
+        return value
+
+    return parse
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=200)
+    parser.add_argument("--frames", type=_at_least(1), default=200)
     parser.add_argument("--sizes", default="480x360,1920x1080")
     parser.add_argument("--modes", default=",".join(MODES))
-    parser.add_argument("--repeats", type=int, default=3, help="connections per first-frame row")
     parser.add_argument(
-        "--capture-seconds", type=float, default=60.0, help="stream length for the stamps' row"
+        "--repeats", type=_at_least(1), default=3, help="connections per first-frame row"
     )
     parser.add_argument(
-        "--delay-frames", type=int, default=60, help="stream length for the frame-delay rows"
+        "--capture-seconds",
+        type=_at_least(1.0, float),
+        default=60.0,
+        help="stream length for the stamps' row",
+    )
+    # the delay rows leave out the first 10 frames (connecting) and the last 3 (closing)
+    parser.add_argument(
+        "--delay-frames",
+        type=_at_least(20),
+        default=60,
+        help="stream length for the frame-delay rows (at least 20)",
     )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    try:
+        sizes = {
+            size: tuple(int(side) for side in size.split("x")) for size in args.sizes.split(",")
+        }
+    except ValueError:
+        parser.error(f"--sizes: WIDTHxHEIGHT,... expected, got {args.sizes!r}")
+    if any(len(sides) != 2 or min(sides) < 16 for sides in sizes.values()):
+        parser.error(f"--sizes: WIDTHxHEIGHT,... of at least 16x16 expected, got {args.sizes!r}")
+    modes = args.modes.split(",")
+    if unknown := set(modes) - set(MODES):
+        parser.error(f"--modes: unknown {', '.join(sorted(unknown))}; known: {', '.join(MODES)}")
     report = {"frames": args.frames, "cpu_count": os.cpu_count(), "sizes": {}}
     report["first_frame"] = first_frames(args.repeats)
     if not args.json:
@@ -274,10 +313,9 @@ def main() -> int:
                 f"previous; time error after 15 s median {settled['median']:.1f} ms, max "
                 f"{settled['max']:.1f}"
             )
-    for size in args.sizes.split(","):
-        width, height = (int(side) for side in size.split("x"))
+    for size, (width, height) in sizes.items():
         units = access_units(camera_frames(args.frames, width, height))
-        rows = [measure(units, mode) for mode in args.modes.split(",")]
+        rows = [measure(units, mode) for mode in modes]
         report["sizes"][size] = rows
         if not args.json:
             print(f"{size}: camera sends {sum(map(len, units)) / len(units) / 1000:.1f} KB/frame")
@@ -288,7 +326,7 @@ def main() -> int:
                     f"KB/frame sent, {row['frames_received']}/{row['frames_sent']} received"
                 )
     if args.json:
-        print(json.dumps(report, indent=2))
+        print_json(report, indent=2)
     return 0
 
 

@@ -67,7 +67,6 @@ import contextlib
 import dataclasses
 import hashlib
 import json
-import math
 import os
 import shutil
 import statistics
@@ -93,6 +92,11 @@ from tracking.evaluation.mot import (
     write_mot_file,
 )
 from tracking.tracks import TrackEstimate
+
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
@@ -618,17 +622,6 @@ def summarize(outcome: Outcome, scored: dict[str, object], results: Path) -> dic
 # Report
 
 
-def _finite(value: object) -> object:
-    """``value`` with every non-finite float replaced by None (strict JSON has no infinity)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def _cell(value: object, digits: int, width: int, signed: bool = False) -> str:
     if value is None:
         return f"{'-':>{width}}"
@@ -1023,8 +1016,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         print(table, file=sys.stderr)
         # default=str: a configuration value JSON cannot hold (a path...) is written as text
-        json.dump(_finite(report), sys.stdout, indent=1, allow_nan=False, default=str)
-        print()
+        print_json(report)
     else:
         print(table)
     return 0

@@ -44,6 +44,11 @@ from tracking.evaluation.metrics import (
 from tracking.evaluation.otb import OtbSequence, SequenceError, find_otb_sequences, read_frame
 from tracking.types import Tracker
 
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_DATA = SHARED_DATA / "otb"
@@ -308,17 +313,6 @@ def _ratio(entry: dict, reference: dict, figure: str) -> float | None:
     return entry["mean"][figure] / reference["mean"][figure]
 
 
-def _finite(value: object) -> object:
-    """``value`` with every non-finite float replaced by None (strict JSON has no infinity)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def _number(value: float | None, digits: int) -> str:
     if value is None:
         return "-"
@@ -570,8 +564,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     table = format_table(scores)
     if args.json:
         print(table, file=sys.stderr)
-        json.dump(_finite(scores), sys.stdout, indent=1, allow_nan=False)
-        print()
+        print_json(scores)
     else:
         print(table)
     if args.plots is not None:

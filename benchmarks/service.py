@@ -51,6 +51,11 @@ from tracking.detection.sequences import parse_mot_rows  # noqa: E402
 from tracking.evaluation.hota import hota  # noqa: E402
 from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes  # noqa: E402
 
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
+
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
 DEFAULT_GROUND_TRUTH = SHARED_DATA / "mot" / "PETS09-S2L1" / "gt" / "gt.txt"
@@ -201,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
         None if gt is None else (gt, scale),
     )
     if args.json:
-        print(json.dumps(figures))
+        print_json(figures, indent=None)
         return 0
     print(f"{figures['video']}: {figures['frames']} frames, {figures['video_seconds']} s of video")
     print(f"options: {json.dumps(figures['options'])}, {figures['jobs']} job(s) at once")

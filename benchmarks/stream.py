@@ -66,6 +66,11 @@ from tracking.detection import MotDetections
 from tracking.evaluation.hota import hota
 from tracking.evaluation.mot import ground_truth_rows
 
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
@@ -463,7 +468,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown configurations {unknown}; choose from {list(CONFIGS)}")
     result = run(args.data, args.fps, args.frames, configs, args.server_log, args.payload)
     if args.json:
-        print(json.dumps(result))
+        print_json(result, indent=None)
     else:
         print_table(result)
     return 1 if any("error" in c for c in result["configs"].values()) else 0

@@ -21,7 +21,6 @@ x264 uses its default threads.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -36,6 +35,11 @@ sys.path.insert(0, str(REPO_ROOT))  # benchmarks/ first on sys.path would shadow
 from service.outputs.h264 import AccessUnitEncoder  # noqa: E402
 from service.outputs.video_out import H264Encoder, Mp4vEncoder  # noqa: E402
 from service.streams.payloads import encode_jpeg  # noqa: E402
+
+try:  # run as a script: benchmarks/ is on sys.path
+    from _report import print_json
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._report import print_json
 
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
@@ -113,7 +117,7 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="vtrack-encode-") as scratch:
         results = {f"{h}": measure(frames, h, args.repeats, Path(scratch)) for h in args.heights}
     if args.json:
-        print(json.dumps({"frames": len(frames), "heights": results}, indent=2))
+        print_json({"frames": len(frames), "heights": results}, indent=2)
         return
     print(f"{len(frames)} frames; ms per frame / KB per frame")
     for height, row in results.items():

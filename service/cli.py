@@ -419,10 +419,15 @@ def _serve(args: argparse.Namespace) -> int:
             )
         print(f"vtrack: {problem}", file=sys.stderr)
         return 2
-    url = f"http://{settings.host}:{settings.port}"
+    host = settings.host
+    # a wildcard address is where the service listens, not an address a browser can open
+    wildcard = host in ("0.0.0.0", "::", "")
+    url = f"http://{'localhost' if wildcard else f'[{host}]' if ':' in host else host}:"
+    url += str(settings.port)
+    where = f"every address of this machine, port {settings.port}" if wildcard else url
     workers = f"{settings.workers} worker{'s' if settings.workers != 1 else ''}"
     print(
-        f"vtrack: serving on {url} with {workers}, data in {settings.data_dir}\n"
+        f"vtrack: serving on {where} with {workers}, data in {settings.data_dir}\n"
         f"vtrack: open the API docs at {url}/docs (Ctrl-C stops)",
         file=sys.stderr,
         flush=True,

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -69,3 +71,21 @@ def test_height_resizes_frames_ground_truth_and_public_detections(detection, sha
     np.testing.assert_array_equal(scores, public.scores)
     (native,) = detection._sequences(detection.argparse.Namespace(**{**vars(args), "height": None}))
     assert native.read_frame(10).shape == (576, 768, 3)
+
+
+def _strict(constant: str) -> None:
+    raise ValueError(f"not JSON: {constant}")
+
+
+def test_json_report_is_strict_json_when_a_figure_is_missing(detection, shared_data, capsys):
+    """The public detections have no time per frame: ``--json`` writes null, not NaN (which
+    JavaScript's and most other parsers refuse)."""
+    code = detection.main(
+        ["--data", str(shared_data), "--sequences", "TUD-Stadtmitte", "--step", "30",
+         "--detectors", "public", "--no-timing", "--picture", "", "--json"]
+    )  # fmt: skip
+    assert code == 0
+    report = json.loads(capsys.readouterr().out, parse_constant=_strict)
+    public = report["accuracy"]["TUD-Stadtmitte"]["public"]
+    assert public["seconds_per_frame"] is None
+    assert 0 < public["ap"] <= 1

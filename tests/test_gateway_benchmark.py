@@ -52,3 +52,24 @@ def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
     assert stamps["capture_clock"]["frames_within_10ms_of_the_previous"] == 0
     clock, arrival = stamps["capture_clock"], stamps["arrival"]
     assert clock["spacing_error_ms"]["p95"] < arrival["spacing_error_ms"]["p95"]
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--delay-frames", "10"], "--delay-frames: must be at least 20"),
+        (["--sizes", "480"], "--sizes: WIDTHxHEIGHT"),
+        (["--modes", "h264,mjpeg"], "--modes: unknown mjpeg"),
+        (["--frames", "0"], "--frames: must be at least 1"),
+    ],
+)
+def test_bad_arguments_are_named_before_anything_runs(arguments, message):
+    result = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "gateway.py"), *arguments],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2
+    assert message in result.stderr

@@ -10,10 +10,11 @@ import sys
 import threading
 
 import cv2
+import httpx
 import numpy as np
 import pytest
 
-from service.testing import wait_for
+from service.testing import free_port, wait_for
 from tests.correlation.test_tracker import moving_target_scene
 from tests.service.conftest import PETS_VIDEO
 
@@ -353,3 +354,33 @@ def test_an_output_that_cannot_be_written_stops_the_command_before_it_starts(
     assert result.returncode == 2, result.stderr
     assert message in result.stderr and "Traceback" not in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"]  # nothing written
+
+
+def test_serve_on_every_address_prints_a_link_a_browser_can_open(tmp_path):
+    """The image's VTRACK_HOST=0.0.0.0: the link was http://0.0.0.0:8000/docs."""
+    port = free_port()
+    service = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "serve", "--host", "0.0.0.0", "--port", str(port)],
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "VTRACK_DATA_DIR": str(tmp_path / "data"),
+             "VTRACK_ZENOH_LISTEN": f'["tcp/127.0.0.1:{free_port()}"]'},
+    )  # fmt: skip
+    try:
+        lines = [service.stderr.readline() for _ in range(2)]
+        assert f"serving on every address of this machine, port {port}" in lines[0]
+        link = lines[1].split("open the API docs at ")[1].split()[0]
+        assert link == f"http://localhost:{port}/docs"
+        page = wait_for(lambda: _get(link), timeout=60, what="the API docs")
+        assert page.status_code == 200
+    finally:
+        service.terminate()
+        service.wait(timeout=30)
+        service.stderr.close()
+
+
+def _get(url: str) -> httpx.Response | None:
+    try:
+        return httpx.get(url, timeout=5)
+    except httpx.TransportError:
+        return None

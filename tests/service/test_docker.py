@@ -10,6 +10,7 @@ the image's own HEALTHCHECK command. The compose file must parse and name files 
 from __future__ import annotations
 
 import contextlib
+import fnmatch
 import importlib.metadata
 import json
 import os
@@ -72,6 +73,57 @@ def test_dockerfile_shape(dockerfile):
     assert "/models" in volumes and "/data" in volumes
     for source in copies:
         assert (REPO_ROOT / source).exists(), f"COPY names {source}, which is not in the repo"
+
+
+def _ignored(path: str, patterns: list[str]) -> bool:
+    """Whether a .dockerignore with ``patterns`` (no ``!`` exceptions) keeps ``path`` (relative,
+    with /) out of the build context: a pattern matching the path or a folder above it, ``**``
+    standing for any number of folders."""
+
+    def match(parts: list[str], pattern: list[str]) -> bool:
+        if not pattern:
+            return not parts
+        if pattern[0] == "**":
+            return any(match(parts[i:], pattern[1:]) for i in range(len(parts) + 1))
+        return (
+            bool(parts)
+            and fnmatch.fnmatchcase(parts[0], pattern[0])
+            and match(parts[1:], pattern[1:])
+        )
+
+    parts = path.split("/")
+    return any(
+        match(parts[:n], p.strip("/").split("/"))
+        for p in patterns
+        for n in range(1, len(parts) + 1)
+    )
+
+
+def test_dockerignore_keeps_environments_and_caches_out_but_not_what_the_image_copies(dockerfile):
+    """The compose build sends the repository as context: without .dockerignore that is the
+    .venv (about 1 GB), .git, and host __pycache__ folders with numba caches that COPY would put
+    into the image."""
+    lines = (REPO_ROOT / ".dockerignore").read_text().splitlines()
+    patterns = [line.strip() for line in lines if line.strip() and not line.startswith("#")]
+    assert not [p for p in patterns if p.startswith("!")]  # _ignored does not read exceptions
+    for path in [".venv/bin/python", ".venv-mot/pyvenv.cfg", ".git/HEAD",
+                 "tracking/features/__pycache__/hog._bilinear_weights-206.py311.nbi",
+                 "service/__pycache__/app.cpython-311.pyc", "docker/models/w2c.mat",
+                 "benchmarks/results/run.json", "vtrack-data/jobs.sqlite"]:  # fmt: skip
+        assert _ignored(path, patterns), path
+    copied = [args.split()[0] for k, args in dockerfile if k == "COPY"]
+    sources = [
+        p.relative_to(REPO_ROOT).as_posix()
+        for source in copied
+        for p in (
+            [REPO_ROOT / source]
+            if (REPO_ROOT / source).is_file()
+            else (REPO_ROOT / source).rglob("*")
+        )
+        if p.is_file() and "__pycache__" not in p.parts
+    ]
+    assert any(s.startswith("tracking/detection/dpm/cascades/") for s in sources)
+    assert [s for s in sources if _ignored(s, patterns)] == []
 
 
 def _replay(dockerfile, build: Path, env_dir: Path) -> dict[str, str]:
