@@ -440,7 +440,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--trackers",
         help="comma-separated tracker names (ours and OpenCV's), or 'all'; see --list",
     )
-    parser.add_argument("--sequences", help="comma-separated sequence names (default: all)")
+    parser.add_argument(
+        "--sequences",
+        nargs="+",
+        help="sequence names, space- or comma-separated (default: all)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     parser.add_argument("--plots", type=Path, help="save precision.png and success.png here")
     parser.add_argument("--no-peers", action="store_true", help="skip the OpenCV trackers")
@@ -512,7 +516,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SequenceError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    wanted = _names(args.sequences)
+    wanted = _names(",".join(args.sequences)) if args.sequences else None
     if wanted is not None:
         missing = sorted(set(wanted) - {s.name for s in sequences})
         if missing:

@@ -22,7 +22,7 @@ from fastapi_offline import FastAPIOffline
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.data_folder import DataFolder, claim_data_folder
-from service.deps import TOKEN_MISSING, token_accepted
+from service.deps import token_refusal
 from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
@@ -174,11 +174,10 @@ async def _documentation_needs_the_token(request: Request, call_next):
     serves it outside the routers, so a dependency cannot guard it)."""
     settings: Settings | None = request.app.state.settings
     if request.url.path in DOCUMENTATION_PATHS and settings is not None:
-        header = request.headers.get("authorization", "")
-        scheme, _, presented = header.partition(" ")
-        if not token_accepted(settings, presented if scheme.lower() == "bearer" else None):
+        refusal = token_refusal(settings, request.headers.get("authorization"))
+        if refusal is not None:
             return JSONResponse(
-                {"detail": TOKEN_MISSING}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
+                {"detail": refusal}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
             )
     return await call_next(request)
 

@@ -38,28 +38,41 @@ PoolDep = Annotated[WorkerPool, Depends(get_pool)]
 StreamsDep = Annotated[StreamManager, Depends(get_streams)]
 
 
-TOKEN_MISSING = (
-    "this service needs a token: send the header 'Authorization: Bearer <token>' with the "
-    "token it was configured with (VTRACK_API_TOKEN)"
-)
-
-
-def token_accepted(settings: Settings, presented: str | None) -> bool:
-    """True without a configured token, or when ``presented`` is that token."""
+def token_refusal(settings: Settings, authorization: str | None) -> str | None:
+    """Why a request with this ``Authorization`` header is refused, or None when it may pass
+    (no token configured, or the header carries it as a bearer token)."""
     if settings.api_token is None:
-        return True
-    expected = settings.api_token.get_secret_value()
-    return presented is not None and secrets.compare_digest(presented.encode(), expected.encode())
+        return None
+    if not authorization:
+        return (
+            "this service needs a token: send the header 'Authorization: Bearer <token>' with "
+            "the token it was configured with (VTRACK_API_TOKEN)"
+        )
+    scheme, _, presented = authorization.strip().partition(" ")
+    presented = presented.strip()
+    if scheme.lower() != "bearer" or not presented:
+        return (
+            f"the Authorization header must read 'Bearer <token>' (it has the scheme "
+            f"{scheme!r}{'' if presented else ' and no token'})"
+        )
+    expected = settings.api_token.get_secret_value().encode()
+    if not secrets.compare_digest(presented.encode(), expected):
+        return "the token sent is not the one this service was configured with (VTRACK_API_TOKEN)"
+    return None
 
 
 def require_token(
     settings: SettingsDep,
-    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+    request: Request,
+    # declared for the OpenAPI security scheme and the docs' Authorize button; the header
+    # itself is read raw, to tell a missing token, another scheme and a wrong token apart
+    _: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
 ) -> None:
     """When ``VTRACK_API_TOKEN`` is set, the request must carry it as a bearer token."""
-    if not token_accepted(settings, credentials.credentials if credentials else None):
+    refusal = token_refusal(settings, request.headers.get("authorization"))
+    if refusal is not None:
         raise HTTPException(
-            status.HTTP_401_UNAUTHORIZED, TOKEN_MISSING, headers={"WWW-Authenticate": "Bearer"}
+            status.HTTP_401_UNAUTHORIZED, refusal, headers={"WWW-Authenticate": "Bearer"}
         )
 
 

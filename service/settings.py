@@ -57,7 +57,8 @@ class Settings(BaseSettings):
     max_attempts: int = Field(
         default=3,
         ge=1,
-        description="Times a job is started (again after a service restart) before it is failed.",
+        description="Times the service may die (crash, kill -9) while a job runs before the "
+        "job is failed instead of started again; clean stops (SIGTERM) do not count.",
     )
     retention_hours: float | None = Field(
         default=None,

@@ -66,6 +66,7 @@ class _Receiver:
         self._header_name = b""
         self._header_value = b""
         self._disposition: bytes | None = None
+        self._part_type: bytes | None = None
 
     def callbacks(self) -> dict:
         return {
@@ -81,6 +82,7 @@ class _Receiver:
     def _on_part_begin(self) -> None:
         self._part = None
         self._disposition = None
+        self._part_type = None
 
     def _on_header_field(self, data: bytes, start: int, end: int) -> None:
         self._header_name += data[start:end]
@@ -91,6 +93,8 @@ class _Receiver:
     def _on_header_end(self) -> None:
         if self._header_name.lower() == b"content-disposition":
             self._disposition = self._header_value
+        elif self._header_name.lower() == b"content-type":
+            self._part_type = self._header_value
         self._header_name = self._header_value = b""
 
     def _on_headers_finished(self) -> None:
@@ -108,6 +112,14 @@ class _Receiver:
         self._part = name
         if name == VIDEO_PART:
             raw = params.get(b"filename")
+            if raw is None and self._part_type is None:
+                # what a form's text field looks like: curl -F video=clip.mp4 (without the @)
+                raise UploadError(
+                    422,
+                    f"the {VIDEO_PART!r} part is a text field, not a file (it has neither a "
+                    "file name nor a content type): send the file itself, e.g. with curl "
+                    f"-F {VIDEO_PART}=@clip.mp4 (the @ makes curl send the file's bytes)",
+                )
             self.filename = Path(raw.decode("utf-8", "replace")).name if raw else None
             self._file = self.video_path.open("wb")
         else:

@@ -14,7 +14,7 @@ import sqlite3
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,12 +42,16 @@ CREATE TABLE IF NOT EXISTS jobs (
     warnings TEXT NOT NULL DEFAULT '[]',
     results TEXT NOT NULL DEFAULT '{}',
     attempts INTEGER NOT NULL DEFAULT 0,
+    stops INTEGER NOT NULL DEFAULT 0,
     cancel_requested INTEGER NOT NULL DEFAULT 0,
     worker_pid INTEGER
 );
 CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs (state, created_at);
 CREATE TABLE IF NOT EXISTS counters (name TEXT PRIMARY KEY, value REAL NOT NULL);
 """
+_ADDED_COLUMNS = {"stops": "INTEGER NOT NULL DEFAULT 0"}
+"""Columns of ``jobs`` newer than the first release, with their definitions: starts a clean
+stop of the service ended."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +118,15 @@ class JobStore:
         self._db.execute("PRAGMA busy_timeout=30000")
         with self._lock:
             self._db.executescript(_SCHEMA)
+            self._add_missing_columns()
+
+    def _add_missing_columns(self) -> None:
+        """Columns added since a data folder's database was created (it keeps its jobs)."""
+        have = {row["name"] for row in self._db.execute("PRAGMA table_info(jobs)")}
+        for name, definition in _ADDED_COLUMNS.items():
+            if name not in have:
+                with suppress(sqlite3.OperationalError):  # another process's race
+                    self._db.execute(f"ALTER TABLE jobs ADD COLUMN {name} {definition}")
 
     def close(self) -> None:
         with self._lock:
@@ -259,22 +272,24 @@ class JobStore:
         return cursor.rowcount > 0
 
     def requeue_orphans(self, max_attempts: int) -> tuple[list[str], list[str]]:
-        """Jobs left running by a service that stopped: queued again, or failed when they have
-        been started ``max_attempts`` times. Call before any worker of this service starts."""
+        """Jobs left running by a service that died: queued again, or failed once a service
+        has died under them ``max_attempts`` times (a job that takes the service down with it
+        must not do so forever). Starts that a clean stop ended do not count: a job survives
+        any number of restarts. Call before any worker of this service starts."""
         requeued, failed = [], []
         with self._transaction() as db:
             rows = db.execute(
-                "SELECT id, attempts FROM jobs WHERE state = ?", (JobState.running.value,)
+                "SELECT id, attempts - stops FROM jobs WHERE state = ?", (JobState.running.value,)
             ).fetchall()
-            for job_id, attempts in rows:
-                if attempts >= max_attempts:
+            for job_id, deaths in rows:
+                if deaths >= max_attempts:
                     db.execute(
                         "UPDATE jobs SET state = ?, finished_at = ?, error = ?,"
                         " worker_pid = NULL WHERE id = ?",
                         (
                             JobState.failed.value,
                             time.time(),
-                            f"the service stopped while this job ran, {attempts} times; "
+                            f"the service died while this job ran, {deaths} times; "
                             "it is not started again",
                             job_id,
                         ),
@@ -310,11 +325,12 @@ class JobStore:
         return cursor.rowcount > 0
 
     def requeue_running(self, job_id: str, worker_pid: int) -> bool:
-        """Put a job back in the queue (its worker was stopped by a clean shutdown)."""
+        """Put a job back in the queue (its worker was stopped by a clean shutdown); the start
+        does not count against ``max_attempts``."""
         with self._lock:
             cursor = self._db.execute(
-                "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0, fps = NULL"
-                " WHERE id = ? AND state = ? AND worker_pid = ?",
+                "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0, fps = NULL,"
+                " stops = stops + 1 WHERE id = ? AND state = ? AND worker_pid = ?",
                 (JobState.queued.value, job_id, JobState.running.value, worker_pid),
             )
         return cursor.rowcount > 0

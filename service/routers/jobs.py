@@ -9,7 +9,7 @@ from typing import Annotated
 from urllib.parse import urlencode
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
-from fastapi.responses import FileResponse, StreamingResponse
+from fastapi.responses import StreamingResponse
 
 from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFormat
 from api_schemas.tracks import Trajectories
@@ -20,6 +20,7 @@ from service.jobs.submit import submit
 from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
 from service.outputs.base import MEDIA_TYPES
 from service.routers import BINARY_CONTENT, error_responses
+from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
 
@@ -131,14 +132,23 @@ def get_job(job_id: str, store: StoreDep) -> JobStatus:
 @router.get(
     "/{job_id}/result",
     summary="Download a result: json, mcap, mot or mp4 (the annotated video)",
-    response_class=FileResponse,
-    responses={**error_responses(404, 409, 422), 200: _RESULT_CONTENT},
-)
+    response_class=Download,
+    responses={
+        **error_responses(400, 404, 409, 416, 422, why={
+            **RANGE_ERRORS,
+            404: "No such job, a job created without that format (options.formats), or a "
+            "result that is gone.",
+            409: "The job has not succeeded (yet).",
+        }),
+        200: _RESULT_CONTENT,
+        **NOT_MODIFIED,
+    },
+)  # fmt: skip
 def get_result(
     job_id: str,
     store: StoreDep,
     format: Annotated[OutputFormat, Query(description="Which result.")] = OutputFormat.json,
-) -> FileResponse:
+) -> Download:
     record = _job(store, job_id)
     if record.state != JobState.succeeded:
         if record.state in (JobState.queued, JobState.running):
@@ -167,10 +177,10 @@ def get_result(
             status.HTTP_404_NOT_FOUND, f"the {format.value} result of job {job_id} is gone"
         )
     download = f"{job_id}-{name}"
-    # The video opens in a browser tab (inline) rather than as a download; FileResponse answers
+    # The video opens in a browser tab (inline) rather than as a download; Download answers
     # Range requests, which players need to seek (Safari to play at all).
     disposition = "inline" if format == OutputFormat.mp4 else "attachment"
-    return FileResponse(
+    return Download(
         path,
         media_type=MEDIA_TYPES[format],
         filename=download,

@@ -6,12 +6,12 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from fastapi import APIRouter, HTTPException, Response, status
-from fastapi.responses import FileResponse
 
 from api_schemas.streams import StreamDetail, StreamList, StreamSpec, StreamStatus
 from service.analysis import OptionsError
 from service.deps import AuthDep, StreamsDep
 from service.routers import BINARY_CONTENT, error_responses
+from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
 from service.streams.manager import StreamConflict, StreamNotFound
 from service.streams.session import ZenohUnavailable
 
@@ -98,14 +98,15 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
 @router.head("/{stream_id}/recordings/{name}", include_in_schema=False)  # as a job's result
 @router.get(
     "/{stream_id}/recordings/{name}",
-    response_class=FileResponse,
+    response_class=Download,
     responses={
-        **error_responses(404),
+        **error_responses(400, 404, 416, why=RANGE_ERRORS),
         200: {"content": {"application/octet-stream": BINARY_CONTENT}},
+        **NOT_MODIFIED,
     },
     summary="Download a finished MCAP recording",
 )
-def get_recording(stream_id: str, name: str, streams: StreamsDep) -> FileResponse:
+def get_recording(stream_id: str, name: str, streams: StreamsDep) -> Download:
     recordings = {p.name: p for p in _call(stream_id, streams.recordings)}
     if name not in recordings:
         if recordings or _call(stream_id, streams.status).spec.record:
@@ -120,4 +121,4 @@ def get_recording(stream_id: str, name: str, streams: StreamsDep) -> FileRespons
             status.HTTP_404_NOT_FOUND,
             f"stream {stream_id!r} has no finished recording {name!r}: {why}",
         )
-    return FileResponse(recordings[name], media_type="application/octet-stream", filename=name)
+    return Download(recordings[name], media_type="application/octet-stream", filename=name)

@@ -260,6 +260,21 @@ def test_mp4_result_plays_in_a_browser_tab_and_seeks(client, finished_job):
     assert part.content == whole.content[1000:2000]
     beyond = client.get(url, headers={"Range": f"bytes={size}-"})
     assert beyond.status_code == 416
+    # range errors answer as the API's others: JSON with a detail (they were plain text, the
+    # 416 empty)
+    assert beyond.headers["content-range"] == f"bytes */{size}"
+    assert f"beyond the end of the file ({size} bytes" in beyond.json()["detail"]
+    for bad in ("bytes=abc", "pages=1-2", "bytes=5-2"):
+        refused = client.get(url, headers={"Range": bad})
+        assert refused.status_code == 400
+        assert refused.json()["detail"].startswith(f"Range '{bad}' cannot be served (")
+    # a client that has the file (its ETag) is told so without the body
+    etag = whole.headers["etag"]
+    for tags in (etag, f'"other", {etag}', f"W/{etag}", "*"):
+        cached = client.get(url, headers={"If-None-Match": tags})
+        assert cached.status_code == 304 and cached.content == b""
+        assert cached.headers["etag"] == etag
+    assert client.get(url, headers={"If-None-Match": '"other"'}).content == whole.content
     # a player or download manager asks HEAD first: the size, no body
     head = client.head(url)
     assert head.status_code == 200 and head.content == b""
@@ -382,6 +397,11 @@ def test_openapi_describes_results_and_only_the_errors_a_route_gives(client):
     assert {"413", "415", "507"} <= set(spec["paths"]["/v1/jobs"]["post"]["responses"])
     assert not {"413", "415", "507"} & set(result)
     assert "401" in spec["paths"]["/metrics"]["get"]["responses"]
+    # a download's own answers, each saying when it comes
+    assert "without that format" in result["404"]["description"]
+    assert {"304", "400", "409", "416"} <= set(result)
+    recording = spec["paths"]["/v1/streams/{stream_id}/recordings/{name}"]["get"]["responses"]
+    assert {"304", "400", "404", "416"} <= set(recording)
 
 
 def test_metrics_list_every_stream_state_even_at_zero(client):

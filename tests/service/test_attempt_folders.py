@@ -92,4 +92,4 @@ def test_a_job_failed_at_a_restart_leaves_no_partial_results(make_server, long_v
     with second.client() as client:
         status = client.get(f"/v1/jobs/{job_id}").json()
         assert status["state"] == "failed"
-        assert "the service stopped while this job ran" in status["error"]
+        assert "the service died while this job ran" in status["error"]

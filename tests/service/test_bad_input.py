@@ -189,6 +189,20 @@ def test_missing_video_part(client):
     assert "no 'video' part" in response.json()["detail"]
 
 
+def test_a_file_name_sent_instead_of_the_file_is_named(client, pets_short):
+    """``curl -F video=clip.mp4`` (no @) sends the name as a text field: was a 415 saying the
+    "uploaded file" is not a video."""
+    response = client.post("/v1/jobs", files={"video": (None, str(pets_short))})
+    assert response.status_code == 422
+    assert "'video' part is a text field, not a file" in response.json()["detail"]
+    assert "-F video=@clip.mp4" in response.json()["detail"]
+    # a file part without a file name is still a file (some clients send no name): it goes
+    # on to be decoded (these bytes are no video, so nothing is queued or kept)
+    unnamed = client.post("/v1/jobs", files={"video": (None, b"\x00" * 4096, "video/mp4")})
+    assert unnamed.status_code == 415
+    assert "not a video this service can decode" in unnamed.json()["detail"]
+
+
 def test_unexpected_part(client, pets_short):
     files = {"video": ("v.avi", pets_short.read_bytes()), "movie": ("m.avi", b"x")}
     response = client.post("/v1/jobs", files=files)
@@ -289,13 +303,23 @@ def test_unknown_result_format(client):
         ("DELETE", "/v1/streams/gate"),
     ],
 )
-@pytest.mark.parametrize("token", ["", "wrong-token"])
-def test_endpoints_need_the_token(server, method, path, token):
-    with server.client(token=token) as anonymous:
-        response = anonymous.request(method, path)
+@pytest.mark.parametrize(
+    ("header", "reason"),
+    [
+        (None, "this service needs a token: send the header 'Authorization: Bearer <token>'"),
+        # the three below were all told to send a token
+        ("Bearer wrong-token", "the token sent is not the one this service was configured with"),
+        ("Basic dXNlcjpwYXNz", "must read 'Bearer <token>' (it has the scheme 'Basic')"),
+        ("Bearer", "must read 'Bearer <token>' (it has the scheme 'Bearer' and no token)"),
+    ],
+)
+def test_endpoints_need_the_token(server, method, path, header, reason):
+    with server.client(token="") as anonymous:
+        headers = {"Authorization": header} if header else {}
+        response = anonymous.request(method, path, headers=headers)
     assert response.status_code == 401
     assert response.headers["www-authenticate"] == "Bearer"
-    assert "Authorization: Bearer" in response.json()["detail"]
+    assert reason in response.json()["detail"]
 
 
 def test_documentation_opens_with_the_token(client):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sqlite3
+
 import pytest
 
 from api_schemas.jobs import JobState
@@ -54,6 +56,41 @@ def test_a_job_interrupted_too_often_fails(store):
     record = store.get("a")
     assert record.state == JobState.failed and "2 times" in record.error
     assert store.counters()["jobs_failed"] == 1  # /metrics counts it with the others
+
+
+def test_clean_stops_do_not_use_up_a_jobs_attempts(store):
+    """Restarts of the service (SIGTERM) while a long job runs, then one death: the job is
+    queued again (three routine restarts used to fail it at the next start)."""
+    _job(store)
+    for worker in range(1, 4):
+        store.claim(worker)
+        assert store.requeue_running("a", worker)  # a clean stop
+    store.claim(9)  # the fourth start; then the service dies
+    assert store.requeue_orphans(max_attempts=2) == (["a"], [])
+    store.claim(10)
+    assert store.requeue_orphans(max_attempts=2) == ([], ["a"])
+    record = store.get("a")
+    assert record.attempts == 5 and "2 times" in record.error
+
+
+def test_a_database_of_an_earlier_release_gets_the_new_columns(tmp_path):
+    """A data folder from before the ``stops`` column keeps its jobs and works."""
+    path = tmp_path / "jobs.sqlite3"
+    JobStore(path).close()
+    with sqlite3.connect(path) as db:
+        db.execute("ALTER TABLE jobs DROP COLUMN stops")
+        db.execute(
+            "INSERT INTO jobs (id, state, options, video_path, result_dir, created_at, attempts)"
+            " VALUES ('old', 'running', '{}', 'v', 'r', 1.0, 1)"
+        )
+    store = JobStore(path)
+    try:
+        assert store.requeue_orphans(max_attempts=3) == (["old"], [])
+        assert store.requeue_running("old", 5) is False  # not running: nothing to do
+        store.claim(5)
+        assert store.requeue_running("old", 5)
+    finally:
+        store.close()
 
 
 def test_cancel_queued_at_once_running_through_the_worker(store):
