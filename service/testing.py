@@ -21,7 +21,7 @@ from pathlib import Path
 
 import httpx
 
-__all__ = ["Server", "free_port", "wait_for"]
+__all__ = ["Server", "free_port", "try_get", "wait_for"]
 
 _REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -31,6 +31,14 @@ def free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
+
+
+def try_get(url: str, timeout: float = 2.0) -> httpx.Response | None:
+    """``GET url``, or ``None`` while nothing answers there (a server still starting)."""
+    try:
+        return httpx.get(url, timeout=timeout)
+    except httpx.TransportError:
+        return None
 
 
 def wait_for(
@@ -136,10 +144,8 @@ class Server:
     def _ready(self) -> bool:
         if self.process is not None and self.process.poll() is not None:
             raise RuntimeError(f"the server exited early:\n{self.log_tail()}")
-        try:
-            return httpx.get(f"{self.url}/readyz", timeout=2.0).status_code == 200
-        except httpx.TransportError:
-            return False
+        response = try_get(f"{self.url}/readyz")
+        return response is not None and response.status_code == 200
 
     def log(self) -> str:
         """Everything the server has logged."""

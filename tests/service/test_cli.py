@@ -10,11 +10,10 @@ import sys
 import threading
 
 import cv2
-import httpx
 import numpy as np
 import pytest
 
-from service.testing import free_port, wait_for
+from service.testing import free_port, try_get, wait_for
 from tests.correlation.test_tracker import moving_target_scene
 from tests.service.conftest import PETS_VIDEO
 
@@ -371,16 +370,9 @@ def test_serve_on_every_address_prints_a_link_a_browser_can_open(tmp_path):
         assert f"serving on every address of this machine, port {port}" in lines[0]
         link = lines[1].split("open the API docs at ")[1].split()[0]
         assert link == f"http://localhost:{port}/docs"
-        page = wait_for(lambda: _get(link), timeout=60, what="the API docs")
+        page = wait_for(lambda: try_get(link), timeout=60, what="the API docs")
         assert page.status_code == 200
     finally:
         service.terminate()
         service.wait(timeout=30)
         service.stderr.close()
-
-
-def _get(url: str) -> httpx.Response | None:
-    try:
-        return httpx.get(url, timeout=5)
-    except httpx.TransportError:
-        return None

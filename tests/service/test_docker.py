@@ -20,11 +20,10 @@ import subprocess
 import venv
 from pathlib import Path
 
-import httpx
 import pytest
 import yaml
 
-from service.testing import free_port, wait_for
+from service.testing import free_port, try_get, wait_for
 from tests.conftest import REPO_ROOT
 
 DOCKER = REPO_ROOT / "docker"
@@ -214,10 +213,8 @@ def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path):
     try:
 
         def up():
-            try:
-                return httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2).status_code == 200
-            except httpx.TransportError:
-                return False
+            response = try_get(f"http://127.0.0.1:{port}/readyz")
+            return response is not None and response.status_code == 200
 
         wait_for(up, 60, "the installed service")
         healthcheck = json.loads(dict(dockerfile)["HEALTHCHECK"].split("CMD", 1)[1])

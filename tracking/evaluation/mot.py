@@ -125,7 +125,8 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
         positive number, or there are fewer images than ``seqLength``.
     """
     path = Path(path)
-    if not (path / "seqinfo.ini").is_file():
+    ini = path / "seqinfo.ini"
+    if not ini.is_file():
         raise MotFileError(f"{path}: no seqinfo.ini (a MOTChallenge sequence folder has one)")
     section = read_seqinfo(path)
     try:
@@ -134,11 +135,9 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
         width = int(section.get("imWidth", "0"))
         height = int(section.get("imHeight", "0"))
     except ValueError as exc:
-        raise MotFileError(f"{path / 'seqinfo.ini'}: {exc}") from exc
+        raise MotFileError(f"{ini}: {exc}") from exc
     if not (math.isfinite(frame_rate) and frame_rate > 0):
-        raise MotFileError(
-            f"{path / 'seqinfo.ini'}: frameRate must be a positive number, got {frame_rate}"
-        )
+        raise MotFileError(f"{ini}: frameRate must be a positive number, got {frame_rate}")
     image_dir = path / section.get("imDir", "img1")
     suffix = section.get("imExt", ".jpg").lower()
     frames = sorted(p for p in image_dir.glob("*") if p.suffix.lower() == suffix)
