@@ -22,6 +22,7 @@ from api_schemas.streams import (
     StreamList,
     StreamSpec,
     StreamStatus,
+    StreamTracksEnded,
     StreamTracksMessage,
     UpstreamDetections,
 )
@@ -42,6 +43,7 @@ PUBLIC_MODELS: tuple[type[BaseModel], ...] = (
     FrameAttachment,
     UpstreamDetections,
     StreamTracksMessage,
+    StreamTracksEnded,
     ErrorResponse,
 )
 SCHEMA_PATH = Path(__file__).with_name("schema.json")

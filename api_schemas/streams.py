@@ -11,6 +11,8 @@ Key expressions, under a configurable prefix (``vtrack`` by default), for camera
   matched to frames by sequence number; used instead of the service's detector when present.
 - ``<prefix>/cameras/<camera>/tracks`` (out): one :class:`StreamTracksMessage` as JSON per
   processed frame.
+- ``<prefix>/cameras/<camera>/tracks/ended`` (out): one :class:`StreamTracksEnded` as JSON when
+  the tracks end (the camera went silent or started over, or its tracking stopped).
 - ``<prefix>/trackers/<camera>/<instance>`` (liveliness token): present while an instance of
   the service tracks that camera.
 - ``<prefix>/cameras/<camera>/tracks/current`` (queryable): answers with the latest
@@ -111,6 +113,29 @@ class StreamTracksMessage(FrameTracksMessage):
     detections: str = Field(
         description="Where this frame's detections came from: 'upstream' (the detections "
         "key) or 'service' (the service's own detector)."
+    )
+
+
+class StreamTracksEnded(BaseModel):
+    """The payload on the ``tracks/ended`` key: every track of the stream ended at once.
+
+    The tracks end when no frame came for ``end_tracks_after`` seconds, when the camera started
+    over (a timestamp or sequence number that goes back) or changed resolution, when the
+    tracker rejected a frame, and when tracking of the camera stops on this instance (the
+    stream was deleted or stands by, the service shuts down). Their ids never come again; the
+    next tracks message, if any, starts new tracks. A tracker that dies cannot say so: its
+    liveliness token disappearing does.
+    """
+
+    model_config = ConfigDict(extra="forbid", title="StreamTracksEnded", allow_inf_nan=False)
+
+    event: Literal["tracks_ended"] = "tracks_ended"
+    camera: str
+    reason: str = Field(description="Why they ended, in words.")
+    sequence: int = Field(ge=0, description="Sequence number of the last frame tracked.")
+    timestamp: float = Field(ge=0, description="Capture time of the last frame tracked.")
+    track_ids: list[int] = Field(
+        description="The ids of the last tracks message: the people tracked when they ended."
     )
 
 

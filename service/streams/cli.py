@@ -16,7 +16,12 @@ from pathlib import Path
 
 import zenoh
 
-from api_schemas.streams import CAMERA_PATTERN, PREFIX_PATTERN, StreamTracksMessage
+from api_schemas.streams import (
+    CAMERA_PATTERN,
+    PREFIX_PATTERN,
+    StreamTracksEnded,
+    StreamTracksMessage,
+)
 from service.streams.keys import StreamKeys
 from service.streams.session import (
     ZenohOptions,
@@ -220,7 +225,7 @@ def _subscribe(args: argparse.Namespace) -> int:
     received = 0
     lock = threading.Lock()
 
-    def show(message: StreamTracksMessage, arrived: float) -> None:
+    def show(message: StreamTracksMessage | StreamTracksEnded, arrived: float) -> None:
         nonlocal printing, received
         with lock:
             if done.is_set():
@@ -241,7 +246,7 @@ def _subscribe(args: argparse.Namespace) -> int:
                     if record is None:
                         done.set()
                         return
-            received += 1
+            received += isinstance(message, StreamTracksMessage)
             if args.count is not None and received >= args.count:
                 done.set()
 
@@ -257,7 +262,7 @@ def _subscribe(args: argparse.Namespace) -> int:
                 return 1
             show(message, time.time())
             return 0
-        subscriber = follow_tracks(session, keys, show)
+        subscriber = follow_tracks(session, keys, show, on_ended=show)
         watcher = watch_trackers(
             session, keys, _tracker_news("subscribe", args.camera, "listening on")
         )
@@ -280,8 +285,15 @@ def _subscribe(args: argparse.Namespace) -> int:
     return 0
 
 
-def _summary(message: StreamTracksMessage) -> str:
-    """One human line for a tracks message: frame, time, latency, and who is where."""
+def _summary(message: StreamTracksMessage | StreamTracksEnded) -> str:
+    """One human line for a tracks message (frame, time, latency, and who is where), or for
+    the end of the tracks (why, and which ids will not come again)."""
+    if isinstance(message, StreamTracksEnded):
+        ids = ", ".join(f"#{i}" for i in message.track_ids)
+        return (
+            f"tracks ended after seq {message.sequence} t={message.timestamp:.3f}: "
+            f"{message.reason}" + (f"; {ids} will not come again" if ids else "")
+        )
     people = ", ".join(
         f"#{t.track_id} ({t.box.x:.0f},{t.box.y:.0f} {t.box.w:.0f}x{t.box.h:.0f})"
         for t in message.tracks
@@ -430,8 +442,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "subscribe",
         help="print or record a camera's tracks from Zenoh",
         description="Follow <prefix>/cameras/<camera>/tracks: one line per frame on stdout, or "
-        "JSON lines with --json; --output records JSON lines in a file instead of printing "
-        "(with --json, it prints them too). A closed stdout (| head) ends it quietly.",
+        "JSON lines with --json; a line (a StreamTracksEnded object with --json) when the tracks "
+        "end. --output records JSON lines in a file instead of printing (with --json, it prints "
+        "them too). A closed stdout (| head) ends it quietly.",
     )
     zenoh_arguments(subscribe)
     subscribe.add_argument(
@@ -440,7 +453,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         help="append JSON lines to this file instead of printing (add --json to print too)",
     )
     subscribe.add_argument("--json", action="store_true", help="print JSON lines")
-    subscribe.add_argument("--count", type=_number(int, 1), help="stop after this many messages")
+    subscribe.add_argument(
+        "--count", type=_number(int, 1), help="stop after this many tracks messages"
+    )
     subscribe.add_argument("--duration", type=positive, help="stop after this many seconds")
     subscribe.add_argument(
         "--current", action="store_true", help="ask for the current tracks once and exit"

@@ -25,6 +25,11 @@ class StreamKeys:
         return f"{self.prefix}/cameras/{self.camera}/tracks"
 
     @property
+    def ended(self) -> str:
+        """Where the worker says that the tracks ended."""
+        return f"{self.prefix}/cameras/{self.camera}/tracks/ended"
+
+    @property
     def current(self) -> str:
         """The queryable that answers with the latest tracks message."""
         return f"{self.prefix}/cameras/{self.camera}/tracks/current"
@@ -42,6 +47,7 @@ class StreamKeys:
             "frames": self.frames,
             "detections": self.detections,
             "tracks": self.tracks,
+            "ended": self.ended,
             "current": self.current,
             "trackers": self.trackers,
         }

@@ -18,7 +18,12 @@ import cv2
 import numpy as np
 import zenoh
 
-from api_schemas.streams import StreamTracksMessage, UpstreamDetection, UpstreamDetections
+from api_schemas.streams import (
+    StreamTracksEnded,
+    StreamTracksMessage,
+    UpstreamDetection,
+    UpstreamDetections,
+)
 from service.frames import capture_frames, open_frames
 from service.outputs.h264 import AccessUnitEncoder
 from service.streams.capture_clock import Captured
@@ -184,15 +189,25 @@ def follow_tracks(
     session: zenoh.Session,
     keys: StreamKeys,
     on_message: Callable[[StreamTracksMessage, float], None],
+    on_ended: Callable[[StreamTracksEnded, float], None] | None = None,
 ) -> zenoh.Subscriber:
     """Subscribe to a camera's tracks: ``on_message(message, received)`` for each, with its
-    arrival time (``time.time()``). Undeclare the returned subscriber to stop."""
+    arrival time (``time.time()``), and ``on_ended(message, received)`` when the tracks end
+    (the ``tracks/ended`` key). Undeclare the returned subscriber to stop."""
 
     def received(sample: zenoh.Sample) -> None:
         now = time.time()
-        on_message(StreamTracksMessage.model_validate_json(sample.payload.to_bytes()), now)
+        payload = sample.payload.to_bytes()
+        if str(sample.key_expr) == keys.ended:
+            if on_ended is not None:
+                on_ended(StreamTracksEnded.model_validate_json(payload), now)
+        else:
+            on_message(StreamTracksMessage.model_validate_json(payload), now)
 
-    return session.declare_subscriber(keys.tracks, received)
+    # "tracks/**" is "tracks" and every key below it: one subscriber for both messages
+    return session.declare_subscriber(
+        keys.tracks if on_ended is None else f"{keys.tracks}/**", received
+    )
 
 
 class TrackerReplyError(Exception):

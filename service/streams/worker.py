@@ -26,7 +26,13 @@ import numpy as np
 import zenoh
 
 from api_schemas.jobs import JobOptions
-from api_schemas.streams import StreamCounters, StreamSpec, StreamState, StreamTracksMessage
+from api_schemas.streams import (
+    StreamCounters,
+    StreamSpec,
+    StreamState,
+    StreamTracksEnded,
+    StreamTracksMessage,
+)
 from api_schemas.tracks import VideoInfo
 from service.analysis import PipelineResources, build_pipeline, enlargement_problem
 from service.convert import track_state
@@ -216,7 +222,9 @@ class StreamWorker:
         self._store: StreamStore | None = None
         self._reserved = 0  # ids up to this are reserved in the database
         self._reserve_retry_at = 0.0  # time.monotonic()
-        self._current_json: bytes | None = None  # the latest tracks message
+        self._current: StreamTracksMessage | None = None  # the latest tracks message
+        self._current_json: bytes | None = None  # the same as published
+        self._ended: zenoh.Publisher | None = None  # says when the tracks end
         self._no_tracks = "has no tracks yet"  # the query's answer without one
         self._state = StreamState.waiting
         self._pipeline: FramePipeline | None = None
@@ -309,6 +317,13 @@ class StreamWorker:
             publisher = session.declare_publisher(
                 self.keys.tracks, encoding=zenoh.Encoding.APPLICATION_JSON
             )
+            # Blocking: the message that tracks ended is sent once and goes out last, just
+            # before the session closes when tracking stops.
+            self._ended = session.declare_publisher(
+                self.keys.ended,
+                encoding=zenoh.Encoding.APPLICATION_JSON,
+                congestion_control=zenoh.CongestionControl.BLOCK,
+            )
             log.info("camera %s: listening on %s", self.spec.camera, self.keys.frames)
             self.report(force=True)
             while not stop.value and parent_alive():
@@ -318,6 +333,7 @@ class StreamWorker:
                 else:
                     self._check_idle()
                 self.report()
+            self._announce_end(f"tracking of camera {self.spec.camera} stopped on this instance")
             for entity in declared:
                 entity.undeclare()
         finally:
@@ -386,10 +402,27 @@ class StreamWorker:
             # same sequence number (those of frames that were skipped, never taken).
             self._upstream.forget_before(camera_restarted_at)
         self._recording_resumes = None  # stream time may start over
-        if self._current_json is not None:
+        if self._current is not None:
             self._no_tracks = f"has no tracks: they ended ({why})"
-        self._current_json = None
+        self._announce_end(why)
         self._restarts += 1
+
+    def _announce_end(self, why: str) -> None:
+        """Tell the ``tracks/ended`` key that this run's tracks ended, if it published any."""
+        current, self._current, self._current_json = self._current, None, None
+        if current is None or self._ended is None:
+            return
+        message = StreamTracksEnded(
+            camera=self.spec.camera,
+            reason=why,
+            sequence=current.sequence,
+            timestamp=current.timestamp,
+            track_ids=[track.track_id for track in current.tracks],
+        )
+        try:
+            self._ended.put(message.model_dump_json().encode())
+        except zenoh.ZError as error:  # a closing session: the liveliness token tells the rest
+            log.warning("camera %s: could not say that tracks ended: %s", self.spec.camera, error)
 
     def _check_idle(self) -> None:
         if self._last_arrival is None:
@@ -473,7 +506,7 @@ class StreamWorker:
         # can pair tracks with frames without parsing the JSON.
         publisher.put(body, attachment=frame_attachment(attachment.sequence, attachment.timestamp))
         done = time.perf_counter()
-        self._current_json = body
+        self._current, self._current_json = message, body
         self._processed += 1
         self._used_upstream += source == "upstream"
         self._latencies.append(done - frame.arrived)

@@ -1,5 +1,5 @@
 """Helpers of the live-stream tests: a consumer in this process, a stream started and awaited
-through the API, its status, and the stderr of a tool running in its own process."""
+through the API, its status, and the output of a tool running in its own process."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import threading
 import httpx
 import zenoh
 
-from api_schemas.streams import StreamTracksMessage
+from api_schemas.streams import StreamTracksEnded, StreamTracksMessage
 from service.streams.keys import StreamKeys
 from service.streams.tools import follow_tracks, reach_tracker, trackers_of
 from tests.service.conftest import wait_for
@@ -19,20 +19,29 @@ VTRACK = [sys.executable, "-m", "service.cli"]
 
 
 class Follower:
-    """A consumer of one camera's tracks, in this process."""
+    """A consumer of one camera's tracks, and of the news that they ended, in this process."""
 
     def __init__(self, session: zenoh.Session, keys: StreamKeys) -> None:
         self.messages: list[tuple[StreamTracksMessage, float]] = []
+        self._endings: list[StreamTracksEnded] = []
         self._lock = threading.Lock()
-        self._subscriber = follow_tracks(session, keys, self._received)
+        self._subscriber = follow_tracks(session, keys, self._received, self._ended)
 
     def _received(self, message: StreamTracksMessage, arrived: float) -> None:
         with self._lock:
             self.messages.append((message, arrived))
 
+    def _ended(self, message: StreamTracksEnded, arrived: float) -> None:
+        with self._lock:
+            self._endings.append(message)
+
     def received(self) -> list[StreamTracksMessage]:
         with self._lock:
             return [m for m, _ in self.messages]
+
+    def endings(self) -> list[StreamTracksEnded]:
+        with self._lock:
+            return list(self._endings)
 
     def close(self) -> None:
         self._subscriber.undeclare()
@@ -76,17 +85,18 @@ def put_frame(session, keys, payload: bytes, attachment: bytes | None, encoding)
     session.put(keys.frames, payload, encoding=encoding, attachment=attachment)
 
 
-class StderrLines:
-    """The stderr lines of a running process, gathered by a thread as they come."""
+class OutputLines:
+    """The lines a running process writes to its stderr (or stdout), gathered by a thread."""
 
-    def __init__(self, process: subprocess.Popen) -> None:
+    def __init__(self, process: subprocess.Popen, stream: str = "stderr") -> None:
         self.lines: list[str] = []
         self._process = process
+        self._stream = getattr(process, stream)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
     def _read(self) -> None:
-        for line in self._process.stderr:
+        for line in self._stream:
             self.lines.append(line)
 
     def has(self, text: str) -> bool:

@@ -35,7 +35,7 @@ from tests.service.conftest import PETS_VIDEO, Server, wait_for
 from tests.streams.live import (
     VTRACK,
     Follower,
-    StderrLines,
+    OutputLines,
     all_taken,
     put_frame,
     start_stream,
@@ -292,6 +292,11 @@ def test_a_camera_that_stops_goes_idle_its_tracks_end_and_it_resumes(
             current_tracks(session, keys)
         before = follower.received()
         assert before and any(m.tracks for m in before)
+        # and so does the tracks/ended key, with the last frame tracked and its people
+        (end,) = wait_for(follower.endings, 10, "the message that the tracks ended")
+        assert end.camera == camera and end.reason.startswith("no frame for ")
+        assert (end.sequence, end.timestamp) == (before[-1].sequence, before[-1].timestamp)
+        assert end.track_ids == [t.track_id for t in before[-1].tracks]
         # The camera comes back, counting from 0 again.
         publish_frames(session, keys, iter(pets_frames[20:40]), 10.0, **camera_options)
         wait_for(
@@ -343,10 +348,17 @@ def test_a_camera_that_changes_resolution_starts_over_with_new_ids(
             30,
             "tracks of the large frames",
         )
-        follower.close()
         final = client.delete(f"/v1/streams/{camera}").json()
         assert final["counters"]["restarts"] == 1 and final["counters"]["malformed"] == 0
+        changed, stopped = wait_for(
+            lambda: len(e := follower.endings()) == 2 and e, 10, "the tracks to end twice"
+        )
+        follower.close()
         messages = follower.received()
+        assert "the camera changed resolution" in changed.reason and changed.sequence < 20
+        assert stopped.reason == "tracking of camera zoom stopped on this instance"
+        assert stopped.sequence == messages[-1].sequence
+        assert stopped.track_ids == [t.track_id for t in messages[-1].tracks]
         before = {t.track_id for m in messages if m.sequence < 20 for t in m.tracks}
         after = [t for m in messages if m.sequence >= 20 for t in m.tracks]
         assert before and after
@@ -721,7 +733,7 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
             stderr=subprocess.PIPE,
             text=True,
         )
-        stderr = StderrLines(subscriber)
+        stderr = OutputLines(subscriber)
         try:
             wait_for(
                 lambda: len(trackers_of(session, keys)) and stderr.has("following"),
@@ -828,7 +840,7 @@ def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, s
             )
             for name, command in tools.items()
         }
-        stderr = {name: StderrLines(process) for name, process in running.items()}
+        stderr = {name: OutputLines(process) for name, process in running.items()}
         try:
             for name, lines in stderr.items():
                 wait_for(lambda s=lines: s.has("is tracked by"), 30, f"{name} to see the tracker")

@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 import zenoh
 
-from api_schemas.streams import StreamTracksMessage
+from api_schemas.streams import StreamTracksEnded, StreamTracksMessage
 from service.streams.keys import StreamKeys
 from service.streams.tools import publish_frames
 from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, wait_for
-from tests.streams.live import VTRACK, StderrLines, start_stream, status
+from tests.streams.live import VTRACK, OutputLines, start_stream, status
 from tracking.detection import MotDetections
 
 pytestmark = pytest.mark.slow
@@ -97,7 +97,7 @@ def test_subscribe_ends_quietly_when_its_reader_goes_away(
             stderr=subprocess.PIPE,
             text=True,
         )
-        stderr = StderrLines(subscriber)
+        stderr = OutputLines(subscriber)
         try:
             with camera_running(session, keys, pets_frames[:20], public_detections):
                 lines = [subscriber.stdout.readline() for _ in range(2)]
@@ -150,6 +150,53 @@ def test_subscribe_json_with_an_output_file_prints_and_records(
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
 
 
+def test_subscribe_says_when_the_tracks_end(
+    server, session, tmp_path, pets_frames, public_detections
+):
+    # A dashboard following the tracks learns that the people it shows are gone: in words,
+    # and as JSON in the lines it prints and records.
+    camera = "exit"
+    keys = StreamKeys("vtrack", camera)
+    out = tmp_path / "tracks.jsonl"
+    command = [*VTRACK, "subscribe", "--camera", camera, *connect(server)]
+    with server.client() as client:
+        start_stream(client, session, camera)
+        words = subprocess.Popen(
+            command, cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        lines = subprocess.Popen(
+            [*command, "--json", "--output", str(out)],
+            cwd=REPO_ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        said = [OutputLines(tool) for tool in (words, lines)]
+        shown = [OutputLines(tool, "stdout") for tool in (words, lines)]
+        try:
+            wait_for(lambda: all(s.has("following") for s in said), 30, "both to follow")
+            with camera_running(session, keys, pets_frames[:20], public_detections):
+                wait_for(lambda: status(client, camera)["tracks"], 60, "tracks")
+            assert client.delete(f"/v1/streams/{camera}").status_code == 200
+            wait_for(lambda: all(s.has("ended") for s in shown), 30, "the tracks to end")
+        finally:
+            for tool in (words, lines):
+                tool.send_signal(signal.SIGINT)
+                tool.wait(timeout=30)
+    summary, documents = ([line.rstrip("\n") for line in s.lines] for s in shown)
+    end = StreamTracksEnded.model_validate_json(documents[-1])
+    assert end.reason == f"tracking of camera {camera} stopped on this instance"
+    last = StreamTracksMessage.model_validate_json(documents[-2])
+    assert (end.sequence, end.track_ids) == (last.sequence, [t.track_id for t in last.tracks])
+    assert out.read_text().splitlines() == documents
+    ids = ", ".join(f"#{i}" for i in end.track_ids)
+    assert summary[-1] == (
+        f"tracks ended after seq {end.sequence} t={end.timestamp:.3f}: {end.reason}"
+        + (f"; {ids} will not come again" if ids else "")
+    )
+    assert summary[-2].startswith(f"seq {end.sequence} ")
+
+
 def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shared_data):
     camera = "ctrlc"
     detections = shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt"
@@ -174,7 +221,7 @@ def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shar
             stderr=subprocess.PIPE,
             text=True,
         )
-        stderr = StderrLines(publisher)
+        stderr = OutputLines(publisher)
         try:
             wait_for(
                 lambda: status(client, camera)["counters"]["frames_in"] >= 10,

@@ -446,12 +446,14 @@ def test_stream_keys():
     assert keys.detections == "vtrack/cameras/gate/detections"
     assert keys.tracks == "vtrack/cameras/gate/tracks"
     assert keys.current == "vtrack/cameras/gate/tracks/current"
+    assert keys.ended == "vtrack/cameras/gate/tracks/ended"
     assert keys.trackers == "vtrack/trackers/gate/*"
     assert keys.tracker_token("host-1") == "vtrack/trackers/gate/host-1"
     assert keys.as_dict() == {
         "frames": keys.frames,
         "detections": keys.detections,
         "tracks": keys.tracks,
+        "ended": keys.ended,
         "current": keys.current,
         "trackers": keys.trackers,
     }
