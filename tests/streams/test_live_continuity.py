@@ -107,7 +107,18 @@ def test_track_ids_go_on_after_the_service_restarts_and_after_a_worker_dies(
         with server.client() as client:
             assert client.post("/v1/streams", json={"camera": camera}).status_code == 201
         first = ids_of_a_run(server, camera, pets_frames[:15], 0, public_detections, 1)
-        server.stop()  # SIGTERM
+        # A consumer still following when the service stops is told that the tracks ended.
+        keys = StreamKeys("vtrack", camera)
+        watching = member_session(ZenohOptions(listen=server.zenoh_listen))
+        try:
+            assert reach_tracker(watching, keys, timeout=30)
+            follower = Follower(watching, keys)
+            server.stop()  # SIGTERM
+            (end,) = wait_for(follower.endings, 10, "the message that the tracks ended")
+        finally:
+            watching.close()
+        assert end.reason == f"tracking of camera {camera} stopped on this instance"
+        assert set(end.track_ids) <= first
         server.start()
         restarted = ids_of_a_run(server, camera, pets_frames[15:30], 15, public_detections, 1)
         with server.client() as client:
