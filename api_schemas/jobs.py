@@ -268,7 +268,11 @@ class JobStatus(BaseModel):
     id: str
     state: JobState
     created_at: datetime
-    started_at: datetime | None = None
+    started_at: datetime | None = Field(
+        default=None,
+        description="When a worker started the job's latest attempt (an attempt that a stop "
+        "of the service interrupted starts over: see attempts).",
+    )
     finished_at: datetime | None = None
     progress: JobProgress
     error: str | None = Field(default=None, description="Why the job failed.")

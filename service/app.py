@@ -16,9 +16,12 @@ from types import FrameType
 
 import uvicorn
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
+from starlette.exceptions import HTTPException
+from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.data_folder import DataFolder, claim_data_folder
@@ -28,7 +31,7 @@ from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
 from service.jobs.submit import InvalidOptions, resources
 from service.jobs.workers import WorkerPool
-from service.logs import LOG_FORMAT
+from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
 from service.routers import health, jobs, metrics, streams
 from service.settings import Settings
@@ -51,16 +54,20 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: Settings = app.state.settings or Settings()
     # `vtrack serve` configured logging already; this serves `uvicorn service.app:app`
     logging.basicConfig(level=settings.log_level.upper(), format=LOG_FORMAT)
+    quiet_ffmpeg(settings.log_level)
     # `vtrack serve` claimed the folder already, to refuse a bad one in a line before it serves;
     # under `uvicorn service.app:app` a DataFolderError stops the start-up here, with its reason
     claimed_here = None if app.state.data_folder is not None else claim_data_folder(settings)
     store = JobStore(settings.database_path)
     requeued, failed = store.requeue_orphans(settings.max_attempts)
-    if requeued or failed:
+    for job_id in requeued:
+        log.warning("job %s queued again: the service died while it ran", job_id)
+    for job_id in failed:
         log.warning(
-            "jobs interrupted by the last stop: %d queued again, %d failed",
-            len(requeued),
-            len(failed),
+            "job %s failed: the service died while it ran as often as VTRACK_MAX_ATTEMPTS (%d) "
+            "allows",
+            job_id,
+            settings.max_attempts,
         )
     sweep(settings, store, orphans=True)
     config = WorkerConfig(
@@ -105,6 +112,23 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
             claimed_here.release()
 
 
+def _log_refusal(request: Request, status: int, detail: object) -> None:
+    """Say in the log why a request was refused, as its client was told: the access line
+    alone shows a status, and an operator asked why a camera's uploads fail needs the reason."""
+    client = request.client.host if request.client else "?"
+    log.info(
+        "%s %s from %s refused (%d): %s", request.method, request.url.path, client, status, detail
+    )
+
+
+async def _http_error(request: Request, error: Exception) -> Response:
+    """FastAPI's answer to an HTTPException, logged (:func:`_log_refusal`) when it refuses."""
+    assert isinstance(error, HTTPException)
+    if error.status_code >= 400:
+        _log_refusal(request, error.status_code, error.detail)
+    return await http_exception_handler(request, error)
+
+
 async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     """422 with one sentence naming each bad field, and the checks that failed."""
     errors = error.errors() if isinstance(error, RequestValidationError) else []
@@ -115,9 +139,9 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
         {"loc": list(item.get("loc", ())), "msg": str(item.get("msg")), "type": item.get("type")}
         for item in errors
     ]
-    return JSONResponse(
-        {"detail": "invalid request: " + "; ".join(problems), "errors": listed}, status_code=422
-    )
+    detail = "invalid request: " + "; ".join(problems)
+    _log_refusal(request, 422, detail)
+    return JSONResponse({"detail": detail, "errors": listed}, status_code=422)
 
 
 class _InternalErrorsAsJson:
@@ -159,6 +183,7 @@ class _InternalErrorsAsJson:
 async def _invalid_options(request: Request, error: Exception) -> JSONResponse:
     """422 for job options: the sentence and each failed check (:class:`InvalidOptions`)."""
     assert isinstance(error, InvalidOptions)
+    _log_refusal(request, 422, error.detail)
     return JSONResponse({"detail": error.detail, "errors": error.errors}, status_code=422)
 
 
@@ -176,6 +201,7 @@ async def _documentation_needs_the_token(request: Request, call_next):
     if request.url.path in DOCUMENTATION_PATHS and settings is not None:
         refusal = token_refusal(settings, request.headers.get("authorization"))
         if refusal is not None:
+            _log_refusal(request, 401, refusal)
             return JSONResponse(
                 {"detail": refusal}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
             )
@@ -203,6 +229,7 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     # Set by `vtrack serve` when a stop signal comes: open event streams end at once instead of
     # holding the stop for the graceful-shutdown timeout (their clients reconnect elsewhere).
     app.state.stopping = threading.Event()
+    app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
     app.middleware("http")(_documentation_needs_the_token)

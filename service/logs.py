@@ -6,9 +6,24 @@ Worker processes add ``worker[pid]`` or ``stream[camera]`` before the source
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+
+
+def quiet_ffmpeg(level: str) -> None:
+    """Keep OpenCV's FFmpeg out of the log unless its level is ``debug``.
+
+    OpenCV's FFmpeg writes its decoder's complaints (``[h264 @ 0x...] error while decoding
+    MB``) straight to stderr: outside the log's format and level, without a job id, and in
+    the middle of the lines of other jobs. What they mean for a job (frames that did not
+    decode, a video that ended early) the job's warnings say. At ``debug`` FFmpeg's errors
+    stay, prefixed ``[OPENCV:FFMPEG:16]``. An ``OPENCV_FFMPEG_LOGLEVEL`` of the operator's own
+    wins. OpenCV reads the variable when a process first opens a video, and worker
+    processes inherit it: call before they start.
+    """
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "16" if level == "debug" else "-8")
 
 
 def uvicorn_log_config(level: str) -> dict[str, Any]:

@@ -38,7 +38,8 @@ class ServiceCollector(Collector):
         counters = self._store.counters()
         yield CounterMetricFamily(
             "vtrack_frames_processed",
-            "Video frames tracked by the workers.",
+            "Video frames tracked by the workers, in every attempt (work done: frames redone "
+            "after a restart count again).",
             value=counters.get("frames_processed", 0.0),
         )
         finished = CounterMetricFamily(
@@ -51,7 +52,7 @@ class ServiceCollector(Collector):
         buckets.append(("+Inf", counters.get("processing_count", 0.0)))
         yield HistogramMetricFamily(
             "vtrack_job_processing_seconds",
-            "Time from a job's start by a worker to its end state.",
+            "Time from the start of a job's last attempt to its end state.",
             buckets=buckets,
             sum_value=counters.get("processing_seconds", 0.0),
         )

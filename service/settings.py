@@ -31,6 +31,14 @@ def _default_workers() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
 
 
+_WITHOUT = {
+    "retention_hours": "finished jobs kept until deleted, or give hours",
+    "dpm_model": "no DPM (the embedded detector), or give the model file's path",
+    "color_names": "the embedded colour naming, or give the w2c.mat path",
+}
+"""What an optional setting means when unset, for the message about an empty one."""
+
+
 class Settings(BaseSettings):
     """Everything the service reads from its environment; tests build one directly."""
 
@@ -68,7 +76,7 @@ class Settings(BaseSettings):
     )
     housekeeping_interval: float = Field(
         default=60.0,
-        gt=0,
+        ge=0.1,
         le=3600,
         description="Seconds between sweeps that remove finished jobs' uploads and expired jobs.",
     )
@@ -187,6 +195,15 @@ class Settings(BaseSettings):
                 'give at least one endpoint, e.g. ["tcp/127.0.0.1:7447"] (the default); '
                 "VTRACK_ZENOH_ENABLED=false turns live streams off"
             )
+        return value
+
+    @field_validator("retention_hours", "dpm_model", "color_names", mode="before")
+    @classmethod
+    def _not_empty(cls, value: object, info) -> object:
+        # An unset ${VAR} in a compose or unit file: say so, rather than "." is not a file or
+        # that "" is no number, and do not take it as unset (the operator meant a value).
+        if isinstance(value, str) and not value.strip():
+            raise ValueError(f"is set but empty: unset it for {_WITHOUT[info.field_name]}")
         return value
 
     @field_validator("api_token")

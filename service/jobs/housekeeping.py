@@ -49,19 +49,29 @@ def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
 def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swept:
     """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
     and result folders that no job owns (only safe before uploads are accepted) and the
-    partial results of attempts that are over."""
+    partial results of attempts that are over. Each deleted job is logged by id."""
     jobs = 0
     if settings.retention_hours is not None:
-        for record in store.finished_before(time.time() - settings.retention_hours * 3600):
+        now = time.time()
+        for record in store.finished_before(now - settings.retention_hours * 3600):
             remove_job(settings, store, record)
             jobs += 1
-    uploads = 0
+            log.info(
+                "housekeeping: job %s (%s %.1f h ago) deleted with its files "
+                "(VTRACK_RETENTION_HOURS=%g)",
+                record.id,
+                record.state.value,
+                (now - (record.finished_at or now)) / 3600,
+                settings.retention_hours,
+            )
+    uploads = strays = 0
     if settings.uploads_dir.is_dir():
         for path in settings.uploads_dir.iterdir():
             record = store.get(path.name.split(".", 1)[0])
             if (record is None and orphans) or (record is not None and record.state.finished):
                 path.unlink(missing_ok=True)
-                uploads += 1
+                uploads += record is not None
+                strays += record is None
     if orphans and settings.results_dir.is_dir():
         for folder in settings.results_dir.iterdir():
             if not folder.is_dir():
@@ -69,11 +79,14 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
             record = store.get(folder.name)
             if record is None:
                 shutil.rmtree(folder, ignore_errors=True)
+                strays += 1
             elif record.result_dir.resolve() == folder.resolve():  # not a moved folder's job
                 tidy(record)
-    if uploads or jobs:
-        log.info("housekeeping: %d uploads and %d expired jobs removed", uploads, jobs)
-    return Swept(uploads, jobs)
+    if uploads:
+        log.info("housekeeping: the uploads of %d finished jobs removed", uploads)
+    if strays:
+        log.info("housekeeping: %d uploads or result folders that no job owns removed", strays)
+    return Swept(uploads + strays, jobs)
 
 
 class Housekeeper:

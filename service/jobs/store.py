@@ -289,7 +289,7 @@ class JobStore:
                         (
                             JobState.failed.value,
                             time.time(),
-                            f"the service died while this job ran, {deaths} times; "
+                            f"the service died while this job ran, {_times(deaths)}; "
                             "it is not started again",
                             job_id,
                         ),
@@ -431,3 +431,8 @@ class JobStore:
             " ON CONFLICT (name) DO UPDATE SET value = value + excluded.value",
             (name, delta),
         )
+
+
+def _times(count: int) -> str:
+    """``once``, ``twice``, ``3 times``."""
+    return {1: "once", 2: "twice"}.get(count, f"{count} times")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 import threading
 import time
 from typing import Annotated
@@ -21,6 +22,8 @@ from service.jobs.views import API_PREFIX, events_url, job_status, progress_even
 from service.outputs.base import MEDIA_TYPES
 from service.routers import BINARY_CONTENT, error_responses
 from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
+
+log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
 
@@ -238,8 +241,11 @@ def delete_job(job_id: str, store: StoreDep, settings: SettingsDep) -> Response:
     record = _job(store, job_id)
     if record.state.finished:
         remove_job(settings, store, record)
+        log.info("job %s (%s) deleted with its files", job_id, record.state.value)
         return Response(status_code=status.HTTP_204_NO_CONTENT)
     new_state = store.request_cancel(job_id)
+    if new_state == JobState.cancelled:
+        log.info("job %s cancelled before it started", job_id)
     updated = _job(store, job_id)
     code = status.HTTP_202_ACCEPTED if new_state == JobState.running else status.HTTP_200_OK
     return Response(

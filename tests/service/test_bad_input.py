@@ -139,10 +139,14 @@ def _voice_memo(folder, video):
         (lambda d, v: v, {"detector": {"name": "dpm"}}, 422, "VTRACK_DPM_MODEL"),
     ],
 )
-def test_bad_upload(client, tmp_path, pets_short, make_video, options, status, message):
+def test_bad_upload(server, client, tmp_path, pets_short, make_video, options, status, message):
     response = submit(client, make_video(tmp_path, pets_short), options)
     assert response.status_code == status, response.text
     assert message in response.json()["detail"]
+    # the operator's log says why, as the client was told (before: the access line only)
+    refusal = f"POST /v1/jobs from 127.0.0.1 refused ({status}): "
+    said = [line for line in server.log().splitlines() if refusal in line]
+    assert any(line.endswith(response.json()["detail"]) for line in said), said[-3:]
 
 
 def test_a_rule_across_options_is_stated_plainly(client, pets_short):

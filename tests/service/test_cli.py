@@ -268,6 +268,17 @@ def test_serve_refuses_a_model_setting_that_is_not_a_model(tmp_path, variable, c
         ({"VTRACK_STREAMS": '[{{"camera": "a/b"}}]'}, [], "VTRACK_STREAMS[0].camera: String"),
         # an unset ${TOKEN} in a unit file: every request would be refused
         ({"VTRACK_API_TOKEN": ""}, [], "VTRACK_API_TOKEN: is set but empty"),
+        # before: "Input should be a valid number" and ". is not a file"
+        (
+            {"VTRACK_RETENTION_HOURS": ""},
+            [],
+            "VTRACK_RETENTION_HOURS: is set but empty: unset it for finished jobs kept until "
+            "deleted, or give hours",
+        ),
+        ({"VTRACK_DPM_MODEL": " "}, [], "VTRACK_DPM_MODEL: is set but empty: unset it for no DPM"),
+        ({"VTRACK_COLOR_NAMES": ""}, [], "VTRACK_COLOR_NAMES: is set but empty"),
+        # before: 1e-6 was taken, and the idle service swept half a core away
+        ({"VTRACK_HOUSEKEEPING_INTERVAL": "1e-6"}, [], "VTRACK_HOUSEKEEPING_INTERVAL: Input"),
         # Zenoh would listen on a random port of every interface
         ({"VTRACK_ZENOH_LISTEN": "[]"}, [], "VTRACK_ZENOH_LISTEN: give at least one endpoint"),
         # a misspelt setting is named (and the service stops here for the bad port)

@@ -3,6 +3,8 @@ the jobs themselves (a real server, real files)."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.service.conftest import FAST_OPTIONS, submit, wait_for, wait_for_state
@@ -23,6 +25,9 @@ def test_a_finished_jobs_upload_is_removed_and_its_results_stay(make_server, pet
         wait_for(lambda: not _files(uploads), 10, "the finished job's upload to be removed")
         assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
         assert client.delete(f"/v1/jobs/{job_id}").status_code == 204  # no upload to remove
+    log = server.log()
+    assert "housekeeping: the uploads of 1 finished jobs removed" in log
+    assert f"job {job_id} (succeeded) deleted with its files" in log
 
 
 def test_jobs_past_the_retention_are_deleted_with_their_results(make_server, pets_short):
@@ -36,6 +41,12 @@ def test_jobs_past_the_retention_are_deleted_with_their_results(make_server, pet
             lambda: client.get(f"/v1/jobs/{job_id}").status_code == 404, 20, "the job to expire"
         )
     assert not _files(server.data_dir / "results") and not _files(server.data_dir / "uploads")
+    # by id (before: "0 uploads and 1 expired jobs removed", though its upload went too)
+    assert re.search(
+        rf"housekeeping: job {job_id} \(succeeded \d+\.\d h ago\) deleted with its files "
+        r"\(VTRACK_RETENTION_HOURS=0.0005\)",
+        server.log(),
+    )
 
 
 def test_at_start_files_no_job_owns_are_removed(make_server, pets_short):
@@ -51,5 +62,6 @@ def test_at_start_files_no_job_owns_are_removed(make_server, pets_short):
     (results / "0123abcd" / "trajectories.json").write_text("{}")
     second = make_server(data_dir=first.data_dir, workers=1)
     assert not _files(uploads) and _files(results) == [job_id]  # swept before it answers
+    assert "housekeeping: 2 uploads or result folders that no job owns removed" in second.log()
     with second.client() as client:
         assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
