@@ -113,10 +113,17 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         log.warning("job %s: failed: %s", job.id, error)
         return
     except Exception as error:
+        vanished = not scratch.is_dir()
         # The partial results go first: on a full disk that makes room to record the failure.
         shutil.rmtree(scratch, ignore_errors=True)
         problem = storage_problem(error)
-        if problem is None:
+        if problem is None and vanished and isinstance(error, FileNotFoundError):
+            message = (
+                f"the job's results folder {job.result_dir} was removed while the job ran (by "
+                "hand, or by a program cleaning the data folder); submit the job again"
+            )
+            log.error("job %s: failed: %s", job.id, message)
+        elif problem is None:
             log.exception("job %s: internal error", job.id)
             message = f"internal error while tracking ({type(error).__name__}: {error})"
         else:

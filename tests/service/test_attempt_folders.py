@@ -4,6 +4,7 @@ attempt, a failure, a time limit, a cancellation, a restart. Real servers, real 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 
 import pytest
@@ -93,3 +94,23 @@ def test_a_job_failed_at_a_restart_leaves_no_partial_results(make_server, long_v
         status = client.get(f"/v1/jobs/{job_id}").json()
         assert status["state"] == "failed"
         assert "the service died while this job ran" in status["error"]
+
+
+def test_results_removed_under_a_running_job_fail_it_saying_so(make_server, long_video, pets_cut):
+    # An operator's `rm -rf data/results` mid-job: before, "internal error while tracking
+    # (FileNotFoundError: ...)" with a traceback in the log.
+    server = make_server(workers=1)
+    with server.client() as client:
+        job_id = submit(client, long_video, ALL_FORMATS).json()["id"]
+        wait_for_frames(client, job_id, 2)
+        shutil.rmtree(server.data_dir / "results")
+        status = wait_for_state(client, job_id, ("succeeded", "failed"))
+        assert status["state"] == "failed", status
+        assert status["error"] == (
+            f"the job's results folder {server.data_dir / 'results' / job_id} was removed while "
+            "the job ran (by hand, or by a program cleaning the data folder); submit the job again"
+        )
+        # the service goes on: the next job succeeds
+        again = submit(client, pets_cut, {"formats": ["json"]}).json()["id"]
+        assert wait_for_state(client, again, ("succeeded", "failed"))["state"] == "succeeded"
+    assert "Traceback" not in server.log()
