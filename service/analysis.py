@@ -205,6 +205,15 @@ def analyze(
     source = open_frames(video)
     check_options(options, resources, (source.width, source.height))
     pipeline = build_pipeline(options, resources)
+    log.debug(
+        "job %s: %dx%d video, %.3f frames per second, %s frames announced; options %s",
+        job_id,
+        source.width,
+        source.height,
+        source.timing_fps,
+        source.frame_count,
+        options.model_dump_json(exclude_defaults=True),
+    )
     if scratch.exists():
         shutil.rmtree(scratch)
     scratch.mkdir(parents=True)
@@ -240,6 +249,7 @@ def analyze(
             now = time.perf_counter()
             if progress is not None and now - last_report >= progress_interval:
                 last_report = now
+                log.debug("job %s: %d frames read, %d tracked", job_id, read.frames, processed)
                 if not progress(read.frames, processed, processed / max(now - started, 1e-9)):
                     raise AnalysisStopped(f"stopped after {read.frames} frames")
         summary = _summary(source, options, read, processed, filename)

@@ -151,6 +151,8 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
     log.info(
         "job %s: succeeded, %d frames in %.1f s", job.id, result.frames_processed, result.seconds
     )
+    for warning in result.warnings:  # what a damaged video cost, as its client is told
+        log.info("job %s: warning: %s", job.id, warning)
 
 
 def _failed(store: JobStore, job: JobRecord, error: str) -> None:

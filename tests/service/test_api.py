@@ -356,6 +356,8 @@ def test_truncated_video_is_accepted_and_tracked_as_far_as_it_decodes(
     # FFmpeg's complaints about the cut frame stay out of the log (before: "[mjpeg @ 0x...]
     # overread 8", a line without time, level or job)
     assert not re.search(r"\[\w+ @ 0x[0-9a-f]+\]|FFMPEG", server.log())
+    # the job's warning says it in the log instead
+    assert f"job {status['id']}: warning: the video ended after {read} of the 24" in server.log()
 
 
 def test_metrics_count_jobs_by_state_and_frames(client, finished_job):
