@@ -260,7 +260,6 @@ def analyze(
             writer.abort()
         raise
     seconds = time.perf_counter() - started
-    log.info("tracked %d frames in %.1f s", processed, seconds)
     return AnalysisResult(
         files={fmt: writer.path for fmt, writer in writers.items()},
         video=summary.video,
