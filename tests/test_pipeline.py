@@ -46,3 +46,32 @@ def test_single_target_pipeline_reports_one_track(pets_frames):
         pipeline.process(
             pets_frames[5], 0.5, detections=make_detector("submitted").detect(pets_frames[5])
         )
+
+
+def test_single_target_pipeline_takes_four_numbers_and_checks_its_timestamps(pets_frames):
+    # before: frame 0's box was the caller's tuple (not a Box: no .x), and time going back
+    # or a string passed silently
+    pipeline = SingleTargetPipeline((300, 140, 25, 60), "rcsk_cn")
+    first = pipeline.process(pets_frames[0], 0.0).tracks[0].box
+    assert isinstance(first, Box) and first == Box(300.0, 140.0, 25.0, 60.0)
+    pipeline.process(pets_frames[1], 0.1)
+    with pytest.raises(ValueError, match=r"timestamp -5.000 s is before the previous frame's"):
+        pipeline.process(pets_frames[2], -5.0)
+    with pytest.raises(TypeError, match=r"timestamp must be a number of seconds, got '0\.2'"):
+        pipeline.process(pets_frames[2], "0.2")
+    assert pipeline.process(pets_frames[2], 0.2).frame_index == 2  # nothing was spoiled
+
+
+def test_people_trackers_say_which_argument_went_where():
+    from tracking.detection import HogPeopleDetector
+    from tracking.people import MultiPersonTracker, PeopleTrackerConfig
+
+    # before: AttributeError: 'HogPeopleDetector' object has no attribute 'appearance'
+    with pytest.raises(TypeError, match=r"got HogPeopleDetector \(pass a detector as detector="):
+        MultiPersonTracker(HogPeopleDetector())
+    with pytest.raises(TypeError, match=r"got PeopleTrackerConfig \(pass it as config=\.\.\.\)"):
+        PeoplePipeline(PeopleTrackerConfig())
+    with pytest.raises(TypeError, match="timestamp must be a number of seconds, got '0'"):
+        MultiPersonTracker(detector=HogPeopleDetector()).update(
+            np.zeros((120, 160, 3), np.uint8), "0"
+        )

@@ -16,7 +16,9 @@ from tracking.correlation import CorrelationConfig, CorrelationTracker
 from tracking.detection.base import Detections, Detector
 from tracking.people import MultiPersonTracker, PeopleTrackerConfig
 from tracking.tracks import FrameTracks, TrackEstimate
-from tracking.types import Box
+from tracking.types import Box, as_box, checked_timestamp
+
+__all__ = ["FramePipeline", "PeoplePipeline", "SingleTargetPipeline"]
 
 
 @runtime_checkable
@@ -36,8 +38,10 @@ class FramePipeline(Protocol):
         Raises
         ------
         ValueError
-            For a malformed frame, a timestamp before the previous one, or detections where
-            the pipeline takes none.
+            For a malformed frame, a timestamp that is not finite or before the previous one,
+            or detections where the pipeline takes none.
+        TypeError
+            For a frame that is not uint8 or a timestamp that is not a number.
         """
         ...
 
@@ -46,13 +50,16 @@ class SingleTargetPipeline:
     """One object followed from its first-frame box by a correlation tracker (thesis Part I).
 
     The object's track has id 1; its score is the correlation peak, clipped to ``[0, 1]``.
+    ``first_box`` is a :class:`Box` or four numbers ``(x, y, w, h)``; ``config`` a
+    :class:`CorrelationConfig` or a preset's name (:data:`tracking.correlation.PRESETS`).
     """
 
-    def __init__(self, first_box: Box, config: CorrelationConfig | None = None) -> None:
+    def __init__(self, first_box: Box, config: CorrelationConfig | str | None = None) -> None:
         self._tracker = CorrelationTracker(config)
-        self._first_box = first_box
+        self._first_box = as_box(first_box)
         self._index = 0
         self._started = False
+        self._timestamp: float | None = None
 
     @property
     def part_names(self) -> tuple[str, ...]:
@@ -63,6 +70,7 @@ class SingleTargetPipeline:
     ) -> FrameTracks:
         if detections is not None:
             raise ValueError("single-target tracking takes no detections")
+        self._timestamp = checked_timestamp(timestamp, self._timestamp)
         if not self._started:
             self._tracker.initialize(frame, self._first_box)
             self._started = True

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 from tracking.types import Box
 
+__all__ = ["FrameTracks", "PartEstimate", "TrackEstimate"]
+
 
 @dataclass(frozen=True, slots=True)
 class PartEstimate:

@@ -6,10 +6,24 @@ Boxes are axis-aligned, in pixels, with a 0-based top-left corner: ``(x, y, w, h
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+__all__ = [
+    "Box",
+    "Tracker",
+    "TrackerOutput",
+    "as_box",
+    "box_problem",
+    "checked_timestamp",
+    "is_int",
+    "validate_box",
+    "validate_frame",
+    "validate_uint8_frame",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,3 +185,26 @@ def validate_box(box: Box, frame_shape: tuple[int, ...]) -> Box:
     if problem := box_problem(box, frame_shape):
         raise ValueError(f"box {problem}")
     return box
+
+
+def checked_timestamp(timestamp: object, previous: float | None) -> float:
+    """``timestamp`` (seconds) as a float, checked against the previous frame's.
+
+    Raises
+    ------
+    TypeError
+        For something that is not a number (a string is not read as one).
+    ValueError
+        For a timestamp that is not finite or comes before ``previous``.
+    """
+    if isinstance(timestamp, bool) or not isinstance(timestamp, (int, float, np.number)):
+        raise TypeError(f"timestamp must be a number of seconds, got {timestamp!r}")
+    value = float(timestamp)
+    if not math.isfinite(value):
+        raise ValueError(f"timestamp must be a finite number of seconds, got {value}")
+    if previous is not None and value < previous:
+        raise ValueError(
+            f"timestamp {value:.3f} s is before the previous frame's {previous:.3f} s; "
+            "timestamps must not go backwards"
+        )
+    return value

@@ -138,6 +138,18 @@ def test_reset_forgets_the_target():
     tracker.reset()
     with pytest.raises(RuntimeError, match="initialize"):
         tracker.update(images[1])
+    # each method names itself (before: respond() and learn() said "before update()")
+    with pytest.raises(RuntimeError, match=r"initialize\(\) must be called before respond\(\)"):
+        tracker.respond(images[1])
+
+
+def test_a_preset_may_be_given_by_name():
+    assert CorrelationTracker("rcsk_cn").config == PRESETS["rcsk_cn"]
+    # before: AttributeError: 'str' object has no attribute 'feature'
+    with pytest.raises(ValueError, match="unknown preset 'rcsk'; presets: mosse_gray, csk_gray"):
+        CorrelationTracker("rcsk")
+    with pytest.raises(TypeError, match="config must be a CorrelationConfig or a preset's name"):
+        CorrelationTracker(3)
 
 
 @pytest.mark.slow

@@ -176,7 +176,8 @@ def test_regions_outside_the_frame_give_empty_results(detector, pets_frame, regi
     [
         (Box(10, 10, 0, 5), ValueError),  # no area
         (Box(float("nan"), 10, 5, 5), ValueError),
-        ((10, 10, 5, 5), TypeError),  # a tuple, not a Box
+        ("10,10,5,5", TypeError),  # neither a Box nor four numbers
+        ((10, 10, 5), TypeError),
     ],
 )
 def test_bad_regions_raise(detector, pets_frame, region, error):

@@ -53,6 +53,9 @@ def test_dense_scores_agree_with_the_detection(detector, pets, pets_frame):
     assert dense.part_offsets == [] and dense.part_names == ()
     roi = detector.detect_region(pets_frame, region, (0.8 * h, 1.25 * h))
     assert len(roi) >= 1
+    # four numbers, as trackers take boxes (before: TypeError, a Box only)
+    numbers = detector.detect_region(pets_frame, region.as_array().tolist(), (0.8 * h, 1.25 * h))
+    assert np.array_equal(numbers.boxes, roi.boxes)
     # the SVM scores in the grid are the ones detect thresholds: the best is positive and
     # the person is found near the best position
     best = max(float(g.max()) for g in dense.levels)

@@ -10,6 +10,7 @@ import numpy as np
 from tracking.correlation.config import CorrelationConfig
 from tracking.correlation.learning import CorrelationFilter, make_filter
 from tracking.correlation.patches import extract_patch
+from tracking.correlation.presets import PRESETS
 from tracking.correlation.scale import ScaleFilter
 from tracking.correlation.signals import peak_to_sidelobe_ratio, subpixel_peak
 from tracking.features.maps import FeatureMap
@@ -79,16 +80,17 @@ class CorrelationTracker:
     Parameters
     ----------
     config:
-        Every tunable number; defaults are the thesis's (Table 2.1).
+        Every tunable number; defaults are the thesis's (Table 2.1). Or the name of one of
+        :data:`~tracking.correlation.PRESETS` (``"rcsk_cn"``), as ``vtrack track --preset``.
     features:
         A ready feature map, to share one Color Names table between many trackers. Built from
         ``config`` when omitted.
     """
 
     def __init__(
-        self, config: CorrelationConfig | None = None, *, features: FeatureMap | None = None
+        self, config: CorrelationConfig | str | None = None, *, features: FeatureMap | None = None
     ) -> None:
-        self.config = config or CorrelationConfig()
+        self.config = _config(config)
         self._features = features or FeatureMap.from_config(self.config)
         self._filter: CorrelationFilter | None = None
         self._scale_filter: ScaleFilter | None = None
@@ -144,7 +146,7 @@ class CorrelationTracker:
 
         ``frame`` must have the size of the first one (ValueError otherwise).
         """
-        self._require_target()
+        self._require_target("update")
         frame = validate_uint8_frame(frame, "the correlation tracker")
         if frame.shape[:2] != self._frame_size:
             # the target's position and patch were planned in the first frame's geometry
@@ -187,7 +189,7 @@ class CorrelationTracker:
         """The correlation response over the search patch at ``center`` and ``scale`` (default:
         the current ones), without moving or learning: for callers that fuse it with other
         evidence, like the particle filter of Part II."""
-        self._require_target()
+        self._require_target("respond")
         center = self._center if center is None else center
         scale = self._scale if scale is None else scale
         response = self._filter.response(self._sample(frame, center, scale))
@@ -201,7 +203,7 @@ class CorrelationTracker:
     ) -> None:
         """Learn the appearance at ``center`` and ``scale`` and make them the current target
         (Algorithm 2.1, lines 10-12; the scale filter learns too)."""
-        self._require_target()
+        self._require_target("learn")
         if center is not None:
             self._center = (float(center[0]), float(center[1]))
         if scale is not None:
@@ -210,9 +212,9 @@ class CorrelationTracker:
         if self._scale_filter is not None:
             self._scale_filter.update(frame, self._center, self._scale)
 
-    def _require_target(self) -> None:
+    def _require_target(self, method: str) -> None:
         if self._filter is None or self._geometry is None:
-            raise RuntimeError("initialize() must be called before update()")
+            raise RuntimeError(f"initialize() must be called before {method}()")
 
     @property
     def box(self) -> Box:
@@ -246,3 +248,18 @@ class CorrelationTracker:
         model = (cols * c.cell_size, rows * c.cell_size)
         base_patch = (model[0] / resample, model[1] / resample)
         return _Geometry((box.w, box.h), base_patch, model, (rows, cols))
+
+
+def _config(config: object) -> CorrelationConfig:
+    """A tracker's configuration from what its caller gave: a config, a preset's name, nothing."""
+    if config is None:
+        return CorrelationConfig()
+    if isinstance(config, str):
+        if config not in PRESETS:
+            raise ValueError(f"unknown preset {config!r}; presets: {', '.join(PRESETS)}")
+        return PRESETS[config]
+    if not isinstance(config, CorrelationConfig):
+        raise TypeError(
+            f"config must be a CorrelationConfig or a preset's name, got {type(config).__name__}"
+        )
+    return config

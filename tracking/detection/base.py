@@ -155,7 +155,8 @@ class Detector(Protocol):
     def detect_region(
         self, frame: np.ndarray, region: Box, heights: tuple[float, float] | None = None
     ) -> Detections:
-        """People whose box centre lies inside ``region``; much cheaper than :meth:`detect`.
+        """People whose box centre lies inside ``region`` (a :class:`Box` or four numbers
+        ``(x, y, w, h)``); much cheaper than :meth:`detect`.
 
         ``heights`` is the ``(min, max)`` height in pixels of the people to look for (the
         tracker asks for about a person's predicted height); ``None`` leaves it to the

@@ -7,23 +7,23 @@ import math
 
 import numpy as np
 
-from tracking.types import Box
+from tracking.types import Box, as_box
 
 __all__ = ["checked_heights", "checked_region", "clip_boxes", "clip_region"]
 
 
 def checked_region(region: object) -> Box:
-    """``region`` if it is a :class:`Box` with finite coordinates and a positive size.
+    """``region`` (a :class:`Box` or four numbers ``(x, y, w, h)``, as trackers take boxes)
+    as a Box with finite coordinates and a positive size.
 
     Raises
     ------
     TypeError
-        If ``region`` is not a ``Box``.
+        If ``region`` is neither.
     ValueError
         If a coordinate is not finite or the size is not positive.
     """
-    if not isinstance(region, Box):
-        raise TypeError(f"region must be a tracking.types.Box, got {type(region).__name__}")
+    region = as_box(region)
     if not all(math.isfinite(v) for v in (region.x, region.y, region.w, region.h)):
         raise ValueError(f"region must have finite coordinates, got {region}")
     if region.w <= 0 or region.h <= 0:

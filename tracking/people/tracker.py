@@ -29,7 +29,7 @@ from tracking.people.occlusion import covered_share, hidden_points, occluders
 from tracking.people.part_trackers import PartTrackers
 from tracking.people.scheduling import DetectionScheduler, widened
 from tracking.tracks import PartEstimate, TrackEstimate
-from tracking.types import Box, validate_uint8_frame
+from tracking.types import Box, checked_timestamp, validate_uint8_frame
 
 logger = logging.getLogger(__name__)
 
@@ -107,6 +107,7 @@ class MultiPersonTracker:
         detector: Detector | None = None,
         body: BodyModel | None = None,
     ) -> None:
+        _check_arguments(config, detector)
         self.config = config or PeopleTrackerConfig()
         self._detector = detector
         self._body = body or EMBEDDED_BODY
@@ -154,8 +155,11 @@ class MultiPersonTracker:
         Raises
         ------
         ValueError
-            For a malformed frame, a timestamp before the previous one, or no detections and no
-            detector.
+            For a malformed frame (empty, wrongly shaped, grayscale), a timestamp that is not
+            finite or before the previous one, or no detections and no detector.
+        TypeError
+            For a frame that is not uint8, a timestamp that is not a number, or detections
+            that are not :class:`~tracking.detection.Detections`.
         """
         frame = validate_uint8_frame(frame, "the people tracker")
         self._features.check_frame(frame)
@@ -164,14 +168,7 @@ class MultiPersonTracker:
                 "detections must be a tracking.detection.Detections (detections_from_arrays "
                 f"makes one from boxes and scores), got {type(detections).__name__}"
             )
-        timestamp = float(timestamp)
-        if not math.isfinite(timestamp):
-            raise ValueError(f"timestamp must be a finite number of seconds, got {timestamp}")
-        if self._last_timestamp is not None and timestamp < self._last_timestamp:
-            raise ValueError(
-                f"timestamp {timestamp:.3f} s is before the previous frame's "
-                f"{self._last_timestamp:.3f} s; timestamps must not go backwards"
-            )
+        timestamp = checked_timestamp(timestamp, self._last_timestamp)
         if self._frame_shape is not None and frame.shape != self._frame_shape:
             logger.warning(
                 "frame size changed from %s to %s: every track ends and tracking starts again",
@@ -652,3 +649,17 @@ def _normalised(boxes: np.ndarray, aspect: float = 0.41) -> np.ndarray:
     return np.stack(
         [boxes[:, 0] + (boxes[:, 2] - width) / 2, boxes[:, 1], width, boxes[:, 3]], axis=1
     )
+
+
+def _check_arguments(config: object, detector: object) -> None:
+    """A config and a detector of the right kinds, or a TypeError that says which went where
+    (``MultiPersonTracker(detector)`` reads the detector as the config, ``PeoplePipeline``
+    takes the detector first)."""
+    if config is not None and not isinstance(config, PeopleTrackerConfig):
+        hint = " (pass a detector as detector=...)" if hasattr(config, "detect") else ""
+        raise TypeError(f"config must be a PeopleTrackerConfig, got {type(config).__name__}{hint}")
+    if detector is not None and not callable(getattr(detector, "detect", None)):
+        hint = " (pass it as config=...)" if isinstance(detector, PeopleTrackerConfig) else ""
+        raise TypeError(
+            f"detector must be a Detector (with detect()), got {type(detector).__name__}{hint}"
+        )
