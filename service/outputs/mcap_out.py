@@ -48,6 +48,8 @@ ANNOTATIONS_TOPIC = "/camera/annotations"
 TRACKS_TOPIC = "/tracks"
 FRAME_ID = "camera"
 JPEG_QUALITY = 85
+LABEL_SIZE = 12.0
+"""Font size of the id labels, in image pixels."""
 
 
 def nanoseconds(timestamp: float) -> int:
@@ -91,14 +93,21 @@ def annotations(message: FrameTracksMessage, stamp: int) -> dict[str, Any]:
         texts.append(
             {
                 "timestamp": time,
-                "position": {"x": b.x, "y": max(b.y - 2.0, 0.0)},
+                "position": {"x": b.x, "y": _label_baseline(b.y)},
                 "text": str(track.track_id),
-                "font_size": 12.0,
+                "font_size": LABEL_SIZE,
                 "text_color": foxglove.color((255, 255, 255)),
                 "background_color": foxglove.color(rgb, 0.8),
             }
         )
     return {"circles": [], "points": points, "texts": texts}
+
+
+def _label_baseline(top: float) -> float:
+    """Where an id label's bottom edge goes (Foxglove anchors text at its bottom left): just
+    above the box, or just inside it where the box starts too near the top of the image for
+    the label to show above it."""
+    return top - 2.0 if top - 2.0 >= LABEL_SIZE else top + LABEL_SIZE + 2.0
 
 
 def _encode(document: dict[str, Any]) -> bytes:
@@ -183,14 +192,19 @@ class McapWriter:
     def close(self, summary: RunSummary) -> None:
         if self._encoder is not None:
             self._add_video(self._encoder.flush())
+        # The images alone do not give the video's size: H.264 pads odd sides by a pixel.
         info = {
             "mode": self._info.mode,
+            "width": str(self._info.width),
+            "height": str(self._info.height),
+            "pixel_aspect_ratio": str(self._info.pixel_aspect),
             "frames_processed": str(summary.frames_processed),
             "frames_read": str(summary.video.frames_read),
-            "fps": str(summary.video.fps or ""),
             "frame_step": str(self._info.frame_step),
             "part_names": ",".join(self._info.part_names),
         }
+        if summary.video.fps:
+            info["fps"] = str(summary.video.fps)
         if self._info.job_id:
             info["job_id"] = self._info.job_id
         self._writer.add_metadata("vtrack", info)

@@ -173,11 +173,17 @@ def test_non_square_pixels_are_reported_and_kept_in_the_annotated_video(shared_d
             container.mux(stream.encode(av.VideoFrame.from_ndarray(squeezed, format="rgb24")))
         container.mux(stream.encode())
     assert open_frames(path).pixel_aspect == pytest.approx(4 / 3)
-    result = analyze(path, JobOptions(formats=["json", "mp4"]), tmp_path / "out")
+    result = analyze(path, JobOptions(formats=["json", "mp4", "mcap"]), tmp_path / "out")
     video = read_trajectories(result.files["json"]).video
     assert (video.width, video.height, video.pixel_aspect_ratio) == (360, 360, pytest.approx(4 / 3))
     with av.open(str(result.files["mp4"])) as container:
         assert container.streams.video[0].sample_aspect_ratio == Fraction(4, 3)
+    # An MCAP read on its own says so too (its images are in stored pixels).
+    with result.files["mcap"].open("rb") as handle:
+        (record,) = [m for m in make_reader(handle).iter_metadata() if m.name == "vtrack"]
+    assert record.metadata["width"] == "360" and record.metadata["height"] == "360"
+    assert float(record.metadata["pixel_aspect_ratio"]) == pytest.approx(4 / 3)
+    assert float(record.metadata["fps"]) == 10.0
 
 
 def test_square_pixels_stay_square(annotated):
