@@ -225,12 +225,31 @@ class JobOptions(BaseModel):
     @field_validator("first_box", "preset", "detector", "tracker", "fill_gaps")
     @classmethod
     def _of_the_mode(cls, value: Any, info: ValidationInfo) -> Any:
+        if _stored(info):
+            return value
         mode, reason = _MODE_OF[info.field_name]
         given = info.data.get("mode")
         default = cls.model_fields[info.field_name].get_default(call_default_factory=True)
         if given is not None and given != mode and value != default:
             raise ValueError(f"only for mode '{mode}': {reason}")
         return value
+
+    @field_validator("mcap_images")
+    @classmethod
+    def _with_the_mcap(cls, value: str, info: ValidationInfo) -> str:
+        formats = info.data.get("formats")
+        if _stored(info):
+            return value
+        if value != "h264" and formats is not None and OutputFormat.mcap not in formats:
+            raise ValueError("only with the mcap format, which formats leaves out")
+        return value
+
+    @classmethod
+    def from_stored(cls, data: dict[str, Any]) -> JobOptions:
+        """Options a job was accepted with, read back from storage: the refusals of options
+        that would be ignored (added over time) do not apply, so a job an earlier version
+        accepted still lists and runs as it did."""
+        return cls.model_validate(data, context={"stored": True})
 
     @model_validator(mode="after")
     def _mode_fields(self) -> JobOptions:
@@ -239,6 +258,10 @@ class JobOptions(BaseModel):
         if len(set(self.formats)) != len(self.formats):
             raise ValueError("formats must not repeat a format")
         return self
+
+
+def _stored(info: ValidationInfo) -> bool:
+    return bool(info.context and info.context.get("stored"))
 
 
 class JobProgress(BaseModel):

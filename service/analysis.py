@@ -314,9 +314,10 @@ def _summary(
 
 
 def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
-    """What to tell the user of frames the video lacks: at its start, before its first
-    keyframe (a clip cut from a longer recording), and at its end, before what its container
-    announces (a truncated or damaged file); ``[]`` when it lacks none.
+    """What to tell the user of frames the video lacks: damaged ones in its course, those at
+    its start, before its first keyframe (a clip cut from a longer recording), and at its end,
+    before what its container announces (a truncated or damaged file); ``[]`` when it lacks
+    none.
 
     A stated frame count is a promise; where the container states none (Matroska, WebM),
     OpenCV's count is the duration times the rate, which a variable-rate video does not reach,
@@ -324,6 +325,15 @@ def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
     (the last frame lasts one; containers round).
     """
     warnings = []
+    if lost := read.undecodable:
+        shown = ", ".join(map(str, lost[:5])) + (
+            f" and {len(lost) - 5} more" if len(lost) > 5 else ""
+        )
+        frames = f"frame {shown} was" if len(lost) == 1 else f"{len(lost)} frames ({shown}) were"
+        warnings.append(
+            f"{frames} damaged and did not decode (frame_index counting from 0): they have no "
+            "tracks, and tracking went on with the frames after them"
+        )
     if source.lead_frames:
         frames = "frame" if source.lead_frames == 1 else f"{source.lead_frames} frames"
         warnings.append(

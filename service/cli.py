@@ -8,19 +8,23 @@ import contextlib
 import copy
 import dataclasses
 import errno
+import fcntl
 import importlib.metadata
 import json
 import os
 import re
 import shutil
+import signal
 import socket
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
 from service.frames import FrameSourceError, ReadProgress, open_frames
+from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.output_paths import output_file, output_folder
@@ -31,6 +35,23 @@ if TYPE_CHECKING:
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, ``timeout``, systemd, ``docker stop``), raised where the program is,
+    as Ctrl-C raises KeyboardInterrupt: a run stops the same way and cleans up after itself."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+def _stopped(error: KeyboardInterrupt) -> tuple[str, int]:
+    """How to say what stopped a run, and its exit status (128 + the signal)."""
+    if isinstance(error, Terminated):
+        return "stopped by SIGTERM", 128 + signal.SIGTERM
+    return "interrupted", INTERRUPTED
+
 
 CLOSED_OUTPUT = 141
 """Exit status when the reader of our standard output went away (``vtrack track ... | head``):
@@ -119,6 +140,17 @@ def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> st
     return f"{index},{box.x:.2f},{box.y:.2f},{box.w:.2f},{box.h:.2f},{scores}"
 
 
+def _progress_bar(total: int, quiet: bool, frames: Iterable | None = None) -> tqdm:
+    """The progress bar on standard error: redrawn ten times a second on a terminal, every
+    30 s into a log file or a pipe (each redraw is a line there); ``TQDM_MININTERVAL`` (tqdm's
+    own variable) sets the seconds for both."""
+    if "TQDM_MININTERVAL" in os.environ:  # tqdm reads it when nothing is passed
+        timing = {}
+    else:
+        timing = {"mininterval": 0.1 if sys.stderr.isatty() else 30.0}
+    return tqdm(frames, total=total or None, unit="frame", disable=quiet, **timing)
+
+
 def _track(args: argparse.Namespace) -> int:
     _warn_unknown_variables()
     try:
@@ -136,6 +168,9 @@ def _track(args: argparse.Namespace) -> int:
         print(f"vtrack: {where} {problem}", file=sys.stderr)
         return 2
     config = PRESETS[args.preset]
+    # a file named .json gets JSON lines unless --format says otherwise
+    json_name = args.out is not None and args.out.suffix.lower() in (".json", ".jsonl")
+    fmt = args.format or ("json" if json_name else "csv")
     try:
         if color_names := _color_names_file(args.w2c):
             config = dataclasses.replace(config, color_names_path=str(color_names))
@@ -149,19 +184,18 @@ def _track(args: argparse.Namespace) -> int:
         return 2
     read, written = ReadProgress(), 0
     try:
-        if args.format == "csv":
+        if fmt == "csv":
             print("frame,x,y,w,h,peak,psr", file=out_file)
         frames = source.timed(1, read)
-        with tqdm(
-            frames, total=source.frame_count or None, unit="frame", disable=args.quiet
-        ) as bar:
+        with _progress_bar(source.frame_count, args.quiet, frames) as bar:
             for frame in bar:
+                number = frame.index + 1  # the video's own: damaged frames leave their gap
                 if written == 0:
                     tracker.initialize(frame.image, box)
-                    row = _format_row(1, box, None, args.format)
+                    row = _format_row(number, box, None, fmt)
                 else:
                     output = tracker.update(frame.image)
-                    row = _format_row(written + 1, output.box, output, args.format)
+                    row = _format_row(number, output.box, output, fmt)
                 print(row, file=out_file)
                 written += 1
         if partial:
@@ -170,10 +204,11 @@ def _track(args: argparse.Namespace) -> int:
     except ValueError as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as error:
         kept = "nothing written" if partial else f"the {written} rows printed are complete"
-        print(f"vtrack: interrupted after {written} frames; {kept}", file=sys.stderr)
-        return INTERRUPTED
+        what, status = _stopped(error)
+        print(f"vtrack: {what} after {written} frames; {kept}", file=sys.stderr)
+        return status
     finally:
         if partial:
             out_file.close()
@@ -265,6 +300,26 @@ def _warn_unknown_variables() -> None:
         print(f"vtrack: {line}", file=sys.stderr)
 
 
+def _lock_out_dir(folder: Path) -> None:
+    """Hold an exclusive lock on ``folder`` until the process ends: two runs into one folder
+    would move each other's files away and both fail, leaving a mix of their results.
+
+    Raises
+    ------
+    OSError
+        Another process holds the lock.
+    """
+    descriptor = os.open(folder, os.O_RDONLY)  # kept open: the lock lasts as long as it
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(descriptor)
+        raise BlockingIOError(
+            f"another vtrack analyze is writing into {folder}: wait for it to end or give "
+            "another --out-dir"
+        ) from None
+
+
 def _analyze(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
@@ -287,8 +342,10 @@ def _analyze(args: argparse.Namespace) -> int:
         ][:1]
         message = error_message(first)
         if where:  # the options' modes, as this command's flags choose them
-            message = message.replace("mode 'single_target'", "--box").replace(
-                "mode 'people'", "tracking people (without --box)"
+            message = (
+                message.replace("mode 'single_target'", "--box")
+                .replace("mode 'people'", "tracking people (without --box)")
+                .replace("which formats leaves out", "which --format leaves out")
             )
         elif loc:
             where = [f"--options: {'.'.join(loc)}"]
@@ -312,10 +369,11 @@ def _analyze(args: argparse.Namespace) -> int:
         check_options(options, resources, (source.width, source.height))  # before the bar
         created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it
+        _lock_out_dir(args.out_dir)
     except (OSError, ValueError) as error:  # FrameSourceError is a ValueError
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
-    bar = tqdm(total=source.frame_count or None, unit="frame", disable=args.quiet)
+    bar = _progress_bar(source.frame_count, args.quiet)
     frames_read = 0
 
     def progress(read: int, frames_processed: int, fps: float | None) -> bool:
@@ -344,10 +402,11 @@ def _analyze(args: argparse.Namespace) -> int:
         if created and args.out_dir.is_dir() and not any(args.out_dir.iterdir()):
             args.out_dir.rmdir()
         if isinstance(error, KeyboardInterrupt):
-            print(
-                f"vtrack: interrupted after {frames_read} frames; nothing written", file=sys.stderr
-            )
-            return INTERRUPTED
+            what, status = _stopped(error)
+            print(f"vtrack: {what} after {frames_read} frames; nothing written", file=sys.stderr)
+            return status
+        if isinstance(error, OSError) and error.filename is None and error.strerror:
+            error = f"cannot write the results into {args.out_dir}: {error.strerror}"  # disk full
         print(f"vtrack: {error}", file=sys.stderr)  # OptionsError is a ValueError
         return 2
     bar.update(result.video.frames_read - bar.n)
@@ -469,6 +528,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument(
         "--box",
         type=_parse_box,
+        metavar="X,Y,W,H",
         help="first-frame box x,y,w,h in pixels, 0-based (default: an OTB folder's ground truth)",
     )
     track.add_argument(
@@ -477,21 +537,30 @@ def build_parser() -> argparse.ArgumentParser:
         choices=sorted(PRESETS),
         help="tracker variant (default hog_cn_scale)",
     )
-    track.add_argument("--w2c", type=Path, help=W2C_HELP)
-    track.add_argument("--out", type=Path, help="write the boxes here instead of stdout")
-    track.add_argument("--format", choices=("csv", "json"), default="csv", help="output format")
+    track.add_argument("--w2c", type=Path, metavar="FILE", help=W2C_HELP)
+    track.add_argument(
+        "--out", type=Path, metavar="FILE", help="write the boxes here instead of stdout"
+    )
+    track.add_argument(
+        "--format",
+        choices=("csv", "json"),
+        help="csv rows or JSON lines (default: json for a --out FILE ending .json or .jsonl, "
+        "csv otherwise)",
+    )
     track.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     track.set_defaults(handler=_track)
 
     analyze = commands.add_parser(
         "analyze",
         help="track every person in a video and write the results (no server)",
-        description="The service's pipeline on one video file, with a progress bar: every "
-        "person in view (or, with --box, one object), written as JSON, MCAP, MOT text and an "
-        "annotated MP4.",
+        description="The service's pipeline on one video file or image folder, with a "
+        "progress bar: every person in view (or, with --box, one object), written as JSON, "
+        "MCAP, MOT text and an annotated MP4.",
     )
-    analyze.add_argument("source", help="video file or image folder")
-    analyze.add_argument("--out-dir", type=Path, required=True, help="folder for the results")
+    analyze.add_argument("source", help="video file or image folder (MOTChallenge img1/ too)")
+    analyze.add_argument(
+        "--out-dir", type=Path, required=True, metavar="DIR", help="folder for the results"
+    )
     analyze.add_argument(
         "--format",
         type=_formats,
@@ -533,7 +602,10 @@ def build_parser() -> argparse.ArgumentParser:
         "default 0: off)",
     )
     analyze.add_argument(
-        "--box", type=_parse_box, help="follow one object from this first box x,y,w,h instead"
+        "--box",
+        type=_parse_box,
+        metavar="X,Y,W,H",
+        help="follow one object from this first box instead",
     )
     analyze.add_argument(
         "--preset", choices=sorted(PRESETS), help="tracker for --box (default hog_cn_scale)"
@@ -544,7 +616,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="job options as JSON, the service's `options` part (for example "
         '\'{"tracker": {"report_missing": 0.15}}\'); the flags above win over it',
     )
-    analyze.add_argument("--w2c", type=Path, help=W2C_HELP)
+    analyze.add_argument("--w2c", type=Path, metavar="FILE", help=W2C_HELP)
     analyze.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     analyze.set_defaults(handler=_analyze)
 
@@ -590,6 +662,11 @@ def _attach_box_values(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(_attach_box_values(sys.argv[1:] if argv is None else argv))
+    if args.command != "serve":  # the service has its own shutdown and log
+        signal.signal(signal.SIGTERM, _terminate)
+        # FFmpeg's own lines ([h264 @ 0x...] error while decoding MB) would break the one-line
+        # errors and warnings, which say what damage cost (OPENCV_FFMPEG_LOGLEVEL=16 shows them)
+        quiet_ffmpeg("info")
     try:
         status = args.handler(args)
         sys.stdout.flush()  # a reader gone before the last buffered lines shows here
@@ -600,9 +677,9 @@ def main(argv: list[str] | None = None) -> int:
         with contextlib.suppress(OSError, ValueError):  # no descriptor (captured in tests)
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return CLOSED_OUTPUT
-    except KeyboardInterrupt:  # a command that has nothing to clean up
-        print("vtrack: interrupted", file=sys.stderr)
-        return INTERRUPTED
+    except KeyboardInterrupt as error:  # a command that has nothing to clean up
+        what, status = _stopped(error)
+        print(f"vtrack: {what}", file=sys.stderr)
     return status
 
 

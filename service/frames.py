@@ -7,7 +7,7 @@ import math
 import re
 import struct
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import av
@@ -21,6 +21,10 @@ DEFAULT_FPS = 25.0
 
 _NOT_A_FRAME_RATE = 1000.0
 """A stated rate this high is a millisecond time base, not frames per second."""
+
+FAILED_READS_AT_END = 25
+"""Failed reads in a row taken for the end of a video. OpenCV moves past a frame it cannot
+decode (one failed read, the next frame reads), and fails every read at the end of the file."""
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm")
 
@@ -70,10 +74,14 @@ class ReadProgress:
         Frames read so far.
     end_time:
         Timestamp of the last frame read, in seconds from the first.
+    undecodable:
+        Indices of the frames that did not decode between frames that did (damaged data);
+        reading went on after them.
     """
 
     frames: int = 0
     end_time: float = 0.0
+    undecodable: list[int] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,7 +132,8 @@ class FrameSource:
             for image_path in self._images:
                 yield read_image(image_path)
             return
-        yield from capture_frames(cv2.VideoCapture(str(self.path)))
+        for frame in self.timed():
+            yield frame.image
 
     @property
     def timing_fps(self) -> float:
@@ -139,8 +148,10 @@ class FrameSource:
         a variable-frame-rate video (phones, recorders that drop frames) keep their real
         spacing; where the container gives none that advances, the previous frame's plus
         ``1 / fps`` (:class:`_PresentationClock`). Image folders: ``index / fps``. Skipped frames
-        of a video are grabbed, not decoded into RGB, so a larger step is cheaper. A video that
-        stops decoding early (a truncated file) simply ends.
+        of a video are grabbed, not decoded into RGB, so a larger step is cheaper. A frame that
+        does not decode is passed over (its index stays its own, and ``read.undecodable`` lists
+        it); a video that stops decoding (a truncated file) ends after
+        :data:`FAILED_READS_AT_END` failed reads.
         """
         if step < 1:
             raise ValueError(f"step must be >= 1, got {step}")
@@ -154,12 +165,22 @@ class FrameSource:
             return
         capture = cv2.VideoCapture(str(self.path))
         try:
-            index, clock = 0, _PresentationClock(fps)
-            while True:
+            index, failed, clock = 0, 0, _PresentationClock(fps)
+            while failed < FAILED_READS_AT_END:
                 skipped = index % step
                 ok, bgr = (capture.grab(), None) if skipped else capture.read()
                 if not ok:
-                    break
+                    failed += 1
+                    continue
+                if failed:  # frames lost between two that decoded
+                    read.undecodable.extend(range(index, index + failed))
+                    index, failed = index + failed, 0
+                    skipped = index % step
+                    if not skipped and bgr is None:  # grabbed as one to skip
+                        ok, bgr = capture.retrieve()
+                        if not ok:
+                            failed = 1
+                            continue
                 seconds = clock.time_of(capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
                 read.frames, read.end_time = index + 1, seconds
                 if not skipped:

@@ -91,7 +91,7 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         return store.report_progress(job, pid, frames_read, fps, new)
 
     try:
-        options = JobOptions.model_validate(job.options)
+        options = JobOptions.from_stored(job.options)
         result = analyze(
             job.video_path,
             options,

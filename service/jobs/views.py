@@ -53,7 +53,7 @@ def job_status(record: JobRecord) -> JobStatus:
         warnings=record.warnings,
         attempts=record.attempts,
         video_filename=record.video_filename,
-        options=JobOptions.model_validate(record.options),
+        options=JobOptions.from_stored(record.options),
         links=JobLinks(status=status_url(record.id), events=events_url(record.id), results=results),
     )
 

@@ -81,6 +81,11 @@ def _session(args: argparse.Namespace, command: str) -> tuple[zenoh.Session, Str
 _STDERR = threading.Lock()
 
 REACH_SECONDS = 1.0
+
+DEFAULT_JPEG_QUALITY = 90
+DEFAULT_CAMERA_TIMEOUT = 5.0
+"""``vtrack publish``'s defaults (its flags default to None: given or not tells which
+options apply to the source, so one that would do nothing is refused)."""
 """How long a tool waits for its session to reach the service before it says nothing answers
 (on loopback and LANs a reachable hub answers while the session opens)."""
 
@@ -120,17 +125,26 @@ def _publish(args: argparse.Namespace) -> int:
     from tracking.detection import MotDetections
 
     camera = is_stream_url(args.source)
+    # an option that would do nothing here is refused, not ignored
+    problem = None
     if camera and (args.fps or args.loop):
-        print(
-            "vtrack publish: --fps and --loop are for files: a network camera sends at its own "
-            "rate (the tracker skips what it cannot follow) and is connected to again when it "
-            "drops",
-            file=sys.stderr,
+        problem = (
+            "--fps and --loop are for files: a network camera sends at its own rate (the "
+            "tracker skips what it cannot follow) and is connected to again when it drops"
         )
+    elif not camera and (args.timeout is not None or args.input_option):
+        problem = "--timeout and --input-option are for network cameras (rtsp://...)"
+    elif args.quality is not None and (args.raw or args.h264):
+        problem = "--quality is the JPEG quality: not with --raw or --h264"
+    elif args.detections_scale is not None and args.detections is None:
+        problem = "--detections-scale scales the boxes of --detections, which is not given"
+    if problem:
+        print(f"vtrack publish: {problem}", file=sys.stderr)
         return 2
     try:
         if camera:
-            settings = CameraSettings(read_timeout=args.timeout, options=dict(args.input_option))
+            timeout = DEFAULT_CAMERA_TIMEOUT if args.timeout is None else args.timeout
+            settings = CameraSettings(read_timeout=timeout, options=dict(args.input_option))
             source = NetworkCamera(
                 args.source,
                 settings,
@@ -173,9 +187,9 @@ def _publish(args: argparse.Namespace) -> int:
                 frames,
                 rate,
                 payload="raw" if args.raw else "h264" if args.h264 else "jpeg",
-                quality=args.quality,
+                quality=DEFAULT_JPEG_QUALITY if args.quality is None else args.quality,
                 detections=detections,
-                detections_scale=args.detections_scale,
+                detections_scale=args.detections_scale or 1.0,
                 first_sequence=first,
                 wait_for_subscriber=args.wait if first == 0 else 0.0,
                 limit=None if args.limit is None else args.limit - first,
@@ -279,6 +293,8 @@ def _subscribe(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        with lock:  # a message still arriving must not write to the closed file
+            done.set()
         session.close()
         if record is not None:
             record.close()
@@ -408,9 +424,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     publish.add_argument(
         "--timeout",
         type=positive,
-        default=5.0,
         help="network camera: seconds without data before it counts as lost and is connected "
-        "to again (default 5)",
+        f"to again (default {DEFAULT_CAMERA_TIMEOUT:g})",
     )
     publish.add_argument(
         "--input-option",
@@ -422,7 +437,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "RTSP uses TCP by default)",
     )
     publish.add_argument(
-        "--quality", type=_number(int, 1, 100), default=90, help="JPEG quality (default 90)"
+        "--quality",
+        type=_number(int, 1, 100),
+        help=f"JPEG quality (default {DEFAULT_JPEG_QUALITY})",
     )
     publish.add_argument(
         "--detections",
@@ -432,9 +449,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     publish.add_argument(
         "--detections-scale",
         type=positive,
-        default=1.0,
-        help="multiply the detections' boxes by this (e.g. 0.625: PETS 768x576 boxes on the "
-        "480x360 video)",
+        help="multiply the detections' boxes by this (default 1; e.g. 0.625: PETS 768x576 "
+        "boxes on the 480x360 video)",
     )
     publish.set_defaults(handler=_publish)
 

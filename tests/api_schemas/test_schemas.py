@@ -52,6 +52,8 @@ def test_default_options_and_their_schema_agree():
         ({"frame_step": 0}, "greater than or equal to 1"),  # no frame would be tracked
         ({"formats": []}, "at least 1 item"),  # nothing to write
         ({"formats": ["json", "json"]}, "must not repeat"),  # a format twice
+        # images of an mcap not written, which was ignored
+        ({"formats": ["json"], "mcap_images": "jpeg"}, "only with the mcap format"),
         ({"mode": "single_target"}, "needs first_box"),  # single target without its box
         ({"first_box": {"x": 1, "y": 1, "w": 5, "h": 5}}, "only for mode 'single_target'"),
         # an option of the other mode, which was ignored

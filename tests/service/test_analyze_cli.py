@@ -7,6 +7,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,8 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
+from service.frames import open_frames
+from service.testing import wait_for
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, cut_video, schema_for, write_gray
 from tests.service.test_cli import vtrack_interrupted
@@ -273,6 +276,101 @@ def test_ctrl_c_ends_analyze_with_one_line_and_no_partial_results(shared_data, t
     assert status == 130 and "Traceback" not in stderr, stderr
     assert re.search(r"\nvtrack: interrupted after [1-9]\d* frames; nothing written\n$", stderr)
     assert not out.exists()  # the folder this run made is gone with the partial files
+
+
+@pytest.mark.slow
+def test_sigterm_ends_analyze_as_ctrl_c_does(shared_data, tmp_path):
+    # kill, timeout, systemd and docker stop send SIGTERM; before, the run died at once and
+    # left out/.vtrack-partial/ with half-written files, saying nothing
+    out = tmp_path / "out"
+    status, stderr = vtrack_interrupted(
+        "analyze", shared_data / PETS_VIDEO, "--out-dir", out, cwd=REPO_ROOT, stop=signal.SIGTERM
+    )
+    assert status == 128 + signal.SIGTERM and "Traceback" not in stderr, stderr
+    assert re.search(
+        r"\nvtrack: stopped by SIGTERM after [1-9]\d* frames; nothing written\n$", stderr
+    )
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_two_runs_into_one_folder_do_not_mix_their_results(shared_data, tmp_path):
+    # before: both failed on each other's moved files, leaving a mix of their results
+    out = tmp_path / "out"
+    first = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "service.cli",
+            "analyze",
+            shared_data / PETS_VIDEO,
+            "--out-dir",
+            out,
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        cwd=REPO_ROOT,
+    )
+    try:
+        wait_for(lambda: (out / ".vtrack-partial").exists(), 60, "the first run's scratch")
+        second = vtrack("analyze", shared_data / PETS_VIDEO, "--out-dir", out, "--quiet")
+        assert second.returncode == 2
+        assert second.stderr == (
+            f"vtrack: another vtrack analyze is writing into {out}: wait for it to end or give "
+            "another --out-dir\n"
+        )
+        assert first.poll() is None  # undisturbed
+    finally:
+        first.kill()
+        first.wait()
+
+
+@pytest.fixture(scope="module")
+def damaged(shared_data, tmp_path_factory):
+    """30 frames of PETS09-S2L1 (an MJPG AVI) with frames 10 and 20 made undecodable: their
+    JPEG's start-of-frame marker says arithmetic coding, which FFmpeg's decoder refuses."""
+    folder = tmp_path_factory.mktemp("damaged")
+    data = bytearray(cut_video(shared_data / PETS_VIDEO, folder / "whole.avi", 30).read_bytes())
+    starts = [m.start() for m in re.finditer(rb"\xff\xd8\xff", data)]
+    for frame in (10, 20):
+        marker = data.index(b"\xff\xc0", starts[frame])
+        data[marker + 1] = 0xC9
+    path = folder / "damaged.avi"
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.slow
+def test_analyze_passes_over_damaged_frames_and_goes_on(damaged, tmp_path):
+    # before: the video "ended" at frame 10, and the rest of it was not tracked
+    out = tmp_path / "out"
+    result = vtrack("analyze", damaged, "--out-dir", out, "--format", "json,mot", "--quiet")
+    assert result.returncode == 0, result.stderr
+    frames = cv2.VideoCapture(str(damaged)).get(cv2.CAP_PROP_FRAME_COUNT)
+    assert result.stderr == (
+        "vtrack: warning: 2 frames (10, 20) were damaged and did not decode (frame_index "
+        "counting from 0): they have no tracks, and tracking went on with the frames after "
+        "them\n"
+    )  # and no line of FFmpeg's own ([mjpeg @ 0x...] ...)
+    tracked = {
+        point["frame_index"]
+        for track in json.loads((out / "trajectories.json").read_text())["tracks"]
+        for point in track["frames"]
+    }
+    assert max(tracked) == frames - 1 and not tracked & {10, 20}
+    mot_frames = {int(line.split(",")[0]) for line in (out / "tracks_mot.txt").read_text().split()}
+    assert max(mot_frames) == frames and not mot_frames & {11, 21}  # MOT counts from 1
+    assert len(list(open_frames(damaged))) == frames - 2  # as vtrack publish reads a file
+
+
+def test_track_numbers_rows_by_the_video_frame_and_writes_json_to_a_json_file(damaged, tmp_path):
+    out = tmp_path / "boxes.json"
+    result = vtrack("track", damaged, "--box", "150,130,28,65", "--out", out, "--quiet")
+    assert result.returncode == 0, result.stderr
+    rows = [json.loads(line) for line in out.read_text().splitlines()]  # before: CSV
+    numbers = [row["frame"] for row in rows]
+    assert 11 not in numbers and 21 not in numbers and numbers[:3] == [1, 2, 3]
+    assert numbers[-1] == cv2.VideoCapture(str(damaged)).get(cv2.CAP_PROP_FRAME_COUNT)
 
 
 @pytest.fixture(scope="module")

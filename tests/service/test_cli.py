@@ -32,14 +32,16 @@ def vtrack(*args, check=False):
 PROGRESS = re.compile(rb"\| *[1-9]\d*/\d+ \[")
 
 
-def vtrack_interrupted(*args, cwd=None) -> tuple[int, str]:
-    """Run ``vtrack ARGS``, press Ctrl-C (SIGINT) once its progress bar shows tracked frames,
-    and return its exit status and standard error."""
+def vtrack_interrupted(*args, cwd=None, stop=signal.SIGINT) -> tuple[int, str]:
+    """Run ``vtrack ARGS``, press Ctrl-C (SIGINT; or send ``stop``) once its progress bar shows
+    tracked frames, and return its exit status and standard error."""
     process = subprocess.Popen(
         [sys.executable, "-m", "service.cli", *map(str, args)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         cwd=cwd,
+        # the bar as often as on a terminal (into a pipe, every 30 s)
+        env={**os.environ, "TQDM_MININTERVAL": "0.1"},
         # SIGINT as in a terminal, also where the tests run as a background job (ignoring it)
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
@@ -59,7 +61,7 @@ def vtrack_interrupted(*args, cwd=None) -> tuple[int, str]:
             interval=0.05,
         )
         assert process.poll() is None, stderr.decode()  # still running when interrupted
-        process.send_signal(signal.SIGINT)
+        process.send_signal(stop)
         status = process.wait(timeout=60)
     finally:
         if process.poll() is None:

@@ -116,3 +116,17 @@ def test_a_failed_job_records_its_duration_in_the_histogram(store):
     counters = store.counters()
     assert counters["jobs_failed"] == 1 and counters["processing_count"] == 1
     assert counters["processing_le_1"] == 1
+
+
+def test_a_job_accepted_before_a_new_refusal_still_shows_as_it_was(store):
+    # JPEG images for an mcap that is not written: accepted (and ignored) by earlier versions,
+    # refused for new jobs now; the stored job must still list rather than fail every listing.
+    from api_schemas.jobs import JobOptions
+    from service.jobs.views import job_status
+
+    stored = {"formats": ["json"], "mcap_images": "jpeg"}
+    with pytest.raises(ValueError, match="only with the mcap format"):
+        JobOptions.model_validate(stored)
+    store.create("old", stored, store.path.parent / "v", store.path.parent)
+    status = job_status(store.get("old"))
+    assert status.options.mcap_images == "jpeg" and status.state == JobState.queued

@@ -9,6 +9,7 @@ import re
 import signal
 import subprocess
 import threading
+import time
 from collections.abc import Iterator
 from itertools import cycle
 
@@ -268,3 +269,57 @@ def test_a_tool_pointed_where_nothing_answers_says_so(shared_data, command):
         ran.stderr
     ), ran.stderr
     assert "Traceback" not in ran.stderr
+
+
+def test_subscribe_stopped_while_messages_pour_in_ends_cleanly(server, session, tmp_path):
+    # before: Ctrl-C closed the --output file while Zenoh's callbacks still wrote to it, and
+    # each printed "callback error" and a ValueError traceback (I/O on a closed file). Here,
+    # as with a reader that lags, the callbacks wait on a full stdout when Ctrl-C comes.
+    keys = StreamKeys("vtrack", "flood")
+    out = tmp_path / "flood.jsonl"
+    stop = threading.Event()
+
+    def flood() -> None:
+        publisher = session.declare_publisher(keys.tracks)
+        sequence = 0
+        while not stop.is_set():
+            message = StreamTracksMessage(
+                frame_index=sequence,
+                timestamp=float(sequence),
+                tracks=[],
+                camera="flood",
+                sequence=sequence,
+                latency=0.0,
+                frames_skipped=0,
+                detections="service",
+            )
+            publisher.put(message.model_dump_json())
+            sequence += 1
+        publisher.undeclare()
+
+    command = [*VTRACK, "subscribe", "--camera", "flood", "--json", "--output", str(out)]
+    tool = subprocess.Popen(
+        [*command, *connect(server)],
+        cwd=REPO_ROOT,
+        stdout=subprocess.PIPE,  # not read until Ctrl-C: it fills up
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    said = OutputLines(tool)
+    thread = threading.Thread(target=flood, daemon=True)
+    try:
+        wait_for(lambda: said.has("following"), 30, "the subscriber to follow")
+        thread.start()
+        wait_for(lambda: out.exists() and out.stat().st_size > 30_000, 30, "messages")
+        time.sleep(1.0)  # the pipe is full by now
+        tool.send_signal(signal.SIGINT)
+        threading.Thread(target=tool.stdout.read, daemon=True).start()  # the reader catches up
+        assert tool.wait(timeout=30) == 0
+    finally:
+        stop.set()
+        thread.join(10)
+        if tool.poll() is None:
+            tool.kill()
+    assert not [line for line in said.lines if "Traceback" in line or "error" in line]
+    lines = out.read_text().splitlines()
+    assert all(StreamTracksMessage.model_validate_json(line) for line in lines)

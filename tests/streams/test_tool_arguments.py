@@ -24,6 +24,15 @@ from tests.conftest import REPO_ROOT
         (["publish", "v.avi", "--camera", "c", "--wait", "-1"], "--wait: must be at least 0"),
         (["publish", "v.avi", "--camera", "c", "--detections-scale", "nan"], "greater than 0"),
         (["publish", "v.avi", "--camera", "c", "--raw", "--h264"], "not allowed with argument"),
+        # options that would do nothing for this source: refused, where they were ignored
+        (["publish", "v.avi", "--camera", "c", "--timeout", "3"], "are for network cameras"),
+        (["publish", "v.avi", "--camera", "c", "--input-option", "a=b"], "for network cameras"),
+        (["publish", "v.avi", "--camera", "c", "--h264", "--quality", "50"], "not with --raw"),
+        (["publish", "v.avi", "--camera", "c", "--raw", "--quality", "50"], "not with --raw"),
+        (
+            ["publish", "v.avi", "--camera", "c", "--detections-scale", "0.5"],
+            "--detections-scale scales the boxes of --detections, which is not given",
+        ),
         (["subscribe", "--camera", "c", "--count", "0"], "--count: must be at least 1"),
         (["subscribe", "--camera", "c", "--duration", "-1"], "--duration: must be greater"),
     ],
