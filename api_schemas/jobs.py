@@ -237,9 +237,9 @@ class JobOptions(BaseModel):
     @field_validator("mcap_images")
     @classmethod
     def _with_the_mcap(cls, value: str, info: ValidationInfo) -> str:
-        formats = info.data.get("formats")
         if _stored(info):
             return value
+        formats = info.data.get("formats")
         if value != "h264" and formats is not None and OutputFormat.mcap not in formats:
             raise ValueError("only with the mcap format, which formats leaves out")
         return value

@@ -37,6 +37,11 @@ INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
 
 
+CLOSED_OUTPUT = 141
+"""Exit status when the reader of our standard output went away (``vtrack track ... | head``):
+128 + SIGPIPE, what the shell reports for ``yes | head``."""
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM (``kill``, ``timeout``, systemd, ``docker stop``), raised where the program is,
     as Ctrl-C raises KeyboardInterrupt: a run stops the same way and cleans up after itself."""
@@ -51,11 +56,6 @@ def _stopped(error: KeyboardInterrupt) -> tuple[str, int]:
     if isinstance(error, Terminated):
         return "stopped by SIGTERM", 128 + signal.SIGTERM
     return "interrupted", INTERRUPTED
-
-
-CLOSED_OUTPUT = 141
-"""Exit status when the reader of our standard output went away (``vtrack track ... | head``):
-128 + SIGPIPE, what the shell reports for ``yes | head``."""
 
 
 def _parse_box(text: str) -> Box:

@@ -8,6 +8,7 @@ business: a single object from a first box (thesis Part I), or every person in v
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -54,7 +55,9 @@ class SingleTargetPipeline:
     :class:`CorrelationConfig` or a preset's name (:data:`tracking.correlation.PRESETS`).
     """
 
-    def __init__(self, first_box: Box, config: CorrelationConfig | str | None = None) -> None:
+    def __init__(
+        self, first_box: Box | Sequence[float], config: CorrelationConfig | str | None = None
+    ) -> None:
         self._tracker = CorrelationTracker(config)
         self._first_box = as_box(first_box)
         self._index = 0
