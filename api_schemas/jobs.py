@@ -206,6 +206,23 @@ class JobOptions(BaseModel):
         description="Track every frame_step-th frame (1: all). The tracker works in seconds, "
         "so it follows people across skipped frames; outputs hold the tracked frames only.",
     )
+    start: float = Field(
+        strict=True,
+        default=0,
+        ge=0,
+        description="Seconds into the video where tracking begins: the first frame at or after "
+        "this time is the first tracked (in mode 'single_target', the frame first_box is drawn "
+        "on). Frames before it are read, not tracked. Results keep the video's own times and "
+        "frame numbers (json timestamps and frame_index, mot frame numbers, mcap log times); "
+        "the annotated mp4 starts at 0.",
+    )
+    end: float | None = Field(
+        strict=True,
+        default=None,
+        gt=0,
+        description="Seconds into the video where tracking stops: frames at or after this time "
+        "are not read. None: to the video's end.",
+    )
     fill_gaps: float = Field(
         strict=True,
         default=0,
@@ -257,6 +274,8 @@ class JobOptions(BaseModel):
             raise ValueError("mode 'single_target' needs first_box: the object's first box")
         if len(set(self.formats)) != len(self.formats):
             raise ValueError("formats must not repeat a format")
+        if self.end is not None and self.end <= self.start:
+            raise ValueError(f"end ({self.end:g} s) must come after start ({self.start:g} s)")
         return self
 
 

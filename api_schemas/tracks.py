@@ -123,9 +123,19 @@ class VideoInfo(BaseModel):
         ge=0, description="Frame count the container declares; 0 when it declares none."
     )
     frames_read: int = Field(
-        ge=0, description="Frames that decoded, skipped ones included (fewer when truncated)."
+        ge=0,
+        description="Frames that decoded up to end, skipped ones and those before start "
+        "included (fewer when truncated).",
     )
     frame_step: int = Field(ge=1, description="Every frame_step-th frame was tracked.")
+    start: float = Field(
+        default=0, ge=0, description="Seconds into the video where tracking began (options.start)."
+    )
+    end: float | None = Field(
+        default=None,
+        description="Seconds into the video where tracking stopped (options.end); None: at the "
+        "video's end.",
+    )
     pixel_aspect_ratio: float = Field(
         default=1.0,
         gt=0,

@@ -127,13 +127,21 @@ def enlargement_problem(upscale: float | None, frame_size: tuple[int, int]) -> s
 
 
 def check_options(
-    options: JobOptions, resources: PipelineResources, frame_size: tuple[int, int] | None = None
+    options: JobOptions,
+    resources: PipelineResources,
+    frame_size: tuple[int, int] | None = None,
+    length: float | None = None,
 ) -> None:
     """Raise :class:`OptionsError` for options that could not run; cheap (loads no model).
 
     ``frame_size`` is ``(width, height)`` of the video, to check a single target's first box
-    and how large ``detector.upscale`` makes the frames.
+    and how large ``detector.upscale`` makes the frames; ``length`` its seconds
+    (:attr:`FrameSource.length`), to check that ``start`` falls within it.
     """
+    if length is not None and options.start > 0 and options.start >= length:
+        raise OptionsError(
+            f"start {options.start:g} s is not within the video, which lasts {length:.2f} s"
+        )
     if options.mode == "single_target":
         if options.preset not in PRESETS:
             raise OptionsError(
@@ -203,7 +211,7 @@ def analyze(
     resources = resources or PipelineResources()
     started = time.perf_counter()
     source = open_frames(video)
-    check_options(options, resources, (source.width, source.height))
+    check_options(options, resources, (source.width, source.height), source.length)
     pipeline = build_pipeline(options, resources)
     log.debug(
         "job %s: %dx%d video, %.3f frames per second, %s frames announced; options %s",
@@ -231,10 +239,21 @@ def analyze(
     )
     writers = open_writers(list(options.formats), scratch, info)
     filler = GapFiller(options.fill_gaps) if options.fill_gaps > 0 else None
-    processed, read = 0, ReadProgress()
+    processed, read, last_report = 0, ReadProgress(), time.perf_counter()
+
+    def report() -> None:  # after every frame read, those before options.start too
+        nonlocal last_report
+        now = time.perf_counter()
+        if progress is None or now - last_report < progress_interval:
+            return
+        last_report = now
+        log.debug("job %s: %d frames read, %d tracked", job_id, read.frames, processed)
+        if not progress(read.frames, processed, processed / max(now - started, 1e-9)):
+            raise AnalysisStopped(f"stopped after {read.frames} frames")
+
+    read.on_read = report
     try:
-        last_report = time.perf_counter()
-        for frame in source.timed(options.frame_step, read):
+        for frame in source.timed(options.frame_step, read, options.start, options.end):
             tracks = pipeline.process(frame.image, frame.timestamp)
             if filler is not None:
                 # numbered by video frame, as the messages are
@@ -246,12 +265,14 @@ def analyze(
             for writer in writers.values():
                 writer.write(frame, message)
             processed += 1
-            now = time.perf_counter()
-            if progress is not None and now - last_report >= progress_interval:
-                last_report = now
-                log.debug("job %s: %d frames read, %d tracked", job_id, read.frames, processed)
-                if not progress(read.frames, processed, processed / max(now - started, 1e-9)):
-                    raise AnalysisStopped(f"stopped after {read.frames} frames")
+        if processed == 0:  # the video is shorter than it says, or the range has no frame
+            raise OptionsError(
+                f"no frame of the video lies between start {options.start:g} s and end "
+                f"{options.end:g} s"
+                if read.reached_end
+                else f"no frame of the video is at or after start {options.start:g} s: its "
+                f"last frame is at {read.end_time:.2f} s"
+            )
         summary = _summary(source, options, read, processed, filename)
         for writer in writers.values():
             writer.close(summary)
@@ -308,6 +329,8 @@ def _summary(
         frames_announced=source.frame_count if source.count_stated else 0,
         frames_read=frames_read,
         frame_step=options.frame_step,
+        start=options.start,
+        end=options.end,
         pixel_aspect_ratio=source.pixel_aspect,
     )
     return RunSummary(video=video, frames_processed=processed, warnings=warnings)
@@ -341,6 +364,8 @@ def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
             "starts without a keyframe, as a clip cut from a longer recording does; tracking "
             "starts at its first keyframe, and frame numbers and times count from there"
         )
+    if read.reached_end:  # reading stopped at the end asked for, before the video's
+        return warnings
     if source.count_stated:
         frames = source.lead_frames + read.frames
         if not (source.frame_count and frames < source.frame_count):

@@ -11,6 +11,7 @@ import errno
 import fcntl
 import importlib.metadata
 import json
+import math
 import os
 import re
 import shutil
@@ -23,7 +24,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
-from service.frames import FrameSourceError, ReadProgress, open_frames
+from service.frames import FrameSource, ReadProgress, open_frames
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
@@ -66,14 +67,24 @@ def _parse_box(text: str) -> Box:
     return Box(x, y, w, h)
 
 
-def _first_box_from_groundtruth(folder: Path) -> Box | None:
-    """The first line of an OTB ``groundtruth_rect.txt`` (1-based pixels), if there is one."""
-    path = folder / "groundtruth_rect.txt"
-    if not path.is_file():
-        return None
-    first = path.read_text().splitlines()[0].replace("\t", ",").replace(" ", ",")
-    x, y, w, h = (float(v) for v in first.split(",") if v)
-    return Box(x - 1, y - 1, w, h)
+def _parse_time(text: str) -> float:
+    """``--start``/``--end``: seconds (``90``, ``12.5``) or a clock time (``1:30``,
+    ``1:02:03.5``)."""
+    fields = text.strip().split(":")
+    try:
+        if len(fields) > 3 or not all(f.isdigit() for f in fields[:-1]):
+            raise ValueError
+        seconds = float(fields[-1])
+        if not (0 <= seconds < (60 if len(fields) > 1 else math.inf)):  # NaN, inf, -1, 1:75
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"a time is seconds (90, 12.5) or [H:]M:S (1:30, 1:02:03.5), got {text!r}"
+        ) from None
+    minutes = 0
+    for number in fields[:-1]:
+        minutes = minutes * 60 + int(number)
+    return minutes * 60 + seconds
 
 
 def _model_file(given: Path | None, flag: str, variable: str) -> tuple[Path | None, str]:
@@ -153,18 +164,25 @@ def _progress_bar(total: int, quiet: bool, frames: Iterable | None = None) -> tq
 
 def _track(args: argparse.Namespace) -> int:
     _warn_unknown_variables()
+    start = args.start or 0.0
+    if args.end is not None and args.end <= start:
+        print(
+            f"vtrack: --end ({args.end:g} s) must come after --start ({start:g} s)", file=sys.stderr
+        )
+        return 2
     try:
         source = open_frames(args.source)
-    except FrameSourceError as error:
+        length = source.length
+        if length is not None and start > 0 and start >= length:
+            raise ValueError(f"--start {start:g} s is not within the video ({length:.2f} s)")
+        box = args.box or _truth_box(source, start)
+    except ValueError as error:  # FrameSourceError and SequenceError are ValueErrors
         print(f"vtrack: {error}", file=sys.stderr)
-        return 2
-    box = args.box or (_first_box_from_groundtruth(source.path) if source.path.is_dir() else None)
-    if box is None:
-        print("vtrack: give the first box with --box x,y,w,h", file=sys.stderr)
         return 2
     # before any output: a bad box is a usage error, not a run that stops at its first frame
     if problem := box_problem(box, (source.height, source.width)):
-        where = "--box" if args.box else f"the first box of {source.path / 'groundtruth_rect.txt'}"
+        frame = source.image_range(start).start + 1
+        where = "--box" if args.box else f"the ground truth's box of frame {frame}"
         print(f"vtrack: {where} {problem}", file=sys.stderr)
         return 2
     config = PRESETS[args.preset]
@@ -183,28 +201,38 @@ def _track(args: argparse.Namespace) -> int:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     read, written = ReadProgress(), 0
+    bar = _progress_bar(source.frames_until(args.end), args.quiet)
+    read.on_read = lambda: bar.update(read.frames - bar.n)
     try:
         if fmt == "csv":
             print("frame,x,y,w,h,peak,psr", file=out_file)
-        frames = source.timed(1, read)
-        with _progress_bar(source.frame_count, args.quiet, frames) as bar:
-            for frame in bar:
-                number = frame.index + 1  # the video's own: damaged frames leave their gap
-                if written == 0:
-                    tracker.initialize(frame.image, box)
-                    row = _format_row(number, box, None, fmt)
-                else:
-                    output = tracker.update(frame.image)
-                    row = _format_row(number, output.box, output, fmt)
-                print(row, file=out_file)
-                written += 1
+        for frame in source.timed(1, read, start, args.end):
+            number = frame.index + 1  # the video's own: damaged frames leave their gap
+            if written == 0:
+                tracker.initialize(frame.image, box)
+                row = _format_row(number, box, None, fmt)
+            else:
+                output = tracker.update(frame.image)
+                row = _format_row(number, output.box, output, fmt)
+            print(row, file=out_file)
+            written += 1
+        if written == 0:
+            raise ValueError(
+                f"no frame lies between --start {start:g} s and --end {args.end:g} s"
+                if read.reached_end
+                else f"no frame is at or after --start {start:g} s: the last is at "
+                f"{read.end_time:.2f} s"
+            )
+        bar.close()
         if partial:
             out_file.close()
             os.replace(partial, args.out)
     except ValueError as error:
+        bar.close()
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as error:
+        bar.close()
         kept = "nothing written" if partial else f"the {written} rows printed are complete"
         what, status = _stopped(error)
         print(f"vtrack: {what} after {written} frames; {kept}", file=sys.stderr)
@@ -220,6 +248,26 @@ def _track(args: argparse.Namespace) -> int:
     if args.out and not args.quiet:
         print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)
     return 0
+
+
+def _truth_box(source: FrameSource, start: float) -> Box:
+    """The box of an OTB folder's ground truth on the first frame at ``start`` seconds.
+
+    Raises
+    ------
+    ValueError
+        The folder has no ground truth, or none for that frame, or it is not OTB's.
+    """
+    from tracking.evaluation.otb import parse_ground_truth
+
+    path = source.path / "groundtruth_rect.txt"
+    if not source.path.is_dir() or not path.is_file():
+        raise ValueError("give the first box with --box x,y,w,h")
+    truth = parse_ground_truth(path.read_text(), str(path))
+    index = source.image_range(start).start
+    if index >= len(truth):
+        raise ValueError(f"{path} has no box for frame {index + 1}: give the first box with --box")
+    return Box(*(float(v) for v in truth[index]))
 
 
 def _formats(text: str) -> list[str]:
@@ -255,6 +303,8 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
         ("mcap_images",): ("--mcap-images", args.mcap_images),
         ("frame_step",): ("--frame-step", args.frame_step),
         ("fill_gaps",): ("--fill-gaps", args.fill_gaps),
+        ("start",): ("--start", args.start),
+        ("end",): ("--end", args.end),
         ("mode",): ("--box", None if box is None else "single_target"),
         ("first_box",): (
             "--box",
@@ -366,14 +416,15 @@ def _analyze(args: argparse.Namespace) -> int:
             b = options.first_box
             if problem := box_problem(Box(b.x, b.y, b.w, b.h), (source.height, source.width)):
                 raise ValueError(f"{given.get(('first_box',), '--options: first_box')} {problem}")
-        check_options(options, resources, (source.width, source.height))  # before the bar
+        # before the bar
+        check_options(options, resources, (source.width, source.height), source.length)
         created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it
         _lock_out_dir(args.out_dir)
     except (OSError, ValueError) as error:  # FrameSourceError is a ValueError
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
-    bar = _progress_bar(source.frame_count, args.quiet)
+    bar = _progress_bar(source.frames_until(options.end), args.quiet)
     frames_read = 0
 
     def progress(read: int, frames_processed: int, fps: float | None) -> bool:
@@ -514,6 +565,22 @@ QUIET_HELP = "no progress bar or closing summary (warnings and errors still prin
 W2C_HELP = "van de Weijer w2c.mat Color Names table (VTRACK_COLOR_NAMES; default: embedded)"
 
 
+def _add_range_arguments(command: argparse.ArgumentParser, note: str) -> None:
+    command.add_argument(
+        "--start",
+        type=_parse_time,
+        metavar="TIME",
+        help=f"begin at this time of the video, seconds or [H:]M:S (default 0; {note}; the "
+        "frames before it are read, not tracked)",
+    )
+    command.add_argument(
+        "--end",
+        type=_parse_time,
+        metavar="TIME",
+        help="stop at this time of the video, seconds or [H:]M:S (default: its end)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -547,6 +614,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="csv rows or JSON lines (default: json for a --out FILE ending .json or .jsonl, "
         "csv otherwise)",
     )
+    _add_range_arguments(track, "the first box is drawn on the first frame at or after it")
     track.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     track.set_defaults(handler=_track)
 
@@ -593,6 +661,9 @@ def build_parser() -> argparse.ArgumentParser:
         "benchmarks)",
     )
     analyze.add_argument("--frame-step", type=int, help="track every N-th frame (default 1)")
+    _add_range_arguments(
+        analyze, "results keep the video's times and frame numbers, the MP4 starts at 0"
+    )
     analyze.add_argument(
         "--fill-gaps",
         type=float,

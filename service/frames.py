@@ -6,7 +6,7 @@ import contextlib
 import math
 import re
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -77,11 +77,19 @@ class ReadProgress:
     undecodable:
         Indices of the frames that did not decode between frames that did (damaged data);
         reading went on after them.
+    reached_end:
+        Reading stopped at the ``end`` it was given, before the video's own end.
+    on_read:
+        Called after each frame read, skipped ones too: progress and cancellation keep going
+        through the frames before a ``start``, which are read without being yielded. What it
+        raises ends the reading.
     """
 
     frames: int = 0
     end_time: float = 0.0
     undecodable: list[int] = field(default_factory=list)
+    reached_end: bool = False
+    on_read: Callable[[], None] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,50 +148,91 @@ class FrameSource:
         """The frame rate that turns frame indices into timestamps."""
         return self.fps if self.fps and self.fps > 0 else DEFAULT_FPS
 
-    def timed(self, step: int = 1, read: ReadProgress | None = None) -> Iterator[TimedFrame]:
-        """Every ``step``-th frame with its index and timestamp; ``read``, when given, follows
-        every frame read, skipped ones included (a video's length is known only at its end).
+    @property
+    def length(self) -> float | None:
+        """Seconds from the first frame read to the video's end (its duration, else its frame
+        count over its rate), as frame timestamps count them; ``None`` when neither is known."""
+        if self.duration is not None:
+            return max(self.duration - self.lead_seconds, 0.0)
+        if self.frame_count and self.count_stated:
+            return (self.frame_count - self.lead_frames) / self.timing_fps
+        return None
+
+    def frames_until(self, end: float | None) -> int:
+        """About how many frames :meth:`timed` reads to reach ``end`` seconds (all without
+        one): a progress bar's total; 0 when the video's count is not known."""
+        if end is None or not self.frame_count:
+            return self.frame_count
+        return min(self.frame_count, math.ceil(end * self.timing_fps))
+
+    def image_range(self, start: float = 0.0, end: float | None = None) -> range:
+        """The indices of an image folder's frames from ``start`` seconds until ``end``
+        (``range(0)`` for a video, whose frames' times are known only as they are read)."""
+        times = np.arange(len(self._images)) / self.timing_fps
+        first = int(np.searchsorted(times, start))  # the first at or after start
+        stop = len(times) if end is None else int(np.searchsorted(times, end))
+        return range(first, max(first, stop))
+
+    def timed(
+        self,
+        step: int = 1,
+        read: ReadProgress | None = None,
+        start: float = 0.0,
+        end: float | None = None,
+    ) -> Iterator[TimedFrame]:
+        """Every ``step``-th frame from ``start`` seconds until ``end``, with its index and
+        timestamp; ``read``, when given, follows every frame read, skipped ones included (a
+        video's length is known only at its end).
 
         A video frame's timestamp is its presentation time in the container, so the frames of
         a variable-frame-rate video (phones, recorders that drop frames) keep their real
         spacing; where the container gives none that advances, the previous frame's plus
-        ``1 / fps`` (:class:`_PresentationClock`). Image folders: ``index / fps``. Skipped frames
-        of a video are grabbed, not decoded into RGB, so a larger step is cheaper. A frame that
-        does not decode is passed over (its index stays its own, and ``read.undecodable`` lists
-        it); a video that stops decoding (a truncated file) ends after
-        :data:`FAILED_READS_AT_END` failed reads.
+        ``1 / fps`` (:class:`_PresentationClock`). Image folders: ``index / fps``. The first
+        frame yielded is the first at or after ``start``, and the step counts from it; frames
+        before it and skipped ones are grabbed, not decoded into RGB (OpenCV cannot seek a
+        video to the frame, so they are read); reading stops at the first frame at or after
+        ``end`` (``read.reached_end``). A frame that does not decode is passed over (its index
+        stays its own, and ``read.undecodable`` lists it); a video that stops decoding (a
+        truncated file) ends after :data:`FAILED_READS_AT_END` failed reads.
         """
         if step < 1:
             raise ValueError(f"step must be >= 1, got {step}")
         fps = self.timing_fps
         read = read if read is not None else ReadProgress()
         if self._images:
-            for index in range(0, len(self._images), step):
+            indices = self.image_range(start, end)
+            for index in indices[::step]:
                 read.frames, read.end_time = index + 1, index / fps
+                if read.on_read is not None:
+                    read.on_read()
                 yield TimedFrame(index, index / fps, read_image(self._images[index]))
-            read.frames, read.end_time = len(self._images), (len(self._images) - 1) / fps
+            read.frames, read.end_time = indices.stop, (indices.stop - 1) / fps
+            read.reached_end = indices.stop < len(self._images)
             return
         capture = cv2.VideoCapture(str(self.path))
         try:
-            index, failed, clock = 0, 0, _PresentationClock(fps)
+            index, failed, first, clock = 0, 0, None, _PresentationClock(fps)
             while failed < FAILED_READS_AT_END:
-                skipped = index % step
-                ok, bgr = (capture.grab(), None) if skipped else capture.read()
-                if not ok:
+                if not capture.grab():
                     failed += 1
                     continue
                 if failed:  # frames lost between two that decoded
                     read.undecodable.extend(range(index, index + failed))
                     index, failed = index + failed, 0
-                    skipped = index % step
-                    if not skipped and bgr is None:  # grabbed as one to skip
-                        ok, bgr = capture.retrieve()
-                        if not ok:
-                            failed = 1
-                            continue
                 seconds = clock.time_of(capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
+                if end is not None and seconds >= end:
+                    read.reached_end = True
+                    break
                 read.frames, read.end_time = index + 1, seconds
-                if not skipped:
+                if read.on_read is not None:
+                    read.on_read()
+                if seconds >= start and first is None:
+                    first = index
+                if first is not None and (index - first) % step == 0:
+                    ok, bgr = capture.retrieve()
+                    if not ok:
+                        failed = 1
+                        continue
                     yield TimedFrame(index, seconds, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
                 index += 1
         finally:

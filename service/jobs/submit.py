@@ -95,7 +95,8 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
         options = parse_options(upload.options)
         source = await run_in_threadpool(probe_video, upload.video_path, upload.size)
         try:
-            check_options(options, resources(settings), (source.width, source.height))
+            size = (source.width, source.height)
+            check_options(options, resources(settings), size, source.length)
         except OptionsError as error:
             raise HTTPException(422, str(error)) from None
         suffix = Path(upload.filename or "").suffix.lower()
@@ -113,7 +114,7 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             video_path=video_path,
             result_dir=settings.results_dir / job_id,
             video_filename=upload.filename,
-            frames_total=source.frame_count or None,
+            frames_total=source.frames_until(options.end) or None,
         )
     except sqlite3.OperationalError as error:
         video_path.unlink(missing_ok=True)

@@ -205,6 +205,10 @@ class McapWriter:
         }
         if summary.video.fps:
             info["fps"] = str(summary.video.fps)
+        if summary.video.start:
+            info["start"] = str(summary.video.start)
+        if summary.video.end is not None:
+            info["end"] = str(summary.video.end)
         if self._info.job_id:
             info["job_id"] = self._info.job_id
         self._writer.add_metadata("vtrack", info)

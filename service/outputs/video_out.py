@@ -159,12 +159,15 @@ class VideoWriter:
         self._size = (info.width, info.height)
         self._encoder = open_encoder(path, info.width, info.height, fps, info.pixel_aspect)
         self._drawer = TrackDrawer()
+        self._origin: float | None = None
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
         bgr = cv2.cvtColor(frame.image, cv2.COLOR_RGB2BGR)
         if (bgr.shape[1], bgr.shape[0]) != self._size:
             bgr = cv2.resize(bgr, self._size)
-        self._encoder.write(self._drawer.draw(bgr, message), frame.timestamp)
+        if self._origin is None:  # a job's start: the video is a clip, played from 0
+            self._origin = frame.timestamp
+        self._encoder.write(self._drawer.draw(bgr, message), frame.timestamp - self._origin)
 
     def write_filled(self, message: FrameTracksMessage) -> None:
         pass  # the frame is encoded already; the video shows frames as they were tracked

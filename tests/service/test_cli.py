@@ -127,6 +127,16 @@ def test_otb_folder_takes_its_first_ground_truth_box_and_prints_json(shared_data
     assert records[0]["psr"] is None and records[1]["psr"] > 0
 
 
+def _otb_folder_with_ground_truth(truth: bytes):
+    def make(folder):
+        (folder / "img").mkdir()
+        cv2.imwrite(str(folder / "img" / "0001.jpg"), np.zeros((40, 40, 3), np.uint8))
+        _write(folder / "groundtruth_rect.txt", truth)
+        return folder
+
+    return make
+
+
 @pytest.mark.parametrize(
     ("make_source", "extra", "message"),
     [
@@ -138,6 +148,8 @@ def test_otb_folder_takes_its_first_ground_truth_box_and_prints_json(shared_data
         ),
         (lambda d: d, ["--box", "1,1,5,5"], "no image files"),  # an empty folder
         (lambda d: _write(d / "clip.avi", b""), ["--box", "1,2,3"], "four numbers"),  # bad --box
+        # before: a ValueError traceback
+        (_otb_folder_with_ground_truth(b"12 34 56\n"), [], "line 1: expected 4 values x,y,w,h"),
     ],
 )
 def test_bad_input_exits_with_a_clear_message(tmp_path, make_source, extra, message):
