@@ -25,7 +25,7 @@ from service.frames import FrameSource, ReadProgress, open_frames
 from service.outputs import RESULT_FILES, RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
-from tracking.detection.base import Detector
+from tracking.detection.base import Detections, Detector
 from tracking.detection.dpm import DpmDetector
 from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
 from tracking.detection.factory import make_detector
@@ -185,7 +185,7 @@ def build_pipeline(options: JobOptions, resources: PipelineResources) -> FramePi
 
 
 def analyze(
-    video: str | os.PathLike[str],
+    video: str | os.PathLike[str] | FrameSource,
     options: JobOptions,
     scratch: Path,
     *,
@@ -194,8 +194,14 @@ def analyze(
     filename: str | None = None,
     progress: ProgressCallback | None = None,
     progress_interval: float = 0.5,
+    detections: Callable[[int], Detections] | None = None,
 ) -> AnalysisResult:
-    """Track ``video`` and write the requested results into ``scratch`` (emptied first).
+    """Track ``video`` (a path, or frames opened already) and write the requested results into
+    ``scratch`` (emptied first).
+
+    ``detections``, for people, gives the detections of each frame from its index (public
+    detections: :meth:`~tracking.detection.external.MotDetections.for_frame`); the options'
+    detector then finds nobody.
 
     Raises
     ------
@@ -210,9 +216,14 @@ def analyze(
     """
     resources = resources or PipelineResources()
     started = time.perf_counter()
-    source = open_frames(video)
+    source = video if isinstance(video, FrameSource) else open_frames(video)
     check_options(options, resources, (source.width, source.height), source.length)
-    pipeline = build_pipeline(options, resources)
+    if detections is None:
+        pipeline = build_pipeline(options, resources)
+    elif options.mode == "people":
+        pipeline = PeoplePipeline(None, people_config(options, resources))
+    else:
+        raise OptionsError("detections are for tracking people, not a single target")
     log.debug(
         "job %s: %dx%d video, %.3f frames per second, %s frames announced; options %s",
         job_id,
@@ -254,7 +265,8 @@ def analyze(
     read.on_read = report
     try:
         for frame in source.timed(options.frame_step, read, options.start, options.end):
-            tracks = pipeline.process(frame.image, frame.timestamp)
+            given = None if detections is None else detections(frame.index)
+            tracks = pipeline.process(frame.image, frame.timestamp, given)
             if filler is not None:
                 # numbered by video frame, as the messages are
                 for filled in filler.push(dataclasses.replace(tracks, frame_index=frame.index)):
@@ -299,7 +311,12 @@ def _summary(
 ) -> RunSummary:
     warnings = []
     frames_read = read.frames
-    if source.fps is None:
+    if source.fps is None and source.path.is_dir():
+        warnings.append(
+            f"the image folder states no frame rate (no seqinfo.ini): its frames are stamped "
+            f"{source.timing_fps:g} per second; give its rate with --fps"
+        )
+    elif source.fps is None:
         warnings.append(
             "the video states no usable frame rate; frames without a presentation time of their "
             f"own are stamped {source.timing_fps:g} per second"

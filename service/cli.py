@@ -27,12 +27,16 @@ from tqdm import tqdm
 from service.frames import FrameSource, ReadProgress, open_frames
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
+from service.streams.cli import number_type
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.output_paths import output_file, output_folder
 from tracking.types import Box, TrackerOutput, box_problem
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from api_schemas.jobs import JobOptions
+    from tracking.detection.base import Detections
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
@@ -65,6 +69,19 @@ def _parse_box(text: str) -> Box:
     except ValueError:
         raise argparse.ArgumentTypeError(f"a box is x,y,w,h (four numbers), got {text!r}") from None
     return Box(x, y, w, h)
+
+
+def _open_source(args: argparse.Namespace) -> FrameSource:
+    """The frames of ``args.source``, an image folder at ``--fps`` if given.
+
+    Raises
+    ------
+    ValueError
+        The source cannot be read (FrameSourceError), or ``--fps`` is given for a video.
+    """
+    if args.fps is not None and Path(args.source).is_file():
+        raise ValueError("--fps is for image folders: the frames of a video carry their own times")
+    return open_frames(args.source, fps=args.fps)
 
 
 def _parse_time(text: str) -> float:
@@ -171,7 +188,7 @@ def _track(args: argparse.Namespace) -> int:
         )
         return 2
     try:
-        source = open_frames(args.source)
+        source = _open_source(args)
         length = source.length
         if length is not None and start > 0 and start >= length:
             raise ValueError(f"--start {start:g} s is not within the video ({length:.2f} s)")
@@ -331,11 +348,70 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
     return raw, given
 
 
-def _tracked_with(options: JobOptions, dpm_model: Path | None) -> str:
+def _detections_conflict(args: argparse.Namespace, options: JobOptions) -> str | None:
+    """Why ``--detections`` or ``--detections-scale`` cannot go with the other arguments (an
+    option that would do nothing is refused, not ignored); ``None`` when they can."""
+    from api_schemas.jobs import DetectorOptions
+
+    if args.detections is None:
+        if args.detections_scale is not None:
+            return "--detections-scale scales the boxes of --detections, which is not given"
+        return None
+    if options.mode == "single_target":
+        return "--detections gives people to track, not with --box"
+    flags = {"--dpm-model": args.dpm_model, "--upscale": args.upscale}
+    idle = [flag for flag, value in flags.items() if value is not None]
+    if args.detection_interval is not None:
+        idle.append("--detection-interval")
+    elif options.tracker.full_detection_interval:
+        idle.append("--options: tracker.full_detection_interval")
+    if args.dpm_model is None and args.upscale is None and options.detector != DetectorOptions():
+        idle.append("--options: detector")
+    if idle:
+        return f"--detections replaces the detector: {', '.join(idle)} would do nothing beside it"
+    return None
+
+
+def _public_detections(
+    args: argparse.Namespace, source: FrameSource
+) -> Callable[[int], Detections] | None:
+    """The detections of ``--detections`` by frame index, scaled by ``--detections-scale``.
+
+    Raises
+    ------
+    ValueError
+        The file is not a MOTChallenge ``det.txt`` (the line), or its boxes reach far beyond
+        the frames (made on larger ones: ``--detections-scale`` is missing).
+    """
+    from tracking.detection.external import MotDetections
+
+    if args.detections is None:
+        return None
+    try:
+        table = MotDetections.from_file(args.detections)
+    except (OSError, ValueError) as error:  # MotFormatError names the line
+        raise ValueError(f"--detections: {error}") from None
+    scale = args.detections_scale or 1.0
+    if len(table.rows):
+        right, bottom = (table.rows[:, 2:4] + table.rows[:, 4:6]).max(axis=0) * scale
+        if right > 1.25 * source.width or bottom > 1.25 * source.height:
+            raise ValueError(
+                f"--detections: boxes reach x={right:.0f}, y={bottom:.0f}, far beyond the "
+                f"{source.width}x{source.height} frames: made on larger frames? give "
+                "--detections-scale, the frames' width over that of the frames they were made on"
+            )
+    if scale == 1.0:
+        return table.for_frame
+    return lambda index: table.for_frame(index).scaled(scale)
+
+
+def _tracked_with(options: JobOptions, dpm_model: Path | None, detections: Path | None) -> str:
     """What found and followed the tracks, for the closing line: the detector in particular,
     since a DPM set in VTRACK_DPM_MODEL is used only when the options ask for it."""
     if options.mode == "single_target":
         return f"the {options.preset} tracker"
+    if detections is not None:
+        return f"the detections of {detections}"
     if options.detector.name == "dpm" and dpm_model is not None:
         return f"the DPM {dpm_model.name}"
     return "the embedded detector (OpenCV's HOG people detector)"
@@ -401,6 +477,9 @@ def _analyze(args: argparse.Namespace) -> int:
             where = [f"--options: {'.'.join(loc)}"]
         print(f"vtrack: {': '.join([*where, message])}", file=sys.stderr)
         return 2
+    if problem := _detections_conflict(args, options):
+        print(f"vtrack: {problem}", file=sys.stderr)
+        return 2
     try:
         # VTRACK_DPM_MODEL is read only for a run that detects with it; --dpm-model always
         needs_dpm = options.mode == "people" and options.detector.name == "dpm"
@@ -411,7 +490,8 @@ def _analyze(args: argparse.Namespace) -> int:
                 "VTRACK_DPM_MODEL"
             )
         resources = PipelineResources(dpm_model=dpm_model, color_names=_color_names_file(args.w2c))
-        source = open_frames(args.source)
+        source = _open_source(args)
+        detections = _public_detections(args, source)
         if options.mode == "single_target" and options.first_box is not None:
             b = options.first_box
             if problem := box_problem(Box(b.x, b.y, b.w, b.h), (source.height, source.width)):
@@ -436,13 +516,14 @@ def _analyze(args: argparse.Namespace) -> int:
     scratch = args.out_dir / ".vtrack-partial"
     try:
         result = analyze(
-            args.source,
+            source,
             options,
             scratch,
             resources=resources,
             filename=Path(args.source).name,
             progress=progress,
             progress_interval=0.2,
+            detections=detections,
         )
         files = publish(result, args.out_dir)
         scratch.rmdir()
@@ -468,7 +549,7 @@ def _analyze(args: argparse.Namespace) -> int:
         rate = result.frames_processed / max(result.seconds, 1e-9)
         print(
             f"vtrack: tracked {result.frames_processed} frames in {result.seconds:.1f} s "
-            f"({rate:.1f} frames/s) with {_tracked_with(options, dpm_model)}",
+            f"({rate:.1f} frames/s) with {_tracked_with(options, dpm_model, args.detections)}",
             file=sys.stderr,
         )
     for fmt, path in files.items():
@@ -565,6 +646,16 @@ QUIET_HELP = "no progress bar or closing summary (warnings and errors still prin
 W2C_HELP = "van de Weijer w2c.mat Color Names table (VTRACK_COLOR_NAMES; default: embedded)"
 
 
+def _add_fps_argument(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--fps",
+        type=number_type(float, 0, above=True),
+        metavar="F",
+        help="frames per second of an image folder (default: its seqinfo.ini's, else 25); "
+        "a video's frames carry their own times",
+    )
+
+
 def _add_range_arguments(command: argparse.ArgumentParser, note: str) -> None:
     command.add_argument(
         "--start",
@@ -615,6 +706,7 @@ def build_parser() -> argparse.ArgumentParser:
         "csv otherwise)",
     )
     _add_range_arguments(track, "the first box is drawn on the first frame at or after it")
+    _add_fps_argument(track)
     track.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     track.set_defaults(handler=_track)
 
@@ -660,10 +752,25 @@ def build_parser() -> argparse.ArgumentParser:
         "(default 0: every frame in full; 0.2 tracked 25 fps video 1.3-2.6x as fast in our "
         "benchmarks)",
     )
+    analyze.add_argument(
+        "--detections",
+        type=Path,
+        metavar="FILE",
+        help="track the people of this MOTChallenge det.txt (public detections; rows by the "
+        "video's frame numbers, from 1) instead of detecting them",
+    )
+    analyze.add_argument(
+        "--detections-scale",
+        type=number_type(float, 0, above=True),
+        metavar="S",
+        help="multiply the boxes of --detections by this (default 1; e.g. 0.625: PETS 768x576 "
+        "boxes on the 480x360 video)",
+    )
     analyze.add_argument("--frame-step", type=int, help="track every N-th frame (default 1)")
     _add_range_arguments(
         analyze, "results keep the video's times and frame numbers, the MP4 starts at 0"
     )
+    _add_fps_argument(analyze)
     analyze.add_argument(
         "--fill-gaps",
         type=float,

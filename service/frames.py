@@ -288,25 +288,34 @@ def read_image(path: Path) -> np.ndarray:
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
-def open_frames(path: str | Path) -> FrameSource:
+def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
     """Open a video file, a folder of images, an OTB sequence folder (its ``img/``) or a
     MOTChallenge one (its ``img1/``, at the frame rate of its ``seqinfo.ini``).
+
+    ``fps`` is the frame rate of a folder's images (over its ``seqinfo.ini``'s): a video's
+    frames carry their own times.
 
     Raises
     ------
     FrameSourceError
-        If the path does not exist, holds no images, or is not a decodable video.
+        If the path does not exist, holds no images, or is not a decodable video, or ``fps``
+        is given for a video.
     """
     path = Path(path)
     if not path.exists():
         raise FrameSourceError(f"no such file or folder: {path}")
+    if fps is not None and not path.is_dir():
+        raise FrameSourceError(
+            f"a frame rate is for a folder of images; the frames of the video {path} carry "
+            "their own times"
+        )
     if path.is_dir():
         folder = next((path / name for name in ("img", "img1") if (path / name).is_dir()), path)
         images = tuple(sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
         if not images:
             raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
         height, width = read_image(images[0]).shape[:2]
-        fps = _sequence_fps(folder)
+        fps = fps or _sequence_fps(folder)
         return FrameSource(path, len(images), fps, images, width=width, height=height)
     capture = cv2.VideoCapture(str(path))
     try:

@@ -321,16 +321,19 @@ def _summary(message: StreamTracksMessage | StreamTracksEnded) -> str:
     )
 
 
-def _number(
+def number_type(
     convert: Callable[[str], float], low: float, high: float = math.inf, *, above: bool = False
 ):
-    """An argparse type: ``convert(text)`` from ``low`` (excluded when ``above``) to ``high``."""
+    """An argparse type: ``convert(text)`` from ``low`` (excluded when ``above``) to ``high``,
+    a finite number."""
 
     def parse(text: str) -> float:
         try:
             value = convert(text)
+            if not math.isfinite(value):
+                raise ValueError
         except ValueError:
-            kind = "a whole number" if convert is int else "a number"
+            kind = "a whole number" if convert is int else "a finite number"
             raise argparse.ArgumentTypeError(f"expected {kind}, got {text!r}") from None
         if not ((value > low if above else value >= low) and value <= high):
             bound = f"greater than {low:g}" if above else f"at least {low:g}"
@@ -368,7 +371,7 @@ def _endpoint(text: str) -> str:
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
     """The ``publish`` and ``subscribe`` subcommands of ``vtrack``."""
-    positive = _number(float, 0, above=True)
+    positive = number_type(float, 0, above=True)
 
     def zenoh_arguments(parser: argparse.ArgumentParser) -> None:
         parser.add_argument(
@@ -406,10 +409,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     zenoh_arguments(publish)
     publish.add_argument("--fps", type=positive, help="frames per second (default: the video's)")
     publish.add_argument("--loop", action="store_true", help="start over at the end")
-    publish.add_argument("--limit", type=_number(int, 1), help="stop after this many frames")
+    publish.add_argument("--limit", type=number_type(int, 1), help="stop after this many frames")
     publish.add_argument(
         "--wait",
-        type=_number(float, 0),
+        type=number_type(float, 0),
         default=5.0,
         help="seconds to wait for a tracker to subscribe before the first frame (default 5)",
     )
@@ -438,7 +441,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     publish.add_argument(
         "--quality",
-        type=_number(int, 1, 100),
+        type=number_type(int, 1, 100),
         help=f"JPEG quality (default {DEFAULT_JPEG_QUALITY})",
     )
     publish.add_argument(
@@ -470,7 +473,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     subscribe.add_argument("--json", action="store_true", help="print JSON lines")
     subscribe.add_argument(
-        "--count", type=_number(int, 1), help="stop after this many tracks messages"
+        "--count", type=number_type(int, 1), help="stop after this many tracks messages"
     )
     subscribe.add_argument("--duration", type=positive, help="stop after this many seconds")
     subscribe.add_argument(

@@ -31,6 +31,17 @@ def test_public_detections_of_pets(pets):
     assert dets.dense_scores(None, Box(0, 0, 10, 10)) is None
 
 
+def test_scaled_detections_are_those_of_smaller_frames():
+    parts = np.array([[[10.0, 20.0, 4.0, 8.0], [np.nan] * 4]])
+    found = detections_from_arrays(
+        [[100.0, 40.0, 20.0, 60.0]], [0.9], parts=parts, part_names=("head", "left_foot")
+    )
+    half = found.scaled(0.5)
+    assert half.boxes.tolist() == [[50.0, 20.0, 10.0, 30.0]]
+    np.testing.assert_array_equal(half.parts, parts * 0.5)  # a missing part stays missing
+    assert half.probabilities.tolist() == [0.9] and half.part_names == found.part_names
+
+
 def test_detect_walks_through_the_frames_and_seek_jumps(pets):
     dets = MotDetections.from_file(pets.detections_file)
     a, b = dets.detect(None), dets.detect(None)

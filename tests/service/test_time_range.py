@@ -194,3 +194,36 @@ def test_the_api_runs_a_range_and_refuses_one_outside_the_video(pets_cut, make_s
         document = client.get(status["links"]["results"]["json"]).json()
         assert document["frames_processed"] == 5
         assert (document["video"]["start"], document["video"]["end"]) == (1.5, 2.0)
+
+
+def test_an_image_folder_plays_at_the_rate_given(shared_data, tmp_path):
+    folder = tmp_path / "Crossing"
+    (folder / "img").mkdir(parents=True)
+    source = shared_data / "otb" / "Crossing"
+    for image in islice(sorted((source / "img").iterdir()), 12):
+        (folder / "img" / image.name).symlink_to(image)
+    (folder / "groundtruth_rect.txt").symlink_to(source / "groundtruth_rect.txt")
+    out = tmp_path / "out"
+    # OTB folders state no rate: 25 per second, and a warning says how to give theirs
+    result = vtrack("analyze", folder, "--out-dir", out, "--format", "json", "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert "no seqinfo.ini): its frames are stamped 25 per second; give its rate" in result.stderr
+    result = vtrack(
+        "analyze", folder, "--fps", "5", "--start", "1", "--out-dir", out, "--format", "json"
+    )
+    assert result.returncode == 0, result.stderr
+    assert "warning" not in result.stderr
+    document = json.loads((out / "trajectories.json").read_text())
+    assert document["video"]["fps"] == 5 and document["frames_processed"] == 7  # frames 5-11
+    track = vtrack("track", folder, "--fps", "5", "--start", "1", "--end", "1.5", "--quiet")
+    assert [row.split(",")[0] for row in track.stdout.splitlines()] == ["frame", "6", "7", "8"]
+
+
+@pytest.mark.parametrize("command", ["analyze", "track"])
+def test_a_rate_for_a_video_is_refused(pets_cut, tmp_path, command):
+    args = ["--out-dir", tmp_path / "out"] if command == "analyze" else ["--box", "1,1,9,9"]
+    result = vtrack(command, pets_cut, "--fps", "12", *args)
+    assert result.returncode == 2
+    assert result.stderr == (
+        "vtrack: --fps is for image folders: the frames of a video carry their own times\n"
+    )

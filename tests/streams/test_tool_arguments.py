@@ -18,11 +18,13 @@ from tests.conftest import REPO_ROOT
         (["publish", "v.avi", "--camera", "c", "--prefix", "a//b"], "'a//b' is not a valid key"),
         (["publish", "v.avi", "--camera", "c", "--connect", "7447"], "'7447' is not a Zenoh"),
         (["publish", "v.avi", "--camera", "c", "--fps", "0"], "--fps: must be greater than 0"),
+        # before: accepted, and the frames went out as fast as they could be sent
+        (["publish", "v.avi", "--camera", "c", "--fps", "inf"], "--fps: expected a finite number"),
         (["publish", "v.avi", "--camera", "c", "--limit", "-1"], "--limit: must be at least 1"),
         (["publish", "v.avi", "--camera", "c", "--limit", "2.5"], "expected a whole number"),
         (["publish", "v.avi", "--camera", "c", "--quality", "200"], "at least 1 and at most 100"),
         (["publish", "v.avi", "--camera", "c", "--wait", "-1"], "--wait: must be at least 0"),
-        (["publish", "v.avi", "--camera", "c", "--detections-scale", "nan"], "greater than 0"),
+        (["publish", "v.avi", "--camera", "c", "--detections-scale", "nan"], "a finite number"),
         (["publish", "v.avi", "--camera", "c", "--raw", "--h264"], "not allowed with argument"),
         # options that would do nothing for this source: refused, where they were ignored
         (["publish", "v.avi", "--camera", "c", "--timeout", "3"], "are for network cameras"),

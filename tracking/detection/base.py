@@ -8,7 +8,7 @@ image likelihood from.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -60,6 +60,11 @@ class Detections:
 
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
+
+    def scaled(self, factor: float) -> Detections:
+        """The same detections with boxes and parts multiplied by ``factor``: detections made
+        on frames ``factor`` times as large as the ones tracked."""
+        return replace(self, boxes=self.boxes * factor, parts=self.parts * factor)
 
     @classmethod
     def empty(cls, part_names: tuple[str, ...] = ()) -> Detections:
