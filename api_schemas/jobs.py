@@ -242,7 +242,7 @@ class JobOptions(BaseModel):
     @field_validator("first_box", "preset", "detector", "tracker", "fill_gaps")
     @classmethod
     def _of_the_mode(cls, value: Any, info: ValidationInfo) -> Any:
-        if _stored(info):
+        if stored(info):
             return value
         mode, reason = _MODE_OF[info.field_name]
         given = info.data.get("mode")
@@ -254,7 +254,7 @@ class JobOptions(BaseModel):
     @field_validator("mcap_images")
     @classmethod
     def _with_the_mcap(cls, value: str, info: ValidationInfo) -> str:
-        if _stored(info):
+        if stored(info):
             return value
         formats = info.data.get("formats")
         if value != "h264" and formats is not None and OutputFormat.mcap not in formats:
@@ -279,7 +279,8 @@ class JobOptions(BaseModel):
         return self
 
 
-def _stored(info: ValidationInfo) -> bool:
+def stored(info: ValidationInfo) -> bool:
+    """Whether a model is being read back from storage (``context={'stored': True}``)."""
     return bool(info.context and info.context.get("stored"))
 
 

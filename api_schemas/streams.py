@@ -23,11 +23,11 @@ from __future__ import annotations
 
 from datetime import datetime
 from enum import StrEnum
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions
+from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions, stored
 from api_schemas.tracks import FrameTracksMessage
 
 CAMERA_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$"
@@ -214,6 +214,24 @@ class StreamSpec(BaseModel):
         "in the last 5 s), seconds to wait for a frame's detections before falling back to "
         "the service's detector.",
     )
+
+    # Set without record, they would shape recordings that are never made: refused where they
+    # were given, as a misspelt option is (streams stored before this rule read as they were).
+    @field_validator("record_segment", "record_keep", "record_images")
+    @classmethod
+    def _with_record(cls, value: Any, info: ValidationInfo) -> Any:
+        if stored(info):
+            return value
+        default = cls.model_fields[info.field_name].get_default()
+        if info.data.get("record") is False and value != default:
+            raise ValueError("only with record: true (this stream records nothing)")
+        return value
+
+    @classmethod
+    def from_stored(cls, text: str | bytes) -> StreamSpec:
+        """A stream's spec as it was accepted, read back from storage: rules added since do
+        not apply, so a stream an earlier version accepted still lists and starts."""
+        return cls.model_validate_json(text, context={"stored": True})
 
 
 class StreamCounters(BaseModel):

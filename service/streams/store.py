@@ -84,7 +84,7 @@ class StreamStore:
         return [
             StreamRecord(
                 row["id"],
-                StreamSpec.model_validate_json(row["spec"]),
+                StreamSpec.from_stored(row["spec"]),
                 row["created_at"],
                 row["stopped_at"],
             )

@@ -421,6 +421,10 @@ def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
         assert bad.status_code == 422 and "speed" in bad.json()["detail"]
         dpm = client.post("/v1/streams", json={"camera": "x", "detector": {"name": "dpm"}})
         assert dpm.status_code == 422 and "VTRACK_DPM_MODEL" in dpm.json()["detail"]
+        # before: accepted, and nothing was recorded
+        idle = client.post("/v1/streams", json={"camera": "x", "record_keep": 3})
+        assert idle.status_code == 422 and "record_keep" in idle.json()["detail"]
+        assert "only with record: true" in idle.json()["detail"]
         assert client.get("/v1/streams/nobody").status_code == 404
 
         start_stream(client, session, camera, record=True)

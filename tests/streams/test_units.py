@@ -722,7 +722,25 @@ def test_publish_frames_round_trip():
         np.testing.assert_allclose(to_detections(message).boxes, [[b * 0.5 for b in boxes[index]]])
 
 
-# -- store: track id reservations ----------------------------------------------------------------
+# -- store ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "spec", [{"record_keep": 3}, {"record": False, "record_segment": 60}, {"record_images": "jpeg"}]
+)
+def test_recording_options_without_record_are_refused_but_stored_ones_still_read(tmp_path, spec):
+    with pytest.raises(ValidationError, match="only with record: true"):
+        StreamSpec.model_validate({"camera": "gate", **spec})
+    # a stream an earlier version accepted with them still lists and starts
+    store = StreamStore(tmp_path / "jobs.db")
+    try:
+        # written as an earlier version did (model_copy does not validate)
+        store.put(StreamSpec(camera="gate").model_copy(update=spec))
+        [record] = store.all()
+        assert record.spec.camera == "gate" and not record.spec.record
+    finally:
+        store.close()
+    assert StreamSpec.model_validate({"camera": "gate", **spec, "record": True}).record
 
 
 def test_track_id_reservations_only_go_up_and_outlive_the_stream(tmp_path):
