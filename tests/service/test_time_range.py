@@ -158,6 +158,17 @@ def test_track_from_start_takes_the_ground_truth_box_of_that_frame(shared_data):
     assert rows[1] == f"51,{x - 1:.2f},{y - 1:.2f},{w:.2f},{h:.2f},,"
 
 
+def _crossing_cut(shared_data, tmp_path, frames: int):
+    """The first ``frames`` images of OTB's Crossing with its ground truth (links)."""
+    folder = tmp_path / "Crossing"
+    (folder / "img").mkdir(parents=True)
+    source = shared_data / "otb" / "Crossing"
+    for image in islice(sorted((source / "img").iterdir()), frames):
+        (folder / "img" / image.name).symlink_to(image)
+    (folder / "groundtruth_rect.txt").symlink_to(source / "groundtruth_rect.txt")
+    return folder
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -166,13 +177,7 @@ def test_track_from_start_takes_the_ground_truth_box_of_that_frame(shared_data):
     ],
 )
 def test_track_refuses_a_range_outside_the_video(shared_data, tmp_path, args, message):
-    folder = tmp_path / "cut"
-    (folder / "img").mkdir(parents=True)
-    source = shared_data / "otb" / "Crossing"
-    for image in islice(sorted((source / "img").iterdir()), 120):
-        (folder / "img" / image.name).symlink_to(image)
-    (folder / "groundtruth_rect.txt").symlink_to(source / "groundtruth_rect.txt")
-    result = vtrack("track", folder, *args)
+    result = vtrack("track", _crossing_cut(shared_data, tmp_path, 120), *args)
     assert (result.returncode, result.stderr, result.stdout) == (2, message, "")
 
 
@@ -197,12 +202,7 @@ def test_the_api_runs_a_range_and_refuses_one_outside_the_video(pets_cut, make_s
 
 
 def test_an_image_folder_plays_at_the_rate_given(shared_data, tmp_path):
-    folder = tmp_path / "Crossing"
-    (folder / "img").mkdir(parents=True)
-    source = shared_data / "otb" / "Crossing"
-    for image in islice(sorted((source / "img").iterdir()), 12):
-        (folder / "img" / image.name).symlink_to(image)
-    (folder / "groundtruth_rect.txt").symlink_to(source / "groundtruth_rect.txt")
+    folder = _crossing_cut(shared_data, tmp_path, 12)
     out = tmp_path / "out"
     # OTB folders state no rate: 25 per second, and a warning says how to give theirs
     result = vtrack("analyze", folder, "--out-dir", out, "--format", "json", "--quiet")
