@@ -18,7 +18,6 @@ import shutil
 import signal
 import socket
 import sys
-from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -168,7 +167,7 @@ def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> st
     return f"{index},{box.x:.2f},{box.y:.2f},{box.w:.2f},{box.h:.2f},{scores}"
 
 
-def _progress_bar(total: int, quiet: bool, frames: Iterable | None = None) -> tqdm:
+def _progress_bar(total: int, quiet: bool) -> tqdm:
     """The progress bar on standard error: redrawn ten times a second on a terminal, every
     30 s into a log file or a pipe (each redraw is a line there); ``TQDM_MININTERVAL`` (tqdm's
     own variable) sets the seconds for both."""
@@ -176,7 +175,7 @@ def _progress_bar(total: int, quiet: bool, frames: Iterable | None = None) -> tq
         timing = {}
     else:
         timing = {"mininterval": 0.1 if sys.stderr.isatty() else 30.0}
-    return tqdm(frames, total=total or None, unit="frame", disable=quiet, **timing)
+    return tqdm(total=total or None, unit="frame", disable=quiet, **timing)
 
 
 def _track(args: argparse.Namespace) -> int:
