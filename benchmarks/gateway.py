@@ -90,7 +90,11 @@ def first_frame(camera_of: Callable[[], object], study: dict, repeats: int) -> d
         camera = camera_of()
         started = time.perf_counter()
         source = NetworkCamera(camera.url, CameraSettings(options=study), forward_h264=True)
-        arrivals = [time.perf_counter() - started for _ in islice(iter(source), 30)]
+        arrivals: list[float] = []
+        for _ in islice(iter(source), 30):
+            arrivals.append(time.perf_counter() - started)
+            if arrivals[-1] - arrivals[0] >= 0.05:
+                break  # the burst is over: from here the camera sends a frame each 100 ms
         camera.close()
         waits.append(arrivals[0])
         bursts.append(sum(1 for t in arrivals if t - arrivals[0] < 0.05))

@@ -1,5 +1,8 @@
 """Shared fixtures: where the third-party reference data lives; the benchmark scripts as modules.
 
+With ``-n 2`` (pytest-xdist, the README's test command) two workers share the machine; tests
+marked ``realtime`` run alone (:func:`pytest_runtest_protocol`).
+
 Tests read `../shared/data` beside the checkout (CI puts it there) or the folder named by
 ``VTRACK_SHARED_DATA``. A missing folder fails loudly rather than skipping: a test that cannot see
 its data has not shown anything.
@@ -8,9 +11,11 @@ its data has not shown anything.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import importlib.util
 import os
 import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -49,3 +54,47 @@ def shared_data() -> Path:
     if not (root / "README.md").is_file():
         pytest.fail(f"shared reference data not found at {root}; set VTRACK_SHARED_DATA")
     return root
+
+
+class _CpuShare:
+    """Who may use the machine, across the xdist workers of one run: a writer-preferring
+    readers-writer lock on two files. Most tests share it; a ``realtime`` test (a camera at its
+    frame rate, a tracker that must keep pace, delays measured in milliseconds) has it alone,
+    since a test beside it on the other core would take the time it measures."""
+
+    def __init__(self, folder: Path) -> None:
+        folder.mkdir(exist_ok=True)
+        # the gate keeps new sharers out while a realtime test waits for the running ones
+        self._gate = open(folder / "gate", "a")  # noqa: SIM115 - held for the worker's life
+        self._share = open(folder / "share", "a")  # noqa: SIM115
+
+    @contextlib.contextmanager
+    def held(self, alone: bool) -> Iterator[None]:
+        fcntl.flock(self._gate, fcntl.LOCK_EX)
+        fcntl.flock(self._share, fcntl.LOCK_EX if alone else fcntl.LOCK_SH)
+        if not alone:
+            fcntl.flock(self._gate, fcntl.LOCK_UN)
+        try:
+            yield
+        finally:
+            fcntl.flock(self._share, fcntl.LOCK_UN)
+            if alone:
+                fcntl.flock(self._gate, fcntl.LOCK_UN)
+
+
+_cpu_share: _CpuShare | None = None
+
+
+@pytest.hookimpl(hookwrapper=True, tryfirst=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
+    """Around setup, call and teardown (module fixtures start and stop in them): under
+    pytest-xdist, the share of the machine :class:`_CpuShare` gives this test."""
+    global _cpu_share
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")  # the same in every worker of a run
+    if run is None:
+        yield
+        return
+    if _cpu_share is None:
+        _cpu_share = _CpuShare(Path(tempfile.gettempdir()) / f"vtrack-tests-{run}")
+    with _cpu_share.held(alone=item.get_closest_marker("realtime") is not None):
+        yield

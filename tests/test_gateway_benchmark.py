@@ -14,6 +14,7 @@ from tests.conftest import BENCHMARKS, REPO_ROOT
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
     command = [sys.executable, str(BENCHMARKS / "gateway.py"), "--json", "--frames", "12"]
     command += ["--repeats", "1", "--delay-frames", "20", "--capture-seconds", "4"]

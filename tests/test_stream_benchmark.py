@@ -12,6 +12,7 @@ from tests.conftest import BENCHMARKS, REPO_ROOT
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_a_camera_with_full_searches_every_0_2_s_is_tracked_and_scored(shared_data):
     command = [sys.executable, str(BENCHMARKS / "stream.py"), "--data", str(shared_data)]
     command += ["--frames", "20", "--configs", "service_detector_regions", "--json"]

@@ -42,7 +42,7 @@ from tests.streams.live import (
     status,
 )
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 def test_tracks_follow_the_frames_published_at_their_rate(server, session, pets_frames):

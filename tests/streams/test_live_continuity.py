@@ -23,7 +23,7 @@ from tests.service.conftest import Server, wait_for
 from tests.streams.live import Follower, all_taken, put_frame, start_stream, status
 from tracking.detection import MotDetections
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 def publish_run(

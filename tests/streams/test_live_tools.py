@@ -26,7 +26,7 @@ from tests.service.conftest import PETS_VIDEO, wait_for
 from tests.streams.live import VTRACK, OutputLines, start_stream, status
 from tracking.detection import MotDetections
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 @contextlib.contextmanager

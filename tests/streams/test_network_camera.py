@@ -51,6 +51,8 @@ from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO
 
+pytestmark = pytest.mark.realtime  # cameras send at their frame rate; delays are measured
+
 FRAMES = 40
 
 
