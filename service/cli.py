@@ -32,10 +32,9 @@ from tracking.output_paths import output_file, output_folder
 from tracking.types import Box, TrackerOutput, box_problem
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-
     from api_schemas.jobs import JobOptions
     from tracking.detection.base import Detections
+    from tracking.detection.external import MotDetections
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports a program the signal ended."""
@@ -371,10 +370,35 @@ def _detections_conflict(args: argparse.Namespace, options: JobOptions) -> str |
     return None
 
 
-def _public_detections(
-    args: argparse.Namespace, source: FrameSource
-) -> Callable[[int], Detections] | None:
-    """The detections of ``--detections`` by frame index, scaled by ``--detections-scale``.
+class _PublicDetections:
+    """The detections of ``--detections`` by frame index, scaled by ``--detections-scale``;
+    counts the frames asked for that had rows, so a file for another video is noticed."""
+
+    def __init__(self, table: MotDetections, scale: float) -> None:
+        self.table, self.scale = table, scale
+        self.frames_with_rows = 0
+
+    def __call__(self, index: int) -> Detections:
+        found = self.table.for_frame(index)
+        self.frames_with_rows += bool(len(found))
+        return found if self.scale == 1.0 else found.scaled(self.scale)
+
+    def unused_warning(self, path: Path, frames: int) -> str | None:
+        """A sentence when ``frames`` were tracked and none had a row of the file."""
+        if self.frames_with_rows or not frames:
+            return None
+        if not len(self.table.rows):
+            return f"--detections: {path} has no rows: nobody was tracked"
+        first, last = self.table.rows[:, 0].min(), self.table.rows[:, 0].max()
+        return (
+            f"--detections: no row of {path} is for the {frames} frames tracked (its rows are "
+            f"for frames {first:.0f}-{last:.0f}, counted from 1): nobody was tracked; are they "
+            "another video's detections?"
+        )
+
+
+def _public_detections(args: argparse.Namespace, source: FrameSource) -> _PublicDetections | None:
+    """The detections of ``--detections`` (``None`` without it).
 
     Raises
     ------
@@ -399,9 +423,7 @@ def _public_detections(
                 f"{source.width}x{source.height} frames: made on larger frames? give "
                 "--detections-scale, the frames' width over that of the frames they were made on"
             )
-    if scale == 1.0:
-        return table.for_frame
-    return lambda index: table.for_frame(index).scaled(scale)
+    return _PublicDetections(table, scale)
 
 
 def _tracked_with(options: JobOptions, dpm_model: Path | None, detections: Path | None) -> str:
@@ -542,7 +564,12 @@ def _analyze(args: argparse.Namespace) -> int:
         return 2
     bar.update(result.video.frames_read - bar.n)
     bar.close()
-    for warning in result.warnings:
+    warnings = list(result.warnings)
+    if detections is not None and (
+        unused := detections.unused_warning(args.detections, result.frames_processed)
+    ):
+        warnings.append(unused)
+    for warning in warnings:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if not args.quiet:
         rate = result.frames_processed / max(result.seconds, 1e-9)

@@ -112,3 +112,29 @@ def test_detections_scale_alone_is_refused(shared_data, tmp_path):
     assert "--detections-scale scales the boxes of --detections, which is not given" in (
         result.stderr
     )
+
+
+@pytest.mark.parametrize(
+    ("shift", "message"),
+    [
+        (1000, "no row of {path} is for the 7 frames tracked (its rows are for frames 1001-1795"),
+        (None, "{path} has no rows: nobody was tracked"),
+    ],
+)
+def test_detections_that_miss_every_tracked_frame_are_warned_of(
+    shared_data, tmp_path, shift, message
+):
+    # another video's detections (or none) track nobody: the run says so rather than quietly
+    # writing empty trajectories
+    sequence = shared_data / "mot" / "PETS09-S2L1"
+    path = tmp_path / "det.txt"
+    lines = (sequence / "det" / "det.txt").read_text().splitlines() if shift else []
+    path.write_text(
+        "".join(f"{int(line.split(',')[0]) + shift},{line.split(',', 1)[1]}\n" for line in lines)
+    )
+    args = ["--out-dir", tmp_path / "out", "--detections", path, "--end", "1"]
+    result = vtrack("analyze", sequence, *args, "--format", "json")
+    assert result.returncode == 0, result.stderr
+    assert f"vtrack: warning: --detections: {message.format(path=path)}" in result.stderr
+    document = json.loads((tmp_path / "out" / "trajectories.json").read_text())
+    assert document["tracks"] == []
