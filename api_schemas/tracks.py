@@ -69,7 +69,12 @@ class TrackState(BaseModel):
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    track_id: int = Field(ge=0, description="Stable id of the object within one video or stream.")
+    track_id: int = Field(
+        ge=0,
+        description="Stable id of the object within one video or stream: people are numbered "
+        "from 1 in the order the tracker confirms them (a stream's numbers jump after a restart "
+        "of its worker); a single target is 1.",
+    )
     box: BoxModel
     score: float = Field(ge=0, le=1, description=SCORE)
     occluded: bool = Field(description=OCCLUDED)

@@ -38,7 +38,7 @@ logger = logging.getLogger(__name__)
 class _Track:
     """What the tracker keeps about one person besides its particles."""
 
-    track_id: int
+    track_id: int  # 0 until confirmed: only confirmed people are reported, so ids have no gaps
     appearance: CorrelationTracker
     base_height: float  # height when the appearance model was initialised (its scale 1)
     aspect: float  # width / height, smoothed over associated detections
@@ -433,7 +433,7 @@ class MultiPersonTracker:
             missing = t - track.last_seen
             limit = c.occluded_max_missing if track.occluded else c.max_missing
             if not track.confirmed and track.hits >= c.confirm_hits:
-                track.confirmed = True
+                self._confirm(track)
             inside = 0 <= cx < width and 0 <= cy < height
             if track.confirmed:
                 alive = inside and missing <= limit
@@ -521,7 +521,7 @@ class MultiPersonTracker:
                 np.concatenate([s.cov, born.cov]),
             )
         track = _Track(
-            track_id=self._next_id,
+            track_id=0,
             appearance=appearance,
             base_height=h,
             aspect=w / h if c.box_aspect is None else 0.41,
@@ -540,10 +540,14 @@ class MultiPersonTracker:
         if lost is not None:
             # The same person again: the old id, confirmed at once, its history kept.
             track.track_id, track.confirmed, track.hits = lost.track_id, True, lost.hits
-        else:
-            track.confirmed = c.confirm_hits <= 1
-            self._next_id += 1
+        elif c.confirm_hits <= 1:
+            self._confirm(track)
         self._tracks.append(track)
+
+    def _confirm(self, track: _Track) -> None:
+        """Make a tentative track a person, with the next id."""
+        track.track_id, track.confirmed = self._next_id, True
+        self._next_id += 1
 
     def _recognise(self, current: _Frame, index: int) -> _Track | None:
         """The lost person detection ``index`` most likely is, if any (see
