@@ -100,6 +100,17 @@ class StreamTracksMessage(FrameTracksMessage):
 
     model_config = ConfigDict(extra="forbid", title="StreamTracks")
 
+    frame_index: int = Field(
+        ge=0,
+        description="Frames the stream's worker tracked before this one: it goes on when the "
+        "tracks end and start over, and starts at 0 with a new stream or a new worker (after a "
+        "restart of the service or of a worker that died).",
+    )
+    timestamp: float = Field(
+        ge=0,
+        description="The frame's capture time from its attachment, in seconds as the camera "
+        "stamped it (Unix time from vtrack publish).",
+    )
     camera: str
     sequence: int = Field(ge=0, description="The frame's sequence number from its attachment.")
     latency: float = Field(
@@ -148,7 +159,8 @@ class StreamState(StrEnum):
     starting = "starting"
     """The worker process is starting and opening its Zenoh session."""
     waiting = "waiting"
-    """Subscribed; no frame has arrived yet."""
+    """Subscribed; no frame it can read has arrived yet (frames refused as malformed are
+    counted and named in ``errors``)."""
     running = "running"
     """Frames are arriving and being tracked."""
     idle = "idle"

@@ -50,8 +50,9 @@ class PartState(BaseModel):
         default=None, description="The part's box, when the model has one."
     )
     visible: bool = Field(
-        description="False when the part is judged covered (its person is occluded) or lies "
-        "out of the frame: its position is less reliable. Whether the position was measured "
+        description="False when the part lies inside the box of a nearer person covering its "
+        "own (so an occluded person's parts outside the occluder stay visible) or out of the "
+        "frame: its position is less reliable. Whether the position was measured "
         "or predicted is 'measured'; a part can be measured and not visible (the 'dpm' "
         "detector placed it on a person judged occluded)."
     )

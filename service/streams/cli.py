@@ -169,7 +169,9 @@ def _publish(args: argparse.Namespace) -> int:
         return 1
     session, keys = opened
     _tell("publish", f"{redacted(args.source)} on {keys.frames}: {pace} (Ctrl-C stops)")
-    watcher = watch_trackers(session, keys, _tracker_news("publish", args.camera, "sending on"))
+    watcher = watch_trackers(
+        session, keys, _tracker_news("publish", args.camera, "still sending its frames")
+    )
     sent = 0
 
     def count(sequence: int, stamp: float) -> None:
@@ -278,7 +280,7 @@ def _subscribe(args: argparse.Namespace) -> int:
             return 0
         subscriber = follow_tracks(session, keys, show, on_ended=show)
         watcher = watch_trackers(
-            session, keys, _tracker_news("subscribe", args.camera, "listening on")
+            session, keys, _tracker_news("subscribe", args.camera, "still waiting for its tracks")
         )
         if not reach_tracker(session, keys, timeout=5.0):
             _tell(

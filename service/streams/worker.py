@@ -27,6 +27,7 @@ import zenoh
 
 from api_schemas.jobs import JobOptions
 from api_schemas.streams import (
+    FrameAttachment,
     StreamCounters,
     StreamSpec,
     StreamState,
@@ -78,6 +79,11 @@ id beyond the last one is published, so the database is written once per this ma
 (not per frame) and a worker that starts again continues above every id that may have gone out;
 the price is a gap of up to this many ids after a restart."""
 
+STAMP_GAP = 5.0
+"""Seconds between the stamps of consecutive tracked frames from which, if the frames arrived
+at least 20 times closer together, the stream warns that the timestamps are not in seconds
+(milliseconds make every frame a gap that ends the tracks, and nobody is ever tracked)."""
+
 RESERVE_RETRY = 5.0
 """Seconds before a reservation that failed (a full disk, a locked database) is tried again;
 tracking goes on meanwhile."""
@@ -110,7 +116,7 @@ class Incoming:
 
     payload: bytes
     encoding: str
-    attachment: Any  # FrameAttachment
+    attachment: FrameAttachment
     arrived: float  # time.perf_counter()
     image: np.ndarray | None = None
 
@@ -213,6 +219,8 @@ class StreamWorker:
         self._last_frame_wall: float | None = None
         self._last_timestamp: float | None = None
         self._last_sequence: int | None = None
+        self._last_tracked_arrival = 0.0  # time.perf_counter() of the last frame tracked
+        self._stamps_warned = False  # about timestamps that look like another unit
         self._frame_size: tuple[int, int] | None = None  # (width, height) of this run's frames
         # A frame of another size than this run's, not tracked until the next frame says
         # whether the camera changed resolution (same size) or it was a bad one (the old size).
@@ -380,6 +388,22 @@ class StreamWorker:
     def _new_pipeline(self) -> FramePipeline:
         return build_pipeline(job_options(self.spec), self.context.resources)
 
+    def _check_stamp_spacing(self, attachment: FrameAttachment, arrived: float) -> None:
+        """Warn once per worker when consecutive frames are stamped far further apart than
+        they arrived: timestamps in milliseconds (or another unit) instead of seconds."""
+        if self._stamps_warned or self._last_timestamp is None or self._last_sequence is None:
+            return
+        stamped = attachment.timestamp - self._last_timestamp
+        between = arrived - self._last_tracked_arrival
+        if stamped > STAMP_GAP and stamped > 20 * between:
+            self._stamps_warned = True
+            self._note_error(
+                f"frames {self._last_sequence} and {attachment.sequence} are stamped "
+                f"{stamped:.3g} s apart but arrived {between:.3f} s apart: attachment timestamps "
+                "are seconds (Unix time), and a gap that long ends every track; milliseconds?",
+                logging.WARNING,
+            )
+
     def _restart(self, why: str, camera_restarted_at: float | None = None) -> None:
         """Start the tracker over; ids keep counting up so no id is ever reused.
 
@@ -443,7 +467,6 @@ class StreamWorker:
         return (found, "upstream") if found is not None else (None, "service")
 
     def _track(self, frame: Incoming, publisher: zenoh.Publisher) -> None:
-        self._state = StreamState.running
         attachment = frame.attachment
         image = frame.image
         try:
@@ -454,6 +477,7 @@ class StreamWorker:
         except PayloadError as error:
             self._malformed_sample(f"frame {attachment.sequence}: {error}")
             return
+        self._state = StreamState.running  # not for frames it cannot read: it is not tracking
         if self._last_sequence is not None and attachment.sequence < self._last_sequence:
             # A publisher that started again counts from zero but stamps with the clock,
             # so its timestamps need not go back.
@@ -474,6 +498,7 @@ class StreamWorker:
             return
         if not self._same_size(attachment.sequence, size):
             return
+        self._check_stamp_spacing(attachment, frame.arrived)
         detections, source = self._detections_for(attachment.sequence)
         assert self._pipeline is not None
         try:
@@ -484,6 +509,7 @@ class StreamWorker:
             return
         self._last_timestamp = attachment.timestamp
         self._last_sequence = attachment.sequence
+        self._last_tracked_arrival = frame.arrived
         tracks = [track_state(t) for t in tracked.tracks]
         for track in tracks:
             track.track_id += self._id_offset

@@ -246,6 +246,8 @@ def test_malformed_payloads_are_counted_and_the_stream_goes_on(server, session, 
             30,
             "every bad payload to be counted",
         )
+        # nothing it could read: not tracking (before: "running" from the first bad frame)
+        assert status(client, camera)["state"] == "waiting"
         put_frame(session, keys, jpeg, frame_attachment(9, time.time() + 1), "image/jpeg")
         final = wait_for(
             lambda: (s := status(client, camera))["counters"]["frames_processed"] == 1 and s,
@@ -855,8 +857,10 @@ def test_publish_and_subscribe_say_when_the_tracker_goes_away(server, session, s
             )
             assert tracked["malformed"] == 0, status(client, camera)["errors"]
             assert client.delete(f"/v1/streams/{camera}").status_code == 200
+            going_on = {"publish": "still sending its frames", "subscribe": "still waiting for"}
             for name, lines in stderr.items():
                 wait_for(lambda s=lines: s.has("went away"), 30, f"{name} to see it go")
+                assert lines.has(going_on[name])
             # both go on: the tracker may come back
             assert all(process.poll() is None for process in running.values())
         finally:

@@ -235,3 +235,25 @@ def test_frames_the_upscale_would_enlarge_beyond_8k_are_refused_one_by_one(serve
             "choose"
         ]
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_timestamps_in_milliseconds_are_warned_of_once(server, session, pets_frames):
+    # each frame of a 10 fps camera stamped in milliseconds looks 100 s after the one before:
+    # every track would end at once, and the stream would track nobody without saying why
+    camera = "millis"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera)
+        started = time.time() * 1000
+        for index, frame in enumerate(pets_frames[:6]):
+            attachment = frame_attachment(index, started + 100 * index)
+            put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
+            time.sleep(0.1)
+        final = all_taken(client, camera, 6)
+        errors = status(client, camera)["errors"]
+        assert len(errors) == 1, errors
+        # "frames 0 and 1 are stamped 100 s apart but arrived 0.1.. s apart: ..."
+        assert errors[0].startswith("frames ") and "00 s apart but arrived 0." in errors[0]
+        assert "attachment timestamps are seconds (Unix time)" in errors[0]
+        assert final["frames_processed"] >= 2
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
