@@ -14,6 +14,7 @@ import contextlib
 import fcntl
 import importlib.util
 import os
+import shutil
 import sys
 import tempfile
 from collections.abc import Iterator
@@ -63,6 +64,7 @@ class _CpuShare:
     since a test beside it on the other core would take the time it measures."""
 
     def __init__(self, folder: Path) -> None:
+        self.folder = folder
         folder.mkdir(exist_ok=True)
         # the gate keeps new sharers out while a realtime test waits for the running ones
         self._gate = open(folder / "gate", "a")  # noqa: SIM115 - held for the worker's life
@@ -98,3 +100,9 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
         _cpu_share = _CpuShare(Path(tempfile.gettempdir()) / f"vtrack-tests-{run}")
     with _cpu_share.held(alone=item.get_closest_marker("realtime") is not None):
         yield
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """The lock files go with the run: a worker still running holds them open."""
+    if _cpu_share is not None:
+        shutil.rmtree(_cpu_share.folder, ignore_errors=True)
