@@ -11,7 +11,6 @@ import errno
 import fcntl
 import importlib.metadata
 import json
-import math
 import os
 import re
 import shutil
@@ -23,10 +22,10 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
+from service.argument_types import number_type, time_type
 from service.frames import FrameSource, ReadProgress, open_frames
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
-from service.streams.cli import number_type
 from tracking.correlation import PRESETS, CorrelationTracker
 from tracking.output_paths import output_file, output_folder
 from tracking.types import Box, TrackerOutput, box_problem
@@ -80,26 +79,6 @@ def _open_source(args: argparse.Namespace) -> FrameSource:
     if args.fps is not None and Path(args.source).is_file():
         raise ValueError("--fps is for image folders: the frames of a video carry their own times")
     return open_frames(args.source, fps=args.fps)
-
-
-def _parse_time(text: str) -> float:
-    """``--start``/``--end``: seconds (``90``, ``12.5``) or a clock time (``1:30``,
-    ``1:02:03.5``)."""
-    fields = text.strip().split(":")
-    try:
-        if len(fields) > 3 or not all(f.isdigit() for f in fields[:-1]):
-            raise ValueError
-        seconds = float(fields[-1])
-        if not (0 <= seconds < (60 if len(fields) > 1 else math.inf)):  # NaN, inf, -1, 1:75
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"a time is seconds (90, 12.5) or [H:]M:S (1:30, 1:02:03.5), got {text!r}"
-        ) from None
-    minutes = 0
-    for number in fields[:-1]:
-        minutes = minutes * 60 + int(number)
-    return minutes * 60 + seconds
 
 
 def _model_file(given: Path | None, flag: str, variable: str) -> tuple[Path | None, str]:
@@ -685,14 +664,14 @@ def _add_fps_argument(command: argparse.ArgumentParser) -> None:
 def _add_range_arguments(command: argparse.ArgumentParser, note: str) -> None:
     command.add_argument(
         "--start",
-        type=_parse_time,
+        type=time_type,
         metavar="TIME",
         help=f"begin at this time of the video, seconds or [H:]M:S (default 0; {note}; the "
         "frames before it are read, not tracked)",
     )
     command.add_argument(
         "--end",
-        type=_parse_time,
+        type=time_type,
         metavar="TIME",
         help="stop at this time of the video, seconds or [H:]M:S (default: its end)",
     )

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import math
 import os
 import re
 import sys
@@ -22,6 +21,7 @@ from api_schemas.streams import (
     StreamTracksEnded,
     StreamTracksMessage,
 )
+from service.argument_types import number_type
 from service.streams.keys import StreamKeys
 from service.streams.session import (
     ZenohOptions,
@@ -321,29 +321,6 @@ def _summary(message: StreamTracksMessage | StreamTracksEnded) -> str:
         f"latency {1000 * message.latency:.0f} ms skipped {message.frames_skipped}: "
         f"{people or 'nobody'}"
     )
-
-
-def number_type(
-    convert: Callable[[str], float], low: float, high: float = math.inf, *, above: bool = False
-):
-    """An argparse type: ``convert(text)`` from ``low`` (excluded when ``above``) to ``high``,
-    a finite number."""
-
-    def parse(text: str) -> float:
-        try:
-            value = convert(text)
-            if not math.isfinite(value):
-                raise ValueError
-        except ValueError:
-            kind = "a whole number" if convert is int else "a finite number"
-            raise argparse.ArgumentTypeError(f"expected {kind}, got {text!r}") from None
-        if not ((value > low if above else value >= low) and value <= high):
-            bound = f"greater than {low:g}" if above else f"at least {low:g}"
-            bound += f" and at most {high:g}" if high < math.inf else ""
-            raise argparse.ArgumentTypeError(f"must be {bound}, got {text}")
-        return value
-
-    return parse
 
 
 def _matching(pattern: str, what: str) -> Callable[[str], str]:
