@@ -20,10 +20,12 @@ RESULT_FILES: dict[OutputFormat, str] = {
 
 MEDIA_TYPES: dict[OutputFormat, str] = {
     OutputFormat.json: "application/json",
-    OutputFormat.mcap: "application/octet-stream",
+    OutputFormat.mcap: "application/vnd.mcap",
     OutputFormat.mot: "text/plain; charset=utf-8",
     OutputFormat.mp4: "video/mp4",
 }
+"""Content type of each format's download (MCAP's, ``application/vnd.mcap``, is registered with
+IANA since October 2026)."""
 
 
 @dataclass(frozen=True, slots=True)

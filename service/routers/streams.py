@@ -7,9 +7,11 @@ from typing import TypeVar
 
 from fastapi import APIRouter, HTTPException, Response, status
 
+from api_schemas.jobs import OutputFormat
 from api_schemas.streams import StreamDetail, StreamList, StreamSpec, StreamStatus
 from service.analysis import OptionsError
 from service.deps import AuthDep, StreamsDep
+from service.outputs.base import MEDIA_TYPES
 from service.routers import BINARY_CONTENT, error_responses
 from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
 from service.streams.manager import StreamConflict, StreamNotFound
@@ -101,7 +103,7 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
     response_class=Download,
     responses={
         **error_responses(400, 404, 416, why=RANGE_ERRORS),
-        200: {"content": {"application/octet-stream": BINARY_CONTENT}},
+        200: {"content": {MEDIA_TYPES[OutputFormat.mcap]: BINARY_CONTENT}},
         **NOT_MODIFIED,
     },
     summary="Download a finished MCAP recording",
@@ -121,4 +123,4 @@ def get_recording(stream_id: str, name: str, streams: StreamsDep) -> Download:
             status.HTTP_404_NOT_FOUND,
             f"stream {stream_id!r} has no finished recording {name!r}: {why}",
         )
-    return Download(recordings[name], media_type="application/octet-stream", filename=name)
+    return Download(recordings[name], media_type=MEDIA_TYPES[OutputFormat.mcap], filename=name)

@@ -151,7 +151,9 @@ def _mcap_messages(data: bytes) -> tuple[dict[str, str], dict[str, list]]:
 
 def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client, finished_job):
     _, _, status = finished_job
-    names, by_topic = _mcap_messages(_download(client, status, "mcap").content)
+    download = _download(client, status, "mcap")
+    assert download.headers["content-type"] == "application/vnd.mcap"
+    names, by_topic = _mcap_messages(download.content)
     assert names == {
         "/camera/image": "foxglove.CompressedVideo",
         "/camera/annotations": "foxglove.ImageAnnotations",
@@ -398,7 +400,7 @@ def test_openapi_describes_results_and_only_the_errors_a_route_gives(client):
     assert result["200"]["content"]["application/json"]["schema"] == {
         "$ref": "#/components/schemas/Trajectories"
     }
-    assert {"video/mp4", "application/octet-stream"} <= set(result["200"]["content"])
+    assert {"video/mp4", "application/vnd.mcap"} <= set(result["200"]["content"])
     assert "Trajectories" in spec["components"]["schemas"]
     # upload errors belong to the upload (were listed on every route)
     assert {"413", "415", "507"} <= set(spec["paths"]["/v1/jobs"]["post"]["responses"])

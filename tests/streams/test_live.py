@@ -450,6 +450,7 @@ def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
         assert len(final["recordings"]) == 1
         recording = client.get(final["recordings"][0])
         assert recording.status_code == 200
+        assert recording.headers["content-type"] == "application/vnd.mcap"
         missing = client.get(f"/v1/streams/{camera}/recordings/nothing.mcap")
         assert missing.status_code == 404
         assert f"finished: ['{final['recordings'][0].rsplit('/', 1)[1]}']" in missing.text
