@@ -53,3 +53,15 @@ def test_scores_in_percent_as_the_benchmarks_report_them():
     rows = np.array([[1, 1, 0, 0, 10, 20], [2, 1, 1, 0, 10, 20]], dtype=float)
     assert hota(rows, rows).percent() == {"hota": 100.0, "det_a": 100.0, "ass_a": 100.0}
     assert hota(rows, rows[:0]).percent() == {"hota": 0.0, "det_a": 0.0, "ass_a": 0.0}
+
+
+def test_ground_truth_marked_not_to_consider_is_left_out_as_trackeval_does():
+    # person 2 (consider flag 0) is not ground truth: missing it costs nothing, and covering it
+    # is a false positive (TP 4, FP 4: DetA 0.5, AssA 1); it used to count as found
+    gt = np.vstack([rows(range(1, 5), 1), rows(range(1, 5), 2, (50, 10, 20, 40))])
+    flags = np.array([1] * 4 + [0] * 4, dtype=float)[:, None]
+    marked = np.hstack([gt, flags])
+    assert hota(marked, gt[:4]).hota == pytest.approx(1.0)
+    scores = hota(marked, gt)
+    assert scores.det_a == pytest.approx(0.5) and scores.ass_a == pytest.approx(1.0)
+    assert hota(np.hstack([gt, np.ones_like(flags)]), gt).hota == pytest.approx(1.0)

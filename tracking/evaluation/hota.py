@@ -43,13 +43,17 @@ def hota(ground_truth: np.ndarray, tracks: np.ndarray) -> HotaScores:
     Parameters
     ----------
     ground_truth, tracks:
-        MOTChallenge rows ``(N, >= 6)``: ``frame, id, x, y, w, h, ...``.
+        MOTChallenge rows ``(N, >= 6)``: ``frame, id, x, y, w, h, ...``. Ground-truth rows
+        whose seventh column (MOTChallenge's "consider" flag) is 0 are left out, as TrackEval
+        does for MOT15: a track that covers such a person counts as a false positive.
 
     Returns
     -------
     HotaScores
     """
     gt = np.asarray(ground_truth, dtype=np.float64).reshape(-1, max(np.shape(ground_truth)[-1], 6))
+    if gt.shape[1] >= 7:
+        gt = gt[gt[:, 6] != 0]
     tr = np.asarray(tracks, dtype=np.float64).reshape(-1, max(np.shape(tracks)[-1], 6))
     gt_ids, gt_index = np.unique(gt[:, 1].astype(np.int64), return_inverse=True)
     tr_ids, tr_index = np.unique(tr[:, 1].astype(np.int64), return_inverse=True)
