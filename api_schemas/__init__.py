@@ -4,7 +4,7 @@ No algorithm code. ``python -m api_schemas.export`` writes the JSON Schema of th
 to ``api_schemas/schema.json``.
 """
 
-from api_schemas.common import BoxModel, ErrorResponse
+from api_schemas.common import BoxModel, ErrorResponse, FirstBox
 from api_schemas.jobs import (
     ALL_FORMATS,
     DetectorOptions,
@@ -46,6 +46,7 @@ __all__ = [
     "BoxModel",
     "DetectorOptions",
     "ErrorResponse",
+    "FirstBox",
     "FrameAttachment",
     "FrameTracksMessage",
     "JobCreated",

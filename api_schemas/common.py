@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class BoxModel(BaseModel):
@@ -22,6 +22,23 @@ class BoxModel(BaseModel):
     y: float = Field(description="Top edge in pixels, 0-based.")
     w: float = Field(gt=0, description="Width in pixels.")
     h: float = Field(gt=0, description="Height in pixels.")
+
+
+class FirstBox(BoxModel):
+    """The box a single target is followed from: at least 1 pixel each way (the tracker's
+    patch is sampled around it) and overlapping the frame."""
+
+    model_config = ConfigDict(title="FirstBox")
+
+    # one sentence for 0, negative and sub-pixel sizes alike, as `vtrack track` words it
+    w: float = Field(description="Width in pixels, at least 1.", json_schema_extra={"minimum": 1})
+    h: float = Field(description="Height in pixels, at least 1.", json_schema_extra={"minimum": 1})
+
+    @model_validator(mode="after")
+    def _at_least_a_pixel(self) -> FirstBox:
+        if not (self.w >= 1 and self.h >= 1):
+            raise ValueError("width and height must be at least 1 pixel")
+        return self
 
 
 class ErrorResponse(BaseModel):

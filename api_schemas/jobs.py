@@ -20,7 +20,7 @@ from pydantic import (
     model_validator,
 )
 
-from api_schemas.common import BoxModel
+from api_schemas.common import FirstBox
 
 
 class OutputFormat(StrEnum):
@@ -177,7 +177,7 @@ class JobOptions(BaseModel):
         description="'people': every person in view, with parts and occlusion; 'single_target':"
         " one object followed from first_box by a correlation tracker.",
     )
-    first_box: BoxModel | None = Field(
+    first_box: FirstBox | None = Field(
         default=None, description="single_target only: the object's box in the first frame."
     )
     preset: str = Field(

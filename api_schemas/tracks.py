@@ -22,10 +22,11 @@ INTERPOLATED = (
 SCORE = (
     "Confidence in the box. People: the probability that the box holds a person, a running "
     "average of the calibrated detector scores of the detections the track matched. A single "
-    "target: the "
-    "peak of the correlation filter's response (how well the patch matches the learned "
-    "appearance; it falls when the target is covered or lost, though not reliably once the "
-    "filter has drifted onto another object)."
+    "target: the peak of the correlation filter's response, clipped to 0-1 (how well the patch "
+    "matches the learned appearance; it falls when the target is covered or lost, though not "
+    "reliably once the filter has drifted onto another object). Its scale depends on the "
+    "preset and the target (0.3-1 on the frame the filter was learned from): compare it "
+    "between the frames of one track, not between presets."
 )
 OCCLUDED = (
     "True while the tracker judges the object covered by a nearer one. The occluder can be a "

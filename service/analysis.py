@@ -313,14 +313,15 @@ def _summary(
     frames_read = read.frames
     if source.fps is None and source.path.is_dir():
         warnings.append(
-            f"the image folder states no frame rate (no seqinfo.ini): its frames are stamped "
-            f"{source.timing_fps:g} per second; give its rate with --fps"
+            "the image folder states no frame rate (no seqinfo.ini frameRate): its frames are "
+            f"stamped {source.timing_fps:g} per second; give its rate with --fps"
         )
     elif source.fps is None:
         warnings.append(
             "the video states no usable frame rate; frames without a presentation time of their "
             f"own are stamped {source.timing_fps:g} per second"
         )
+    warnings.extend(source.notes)
     warnings.extend(damage_warnings(source, read))
     confirm_hits = options.tracker.confirm_hits or PeopleTrackerConfig().confirm_hits
     if options.mode == "people" and processed < confirm_hits:

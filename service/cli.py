@@ -27,7 +27,7 @@ from service.frames import FrameSource, ReadProgress, open_frames
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
-from tracking.output_paths import output_file, output_folder
+from tracking.output_paths import output_file, output_folder, staged_output
 from tracking.types import Box, TrackerOutput, box_problem
 
 if TYPE_CHECKING:
@@ -109,6 +109,18 @@ def _color_names_file(given: Path | None) -> Path | None:
     return path
 
 
+def _warn_unused_table(w2c: Path | None, preset: str) -> None:
+    """Say so when ``--w2c`` is given for a preset that uses no Color Names: it is loaded,
+    checked and then has no effect on the boxes."""
+    feature = PRESETS[preset].feature if preset in PRESETS else "cn"  # unknown: refused later
+    if w2c is not None and "cn" not in feature.split("+"):
+        print(
+            f"vtrack: warning: --w2c: preset {preset} uses no Color Names ({feature} features); "
+            "the table has no effect",
+            file=sys.stderr,
+        )
+
+
 def _dpm_model_file(given: Path | None) -> Path | None:
     """The DPM model of ``--dpm-model`` or ``VTRACK_DPM_MODEL``, loaded once to check it.
 
@@ -166,7 +178,19 @@ def _track(args: argparse.Namespace) -> int:
         return 2
     try:
         source = _open_source(args)
-        length = source.length
+        folder, length = source.path.is_dir(), source.length
+        if folder and source.fps is None and (start > 0 or args.end is not None):
+            print(
+                "vtrack: warning: the image folder states no frame rate (no seqinfo.ini "
+                f"frameRate): --start and --end count {source.timing_fps:g} frames per second; "
+                "give its rate with --fps",
+                file=sys.stderr,
+            )
+        if folder and not source.image_range(start):
+            last = (source.frame_count - 1) / source.timing_fps
+            raise ValueError(
+                f"no frame is at or after --start {start:g} s: the last is at {last:.2f} s"
+            )
         if length is not None and start > 0 and start >= length:
             raise ValueError(f"--start {start:g} s is not within the video ({length:.2f} s)")
         box = args.box or _truth_box(source, start)
@@ -180,6 +204,7 @@ def _track(args: argparse.Namespace) -> int:
         print(f"vtrack: {where} {problem}", file=sys.stderr)
         return 2
     config = PRESETS[args.preset]
+    _warn_unused_table(args.w2c, args.preset)
     # a file named .json gets JSON lines unless --format says otherwise
     json_name = args.out is not None and args.out.suffix.lower() in (".json", ".jsonl")
     fmt = args.format or ("json" if json_name else "csv")
@@ -187,10 +212,8 @@ def _track(args: argparse.Namespace) -> int:
         if color_names := _color_names_file(args.w2c):
             config = dataclasses.replace(config, color_names_path=str(color_names))
         tracker = CorrelationTracker(config)
-        # rows go to a file beside --out, renamed over it once the run is complete: a run that
-        # fails or is interrupted leaves no half-written file (and an older file as it was)
-        partial = output_file(args.out).with_name(f".{args.out.name}.partial") if args.out else None
-        out_file = open(partial, "w") if partial else sys.stdout  # noqa: SIM115
+        target, partial = staged_output(output_file(args.out)) if args.out else (None, None)
+        out_file = open(partial or target, "w") if target else sys.stdout  # noqa: SIM115
     except (ValueError, OSError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
@@ -198,11 +221,11 @@ def _track(args: argparse.Namespace) -> int:
     bar = _progress_bar(source.frames_until(args.end), args.quiet)
     read.on_read = lambda: bar.update(read.frames - bar.n)
     try:
-        if fmt == "csv":
-            print("frame,x,y,w,h,peak,psr", file=out_file)
         for frame in source.timed(1, read, start, args.end):
             number = frame.index + 1  # the video's own: damaged frames leave their gap
             if written == 0:
+                if fmt == "csv":  # with the first row: a range without frames prints nothing
+                    print("frame,x,y,w,h,peak,psr", file=out_file)
                 tracker.initialize(frame.image, box)
                 row = _format_row(number, box, None, fmt)
             else:
@@ -220,24 +243,26 @@ def _track(args: argparse.Namespace) -> int:
         bar.close()
         if partial:
             out_file.close()
-            os.replace(partial, args.out)
+            os.replace(partial, target)
     except ValueError as error:
         bar.close()
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as error:
         bar.close()
-        kept = "nothing written" if partial else f"the {written} rows printed are complete"
+        verb = "printed" if target is None else "written"
+        kept = "nothing written" if partial else f"the {written} rows {verb} are complete"
         what, status = _stopped(error)
         print(f"vtrack: {what} after {written} frames; {kept}", file=sys.stderr)
         return status
     finally:
-        if partial:
+        if target:
             out_file.close()
+        if partial:
             partial.unlink(missing_ok=True)  # gone already when the run completed
     from service.analysis import damage_warnings  # as `vtrack analyze` judges it
 
-    for warning in damage_warnings(source, read):
+    for warning in (*source.notes, *damage_warnings(source, read)):
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if args.out and not args.quiet:
         print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)
@@ -362,18 +387,34 @@ class _PublicDetections:
         self.frames_with_rows += bool(len(found))
         return found if self.scale == 1.0 else found.scaled(self.scale)
 
-    def unused_warning(self, path: Path, frames: int) -> str | None:
-        """A sentence when ``frames`` were tracked and none had a row of the file."""
+    def warnings(self, path: Path, frames: int) -> list[str]:
+        """Sentences on what the file could not give as it stands: rows without a size,
+        confidences that are not probabilities, no row for any of the ``frames`` tracked."""
+        rows, said = self.table.rows, []
+        if self.table.dropped:
+            said.append(
+                f"--detections: {path} has rows without a width or height "
+                f"({self.table.dropped}); they were left out"
+            )
+        low, high = (rows[:, 6].min(), rows[:, 6].max()) if len(rows) else (0.0, 1.0)
+        if low < 0 or high > 1:
+            said.append(
+                f"--detections: the confidences of {path} run from {low:g} to {high:g}; taken "
+                "as probabilities they are clipped to 0-1 (every one below 0 counts as "
+                "impossible, every one above 1 as certain): rescale them to 0-1 to keep their "
+                "order"
+            )
         if self.frames_with_rows or not frames:
-            return None
-        if not len(self.table.rows):
-            return f"--detections: {path} has no rows: nobody was tracked"
-        first, last = self.table.rows[:, 0].min(), self.table.rows[:, 0].max()
-        return (
+            return said
+        if not len(rows):
+            return [*said, f"--detections: {path} has no rows: nobody was tracked"]
+        first, last = rows[:, 0].min(), rows[:, 0].max()
+        return [
+            *said,
             f"--detections: no row of {path} is for the {frames} frames tracked (its rows are "
             f"for frames {first:.0f}-{last:.0f}, counted from 1): nobody was tracked; are they "
-            "another video's detections?"
-        )
+            "another video's detections?",
+        ]
 
 
 def _public_detections(args: argparse.Namespace, source: FrameSource) -> _PublicDetections | None:
@@ -490,6 +531,8 @@ def _analyze(args: argparse.Namespace) -> int:
                 "VTRACK_DPM_MODEL"
             )
         resources = PipelineResources(dpm_model=dpm_model, color_names=_color_names_file(args.w2c))
+        if options.mode == "single_target":
+            _warn_unused_table(args.w2c, options.preset)
         source = _open_source(args)
         detections = _public_detections(args, source)
         if options.mode == "single_target" and options.first_box is not None:
@@ -544,10 +587,8 @@ def _analyze(args: argparse.Namespace) -> int:
     bar.update(result.video.frames_read - bar.n)
     bar.close()
     warnings = list(result.warnings)
-    if detections is not None and (
-        unused := detections.unused_warning(args.detections, result.frames_processed)
-    ):
-        warnings.append(unused)
+    if detections is not None:
+        warnings += detections.warnings(args.detections, result.frames_processed)
     for warning in warnings:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if not args.quiet:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import re
 import struct
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,12 +121,17 @@ class FrameSource:
         longer recording without its keyframe starts with pictures that reference ones it
         lacks, and decoding starts at the first keyframe. The frames read are numbered and
         timed from there.
+    notes:
+        What an image folder's layout leaves out or contradicts (images missing from its
+        numbering, a ``seqinfo.ini`` whose length or rate does not fit), in sentences for the
+        user; empty for videos.
     """
 
     path: Path
     frame_count: int
     fps: float | None
     _images: tuple[Path, ...] = ()
+    _indices: tuple[int, ...] = ()  # each image's frame index (numbered names keep gaps)
     width: int = 0
     height: int = 0
     count_stated: bool = True
@@ -133,6 +139,7 @@ class FrameSource:
     pixel_aspect: float = 1.0
     lead_frames: int = 0
     lead_seconds: float = 0.0
+    notes: tuple[str, ...] = ()
 
     def __iter__(self) -> Iterator[np.ndarray]:
         """RGB uint8 frames ``(H, W, 3)``, in order."""
@@ -168,7 +175,7 @@ class FrameSource:
     def image_range(self, start: float = 0.0, end: float | None = None) -> range:
         """The indices of an image folder's frames from ``start`` seconds until ``end``
         (``range(0)`` for a video, whose frames' times are known only as they are read)."""
-        times = np.arange(len(self._images)) / self.timing_fps
+        times = np.asarray(self._indices, dtype=float) / self.timing_fps
         first = int(np.searchsorted(times, start))  # the first at or after start
         stop = len(times) if end is None else int(np.searchsorted(times, end))
         return range(first, max(first, stop))
@@ -200,14 +207,16 @@ class FrameSource:
         fps = self.timing_fps
         read = read if read is not None else ReadProgress()
         if self._images:
-            indices = self.image_range(start, end)
-            for index in indices[::step]:
+            positions = self.image_range(start, end)
+            for position in positions[::step]:
+                index = self._indices[position]
                 read.frames, read.end_time = index + 1, index / fps
                 if read.on_read is not None:
                     read.on_read()
-                yield TimedFrame(index, index / fps, read_image(self._images[index]))
-            read.frames, read.end_time = indices.stop, (indices.stop - 1) / fps
-            read.reached_end = indices.stop < len(self._images)
+                yield TimedFrame(index, index / fps, read_image(self._images[position]))
+            last = self._indices[positions.stop - 1] if positions.stop else -1
+            read.frames, read.end_time = last + 1, last / fps
+            read.reached_end = positions.stop < len(self._images)
             return
         capture = cv2.VideoCapture(str(self.path))
         try:
@@ -310,13 +319,7 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
             "their own times"
         )
     if path.is_dir():
-        folder = next((path / name for name in ("img", "img1") if (path / name).is_dir()), path)
-        images = tuple(sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
-        if not images:
-            raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
-        height, width = read_image(images[0]).shape[:2]
-        fps = fps or _sequence_fps(folder)
-        return FrameSource(path, len(images), fps, images, width=width, height=height)
+        return _open_folder(path, fps)
     capture = cv2.VideoCapture(str(path))
     try:
         ok, first = capture.read() if capture.isOpened() else (False, None)
@@ -493,15 +496,101 @@ def _video_duration(container: av.container.InputContainer, video: av.VideoStrea
     return None
 
 
-def _sequence_fps(folder: Path) -> float | None:
-    """The frame rate of a MOTChallenge sequence (``frameRate`` of the ``seqinfo.ini`` beside
-    or above its images), ``None`` for other folders."""
-    for sequence in (folder, folder.parent):
+def _open_folder(path: Path, fps: float | None) -> FrameSource:
+    """The images of a folder, an OTB sequence (``img/``) or a MOTChallenge one (the
+    ``imDir`` of its ``seqinfo.ini``, else ``img1/``), in the order of their names' numbers."""
+    info, ini = _seqinfo_beside(path)
+    named = [info["imDir"]] if info and info.get("imDir") else []
+    folder = next((path / name for name in (*named, "img", "img1") if (path / name).is_dir()), path)
+    images = tuple(
+        sorted((p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=_natural)
+    )
+    if not images:
+        raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
+    height, width = read_image(images[0]).shape[:2]
+    # a MOTChallenge frame is its file's number (000001.jpg is frame 1), whatever comes first
+    indices = _frame_indices(images, first=1 if info else None)
+    notes = _missing_images(images, indices, folder)
+    stated_rate = info.get("frameRate") if info else None
+    if stated_rate is not None and (rate := _number(stated_rate)) and rate > 0:
+        fps = fps or rate
+    elif stated_rate is not None:
+        notes.append(f"{ini}'s frameRate {stated_rate!r} is not a frame rate")
+    length = _number(info.get("seqLength", "")) if info else None
+    if length is not None and length != indices[-1] + 1:
+        notes.append(
+            f"{ini} states seqLength {length:g}, but the images of {folder} end at frame "
+            f"{indices[-1] + 1}: the frames there were tracked"
+        )
+    return FrameSource(
+        path,
+        indices[-1] + 1,
+        fps,
+        images,
+        indices,
+        width=width,
+        height=height,
+        notes=tuple(notes),
+    )
+
+
+def _seqinfo_beside(path: Path) -> tuple[Mapping[str, str], Path | None]:
+    """The ``[Sequence]`` of the ``seqinfo.ini`` in ``path`` or above it (``path`` may be a
+    sequence's ``img1/``), with the file's path; ``({}, None)`` when there is none, or it
+    cannot be read (then the folder is read as any image folder)."""
+    for sequence in (path, path.parent):
         try:
             info = read_seqinfo(sequence)
-            fps = float(info.get("frameRate", "0")) if info else None
-        except (MotFormatError, ValueError):
-            return None
-        if fps is not None:
-            return fps if fps > 0 else None
-    return None
+        except MotFormatError:
+            return {}, None
+        if info:
+            return info, sequence / "seqinfo.ini"
+    return {}, None
+
+
+def _number(text: str) -> float | None:
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _natural(path: Path) -> tuple[tuple[int, int | str], ...]:
+    """Sort key that puts ``img2`` before ``img10``, as file browsers do."""
+    return tuple(
+        (0, int(part)) if part.isdigit() else (1, part)
+        for part in re.split(r"(\d+)", path.name)
+        if part
+    )
+
+
+def _frame_indices(images: tuple[Path, ...], first: int | None) -> tuple[int, ...]:
+    """Each image's frame index: its name's last number less the first frame's number
+    (``first``, else the first image's), so a missing image leaves its frame's gap as a
+    frame of a video that does not decode does; the images' positions when the names do not
+    all carry increasing numbers."""
+    found = [re.search(r"(\d+)\D*$", p.stem) for p in images]
+    numbers = [int(m.group(1)) for m in found if m]
+    positions = tuple(range(len(images)))
+    if len(numbers) < len(images) or any(b <= a for a, b in itertools.pairwise(numbers)):
+        return positions
+    origin = first if first is not None and numbers[0] >= first else numbers[0]
+    return tuple(n - origin for n in numbers)
+
+
+def _missing_images(images: tuple[Path, ...], indices: tuple[int, ...], folder: Path) -> list[str]:
+    """A note naming the frames a numbered folder has no image for (an empty list if none)."""
+    missing = indices[-1] + 1 - len(images)
+    if not missing:
+        return []
+    # (first, last) missing frame, counted from 1, between each two images that are not adjacent
+    gaps = [(a + 2, b) for a, b in itertools.pairwise((-1, *indices)) if b > a + 1]
+    ranges = ", ".join(
+        str(first) if first == last else f"{first}-{last}" for first, last in gaps[:3]
+    )
+    more = ", ..." if len(gaps) > 3 else ""
+    return [
+        f"{folder} has no image for {missing} of its frames ({ranges}{more}, counted from 1): "
+        "they are left out, and the other frames keep their files' numbers"
+    ]

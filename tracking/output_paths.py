@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["output_file", "output_folder"]
+__all__ = ["output_file", "output_folder", "staged_output"]
 
 
 def output_folder(path: str | os.PathLike[str]) -> Path:
@@ -55,6 +55,11 @@ def output_file(path: str | os.PathLike[str]) -> Path:
         raise IsADirectoryError(f"{file} is a folder: give a file name")
     if not file.parent.is_dir():
         raise FileNotFoundError(f"cannot write {file}: the folder {file.parent} does not exist")
+    if file.exists() and not file.is_file():
+        # a device or a pipe: opened and closed to try it, a pipe would end its reader's input
+        if not os.access(file, os.W_OK):
+            raise PermissionError(f"cannot write {file}: permission denied")
+        return file
     existed = file.exists()
     try:
         open(file, "a").close()  # opened only to see that it can be
@@ -63,3 +68,18 @@ def output_file(path: str | os.PathLike[str]) -> Path:
     if not existed:
         file.unlink()
     return file
+
+
+def staged_output(path: str | os.PathLike[str]) -> tuple[Path, Path | None]:
+    """Where a command writes the file ``path`` names: ``(target, partial)``.
+
+    ``target`` is the file, or the one a symbolic link points to (the link stays a link).
+    ``partial``, beside it, takes the content until the run is complete and is then renamed
+    over ``target``, so a run that fails leaves no half-written file and an older file as it
+    was. It is ``None`` for a device or a pipe (``/dev/null``, a FIFO), which a rename would
+    replace by a plain file: those are written directly.
+    """
+    target = Path(path).resolve()
+    if target.exists() and not target.is_file():
+        return target, None
+    return target, target.with_name(f".{target.name}.partial")

@@ -58,7 +58,10 @@ class TrackerOutput:
     box:
         Estimated target box.
     peak:
-        Maximum of the correlation response (about 1 for a perfect match, near 0 for none).
+        Maximum of the correlation response: near 0 for no match, and on the frame the filter
+        was learned from between about 0.3 and 1 depending on the preset (features, kernel,
+        regularisation) and the target, so compare it between frames of one run, not between
+        presets.
     psr:
         Peak-to-sidelobe ratio of the response: ``(peak - mean) / std`` of the response outside
         a small window around the peak (Bolme et al. 2010). Higher is more confident; a sudden

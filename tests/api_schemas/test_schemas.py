@@ -64,10 +64,15 @@ def test_default_options_and_their_schema_agree():
         ),
         ({"mode": "single_target", "first_box": BOX, "tracker": {"particles": 50}}, "'people'"),
         ({"mode": "single_target", "first_box": BOX, "fill_gaps": 1}, "never dropped"),
-        (
-            {"mode": "single_target", "first_box": {"x": 1, "y": 1, "w": 0, "h": 5}},
-            "greater than 0",
-        ),  # an empty box
+        # an empty box, a negative or sub-pixel size: one sentence (was pydantic's "greater
+        # than 0" for 0 and "at least 1 pixel" for 0.5, from the job's own check)
+        *(
+            (
+                {"mode": "single_target", "first_box": {"x": 1, "y": 1, "w": w, "h": 5}},
+                "first_box\n.*width and height must be at least 1 pixel",
+            )
+            for w in (0, -3, 0.5)
+        ),
     ],
 )
 def test_invalid_options_are_rejected(options, message):

@@ -151,7 +151,8 @@ def test_analyze_follows_parts_with_part_trackers_on_request(pets_short, tmp_pat
         (["--format", "json,avi"], "comma-separated list"),  # unknown format
         (["--frame-step", "0"], "--frame-step: Input should be greater than or equal to 1"),
         (["--upscale", "-1"], "--upscale: Input should be greater than 0"),
-        (["--box", "1,1,-5,3"], "--box: Input should be greater than 0"),
+        (["--box", "1,1,-5,3"], "--box: width and height must be at least 1 pixel"),
+        (["--box", "1,1,0.5,3"], "--box: width and height must be at least 1 pixel"),
         # first box outside the frame; before: "first_box: box Box(x=900.0, ...) lies ..."
         (["--box", "900,10,20,20"], "--box 900,10,20,20 lies entirely outside the 480x360 frame"),
         (["--fill-gaps", "-1"], "--fill-gaps: Input should be greater than or equal to 0"),

@@ -401,3 +401,62 @@ def test_serve_on_every_address_prints_a_link_a_browser_can_open(tmp_path):
         service.terminate()
         service.wait(timeout=30)
         service.stderr.close()
+
+
+def test_an_output_behind_a_link_or_a_pipe_is_written_through_not_replaced(scene_video, tmp_path):
+    path, truth = scene_video
+    box = ",".join(str(int(v)) for v in truth[0])
+    # a link: its file gets the rows, the link stays (was: the link replaced by a plain file)
+    real, link = tmp_path / "real.csv", tmp_path / "link.csv"
+    real.write_text("an earlier run\n")
+    link.symlink_to(real)
+    result = vtrack("track", path, "--box", box, "--out", link, "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert link.is_symlink() and len(real.read_text().splitlines()) == 31
+    # a pipe (as /dev/null, a device): written into (was: replaced by a plain file)
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    lines = []
+    reader = threading.Thread(
+        target=lambda: lines.extend(pipe.read_text().splitlines()), daemon=True
+    )
+    reader.start()
+    result = vtrack("track", path, "--box", box, "--out", pipe, "--quiet")
+    reader.join(timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert len(lines) == 31 and lines[0] == "frame,x,y,w,h,peak,psr"
+    assert pipe.is_fifo() and sorted(p.name for p in tmp_path.iterdir()) == [
+        "link.csv",
+        "pipe",
+        "real.csv",
+    ]
+
+
+def test_a_folder_start_past_its_last_image_is_named_and_its_assumed_rate_told(shared_data):
+    crossing = shared_data / "otb" / "Crossing"  # 120 images, no frame rate: 25 per second
+    result = vtrack("track", crossing, "--start", "4.79")
+    assert result.returncode == 2 and result.stdout == ""  # no CSV header before the error
+    # was: "groundtruth_rect.txt has no box for frame 121"
+    assert "vtrack: no frame is at or after --start 4.79 s: the last is at 4.76 s" in (
+        result.stderr
+    )
+    assert "the image folder states no frame rate (no seqinfo.ini frameRate): --start and " in (
+        result.stderr
+    )
+    result = vtrack("track", crossing, "--start", "4.7", "--fps", "25", "--quiet")
+    assert result.returncode == 0 and result.stderr == ""
+    assert [row.split(",")[0] for row in result.stdout.splitlines()] == ["frame", "119", "120"]
+
+
+def test_a_colour_table_for_a_preset_without_colour_names_is_said_to_do_nothing(
+    shared_data, scene_video
+):
+    table = shared_data / "colornames" / "w2c.mat"
+    args = ["--box", "1,1,5,5", "--w2c", table, "--quiet", "--preset"]
+    result = vtrack("track", scene_video[0], *args, "mosse_gray")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == (
+        "vtrack: warning: --w2c: preset mosse_gray uses no Color Names (gray features); the "
+        "table has no effect\n"
+    )
+    assert vtrack("track", scene_video[0], *args, "rcsk_cn").stderr == ""

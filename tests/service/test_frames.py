@@ -200,3 +200,60 @@ def test_a_clip_shorter_than_a_confirmation_says_so(shared_data, tmp_path):
     options = JobOptions(formats=["json"], tracker={"confirm_hits": 1})
     result = analyze(clip, options, tmp_path / "again")
     assert read_trajectories(result.files["json"]).tracks and result.warnings == []
+
+
+def _copy_frames(sequence: Path, numbers, folder: Path, name: str = "{:06d}.jpg") -> Path:
+    folder.mkdir(parents=True)
+    for number in numbers:
+        (folder / name.format(number)).write_bytes(
+            (sequence / "img1" / f"{number:06d}.jpg").read_bytes()
+        )
+    return folder
+
+
+def test_unpadded_image_names_play_in_their_numbers_order(shared_data, tmp_path):
+    sequence = shared_data / "mot" / "TUD-Stadtmitte"
+    folder = _copy_frames(sequence, range(1, 13), tmp_path / "frames", "img{}.jpg")
+    reference = list(islice(open_frames(sequence), 12))
+    # text order played img1, img10, img11, img12, img2, ...
+    assert all((a == b).all() for a, b in zip(open_frames(folder), reference, strict=True))
+
+
+def test_missing_images_leave_their_frames_out_and_the_others_keep_their_numbers(
+    shared_data, tmp_path
+):
+    sequence = shared_data / "mot" / "TUD-Stadtmitte"
+    copy = tmp_path / "TUD-gap"
+    _copy_frames(sequence, [n for n in range(1, 21) if n not in (10, 11)], copy / "img1")
+    (copy / "seqinfo.ini").write_text((sequence / "seqinfo.ini").read_text())
+    source = open_frames(copy)
+    frames = list(source.timed())
+    # frame 12 is frame 12 (index 11), as in det.txt and gt.txt, not the tenth image's 10
+    assert [f.index for f in frames] == [n - 1 for n in range(1, 21) if n not in (10, 11)]
+    assert frames[9].timestamp == pytest.approx(11 / 25)
+    assert source.frame_count == 20
+    result = analyze(source, JobOptions(formats=["json"]), tmp_path / "out")
+    assert result.video.frames_read == 20 and result.frames_processed == 18
+    assert list(source.notes) == result.warnings[: len(source.notes)]  # told with the results
+    assert source.notes == (
+        f"{copy / 'img1'} has no image for 2 of its frames (10-11, counted from 1): they are "
+        "left out, and the other frames keep their files' numbers",
+        f"{copy / 'seqinfo.ini'} states seqLength 179, but the images of {copy / 'img1'} end at "
+        "frame 20: the frames there were tracked",
+    )
+
+
+def test_a_motchallenge_sequence_cut_from_later_keeps_its_frame_numbers(shared_data, tmp_path):
+    sequence = shared_data / "mot" / "TUD-Stadtmitte"
+    copy = tmp_path / "TUD-late"
+    _copy_frames(sequence, range(41, 46), copy / "img1")
+    (copy / "seqinfo.ini").write_text(
+        (sequence / "seqinfo.ini").read_text().replace("frameRate=25", "frameRate=abc")
+    )
+    source = open_frames(copy)
+    assert [f.index for f in source.timed()] == [40, 41, 42, 43, 44]  # 000041.jpg is frame 41
+    assert source.fps is None
+    assert f"{copy / 'seqinfo.ini'}'s frameRate 'abc' is not a frame rate" in source.notes
+    # a folder of numbered images without seqinfo.ini counts from its first image
+    plain = _copy_frames(sequence, range(41, 46), tmp_path / "plain")
+    assert [f.index for f in open_frames(plain).timed()] == [0, 1, 2, 3, 4]

@@ -93,7 +93,13 @@ def test_options_that_would_do_nothing_beside_detections_are_refused(
 
 @pytest.mark.parametrize(
     ("content", "message"),
-    [(None, "--detections: mot file not found"), (b"1,-1,10,10,5\n", "expected at least 7")],
+    [
+        (None, "--detections: mot file not found"),
+        (b"1,-1,10,10,5\n", "expected at least 7"),
+        # frames from 1, whole: were taken as frame 3 (3.5) or never matched (0), silently
+        (b"3.5,-1,10,10,5,5,0.9\n", "det.txt:1: the frame number 3.5 is not a whole number"),
+        (b"1,-1,1,1,5,5,1\n0,-1,10,10,5,5,0.9\n", "det.txt:2: the frame number 0 is not"),
+    ],
 )
 def test_a_detections_file_that_is_not_one_is_named(shared_data, tmp_path, content, message):
     path = tmp_path / "det.txt"
@@ -138,3 +144,28 @@ def test_detections_that_miss_every_tracked_frame_are_warned_of(
     assert f"vtrack: warning: --detections: {message.format(path=path)}" in result.stderr
     document = json.loads((tmp_path / "out" / "trajectories.json").read_text())
     assert document["tracks"] == []
+
+
+def test_rows_without_a_size_and_confidences_beyond_probabilities_are_warned_of(
+    shared_data, tmp_path
+):
+    # a detector's raw scores (here -2..2) were clipped to 0-1 without a word, and rows of
+    # negative width left out silently
+    sequence = shared_data / "mot" / "PETS09-S2L1"
+    rows = [line.split(",") for line in (sequence / "det" / "det.txt").read_text().splitlines()]
+    rows = [[*r[:6], f"{4 * float(r[6]) - 2:g}", *r[7:]] for r in rows if int(r[0]) <= 7]
+    rows[0][4] = "-" + rows[0][4]
+    path = tmp_path / "det.txt"
+    path.write_text("".join(",".join(r) + "\n" for r in rows))
+    args = ["--out-dir", tmp_path / "out", "--detections", path, "--end", "1", "--format", "json"]
+    result = vtrack("analyze", sequence, *args)
+    assert result.returncode == 0, result.stderr
+    scores = sorted(float(r[6]) for r in rows[1:])
+    assert (
+        f"vtrack: warning: --detections: {path} has rows without a width or height (1); they "
+        "were left out" in result.stderr
+    )
+    assert (
+        f"--detections: the confidences of {path} run from {scores[0]:g} to {scores[-1]:g}; "
+        "taken as probabilities they are clipped to 0-1" in result.stderr
+    )

@@ -172,7 +172,12 @@ def _crossing_cut(shared_data, tmp_path, frames: int):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--start", "60"], "vtrack: --start 60 s is not within the video (4.80 s)\n"),
+        (
+            ["--start", "60"],
+            "vtrack: warning: the image folder states no frame rate (no seqinfo.ini frameRate): "
+            "--start and --end count 25 frames per second; give its rate with --fps\n"
+            "vtrack: no frame is at or after --start 60 s: the last is at 4.76 s\n",
+        ),
         (["--start", "3", "--end", "2"], "vtrack: --end (2 s) must come after --start (3 s)\n"),
     ],
 )
@@ -207,7 +212,10 @@ def test_an_image_folder_plays_at_the_rate_given(shared_data, tmp_path):
     # OTB folders state no rate: 25 per second, and a warning says how to give theirs
     result = vtrack("analyze", folder, "--out-dir", out, "--format", "json", "--quiet")
     assert result.returncode == 0, result.stderr
-    assert "no seqinfo.ini): its frames are stamped 25 per second; give its rate" in result.stderr
+    assert (
+        "no seqinfo.ini frameRate): its frames are stamped 25 per second; give its rate"
+        in result.stderr
+    )
     result = vtrack(
         "analyze", folder, "--fps", "5", "--start", "1", "--out-dir", out, "--format", "json"
     )

@@ -153,6 +153,8 @@ class MotDetections:
         Maps the confidence column to probabilities; ``None``: confidence clipped to ``[0, 1]``.
     min_confidence:
         Rows with a lower confidence are left out.
+    dropped:
+        How many of the rows given had no width or height (left out).
     """
 
     rows: np.ndarray
@@ -160,6 +162,7 @@ class MotDetections:
     min_confidence: float = -np.inf
     part_names: tuple[str, ...] = ()
     frame_indexed: ClassVar[bool] = True  # detect() reads frame after frame (Detector)
+    dropped: int = field(init=False, default=0)
     _cursor: _Cursor = field(default_factory=_Cursor, repr=False)
     _by_frame: dict[int, np.ndarray] = field(init=False, repr=False)
     _boxes: np.ndarray = field(init=False, repr=False)
@@ -169,8 +172,9 @@ class MotDetections:
         if rows.ndim != 2 or rows.shape[1] < 7:
             raise ValueError(f"rows must have shape (N, >= 7), got {rows.shape}")
         rows = rows[rows[:, 6] >= self.min_confidence]
-        rows = rows[(rows[:, 4] > 0) & (rows[:, 5] > 0)]
-        self.rows = rows
+        sized = (rows[:, 4] > 0) & (rows[:, 5] > 0)
+        self.rows, self.dropped = rows[sized], int(np.count_nonzero(~sized))
+        rows = self.rows
         self._boxes = mot_to_image_boxes(rows[:, 2:6])
         frames = rows[:, 0].astype(np.int64)
         order = np.argsort(frames, kind="stable")

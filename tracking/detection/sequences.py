@@ -59,13 +59,14 @@ def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndar
     :func:`mot_to_image_boxes`).
 
     Blank lines are skipped; separators may be commas or whitespace. Rows longer than the
-    shortest are cut to its length.
+    shortest are cut to its length. Frame numbers are whole numbers from 1.
 
     Raises
     ------
     MotFormatError
-        If the file is missing or a line has fewer than ``min_columns`` numbers, or a value that
-        is not a number; the message names the line.
+        If the file is missing or a line has fewer than ``min_columns`` numbers, a value that
+        is not a number, or a frame number that is not a whole number from 1; the message names
+        the line.
     """
     path = Path(path)
     try:
@@ -99,6 +100,10 @@ def parse_mot_rows(text: str, min_columns: int = 7, source: str = "<text>") -> n
             )
         if not all(np.isfinite(values[:min_columns])):
             raise MotFormatError(f"{source}:{number}: non-finite value in {stripped!r}")
+        if values[0] < 1 or values[0] != int(values[0]):
+            raise MotFormatError(
+                f"{source}:{number}: the frame number {fields[0]} is not a whole number from 1"
+            )
         width = len(values) if width is None else min(width, len(values))
         rows.append(values)
     if not rows:
