@@ -125,7 +125,12 @@ class VideoInfo(BaseModel):
     filename: str | None = Field(default=None, description="Name of the uploaded file.")
     width: int = Field(ge=1)
     height: int = Field(ge=1)
-    fps: float | None = Field(default=None, description="Frame rate the container declares.")
+    fps: float | None = Field(
+        default=None,
+        description="Frame rate the container (or an image folder's seqinfo.ini or --fps) "
+        "declares; null when it declares none: frames without a time of their own are then "
+        "stamped 25 per second, with a warning.",
+    )
     frames_announced: int = Field(
         ge=0, description="Frame count the container declares; 0 when it declares none."
     )
