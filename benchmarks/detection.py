@@ -12,6 +12,10 @@ default ``--step 2`` (frames 1, 3, 5, ...: 398 of PETS09-S2L1's 795, 90 of TUD-S
 per frame); the public detections score the same on it as on every frame (AP 0.842 / 0.545
 against 0.847 / 0.535). ``--step 1`` uses every frame.
 
+Without ``--picture PNG`` no picture is drawn (the committed ``docs/images/detections.png`` is
+made by passing its path, see ``docs/benchmarks.md``); with it, the first DPM variant's
+detections and part boxes on the first frame of the first sequence.
+
 * AP at IoU 0.5 ("all points" VOC AP: detections of all frames sorted by score, greedy matching
   to the ground truth per frame, area under the precision envelope; ``tracking.detection.metrics``);
 * log-average miss rate over FPPI 1e-2..1e0 (Dollár et al. 2012), and a miss-rate/FPPI plot.
@@ -73,7 +77,9 @@ from tracking.detection import (
     DpmDetector,
     HogPeopleConfig,
     HogPeopleDetector,
+    ModelFileError,
     MotDetections,
+    MotFormatError,
     MotSequence,
 )
 from tracking.detection.metrics import (
@@ -92,7 +98,6 @@ except ImportError:  # python -m benchmarks.<name> from the repository root
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_SEQUENCES = ("PETS09-S2L1", "TUD-Stadtmitte")
-DEFAULT_PICTURE = REPO_ROOT / "docs" / "images" / "detections.png"
 DEFAULT_DETECTORS = (
     "dpm-inria",
     "dpm-inria@1.3:5",
@@ -135,11 +140,15 @@ class Sequence:
         size = (round(frame.shape[1] * self.scale), round(frame.shape[0] * self.scale))
         return cv2.resize(frame, size, interpolation=cv2.INTER_LINEAR)
 
-    def public(self, index: int) -> tuple[np.ndarray, np.ndarray]:
-        """The public ``det/det.txt`` boxes and scores of a 0-based frame."""
+    def load_public(self) -> MotDetections:
+        """The public ``det/det.txt`` (read once; MotFormatError if missing or malformed)."""
         if self._public is None:
             self._public = MotDetections.from_file(self.source.detections_file)
-        d = self._public.for_frame(index)
+        return self._public
+
+    def public(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """The public ``det/det.txt`` boxes and scores of a 0-based frame."""
+        d = self.load_public().for_frame(index)
         return d.boxes * self.scale, d.scores
 
 
@@ -176,6 +185,15 @@ def _opencv_peer(upscale: float) -> Detect:
 
 
 DPM_MODELS = {"inria": "INRIA/inriaperson_final.mat", "voc2007": "VOC2007/person_final.mat"}
+DPM_FORM = "dpm-<model>[@upscale][:levels][>min height][+exact]"
+DETECTOR_FORMS = (
+    f"{DPM_FORM} with model {' or '.join(DPM_MODELS)}, default[@upscale], "
+    "opencv-hog[@upscale] or public"
+)
+
+
+class DetectorNameError(ValueError):
+    """A ``--detectors`` name the benchmark does not know; the message lists the valid forms."""
 
 
 _DPM_NAME = re.compile(
@@ -189,10 +207,10 @@ def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
 
     ``+exact`` scores every root exactly (no star cascade).
     """
-    form = "dpm-<model>[@upscale][:levels][>min height][+exact]"
+    form = DPM_FORM
     match = _DPM_NAME.fullmatch(name)
     if match is None or match["model"] not in DPM_MODELS:
-        raise SystemExit(
+        raise DetectorNameError(
             f"bad DPM detector name {name!r}: {form} with a model of {sorted(DPM_MODELS)}"
         )
     fields: dict[str, object] = {"cascade": match["exact"] is None}
@@ -206,13 +224,13 @@ def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
 
 
 def _positive(text: str, name: str, form: str) -> float:
-    """``text`` (a number in detector ``name``) as a positive float, else SystemExit."""
+    """``text`` (a number in detector ``name``) as a positive float, else DetectorNameError."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and value > 0):
-        raise SystemExit(f"bad detector name {name!r}: {form}, with positive numbers")
+        raise DetectorNameError(f"bad detector name {name!r}: {form}, with positive numbers")
     return value
 
 
@@ -221,8 +239,45 @@ def _upscale(name: str, detector: str) -> float:
     return _positive(name.removeprefix(f"{detector}@"), name, f"{detector}@<upscale>")
 
 
+def check_detector_name(name: str) -> str:
+    """``name`` if the benchmark knows the detector, checked without loading any model.
+
+    Raises
+    ------
+    DetectorNameError
+        For a name of no known form, or a malformed DPM or ``@<upscale>`` suffix.
+    """
+    if name.startswith("dpm-"):
+        parse_dpm_name(name)
+    elif name.startswith(("default@", "opencv-hog@")):
+        _upscale(name, name.partition("@")[0])
+    elif name not in ("default", "opencv-hog", "public"):
+        raise DetectorNameError(f"unknown detector {name!r}; the detectors are {DETECTOR_FORMS}")
+    return name
+
+
+def detector_names(text: str) -> list[str]:
+    """``--detectors``: comma-separated names, each checked (an argparse error names the bad
+    one, before any model loads or frame is read)."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError(f"no detector named; the detectors are {DETECTOR_FORMS}")
+    try:
+        return [check_detector_name(n) for n in names]
+    except DetectorNameError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry]:
-    """The requested detectors (model files from ``--data``)."""
+    """The requested detectors (model files from ``--data``).
+
+    Raises
+    ------
+    DetectorNameError
+        For an unknown name.
+    ModelFileError
+        If a DPM model file is missing or malformed.
+    """
     entries: dict[str, Entry] = {}
     for name in names:
         if name.startswith("dpm-"):
@@ -270,7 +325,9 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
                 name, "public det/det.txt", lambda f, i: (None, None), timed=False
             )
         else:
-            raise SystemExit(f"unknown detector {name!r}")
+            raise DetectorNameError(
+                f"unknown detector {name!r}; the detectors are {DETECTOR_FORMS}"
+            )
     return entries
 
 
@@ -434,72 +491,137 @@ def save_plot(curves: dict[str, dict[str, DetectionCurve]], path: Path) -> None:
 
 
 # --------------------------------------------------------------------------------- main
+def sequence_folder(item: str, data: Path) -> Path:
+    """The folder of a ``--sequences`` item: a folder path, else a name under ``data/mot``.
+
+    Raises
+    ------
+    MotFormatError
+        If there is no such folder or it has no ground truth, which every detector is scored
+        against.
+    """
+    path = Path(item)
+    if not path.is_dir():
+        path = data / "mot" / item
+    if not path.is_dir():
+        raise MotFormatError(
+            f"no such sequence folder: {path} (--sequences takes folders or names under "
+            f"{data / 'mot'})"
+        )
+    if not (path / "gt" / "gt.txt").is_file():
+        raise MotFormatError(f"{path} has no gt/gt.txt, so no detector can be scored on it")
+    return path
+
+
 def _sequences(args: argparse.Namespace) -> list[Sequence]:
+    """The ``--sequences``, resized to ``--height`` (MotFormatError with what is wrong)."""
     out = []
     for item in args.sequences:
-        path = Path(item)
-        if not path.is_dir():
-            path = args.data / "mot" / item
-        source = MotSequence.open(path)
+        source = MotSequence.open(sequence_folder(item, args.data))
         height = source.read_frame(0).shape[0]
         out.append(Sequence(source, args.height / height if args.height else 1.0))
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", type=Path, default=SHARED_DATA, help="shared data root")
-    parser.add_argument("--sequences", nargs="+", default=list(DEFAULT_SEQUENCES))
-    parser.add_argument("--detectors", default=",".join(DEFAULT_DETECTORS))
     parser.add_argument(
-        "--step", type=int, default=2, help="evaluate every N-th frame (default 2, see above)"
+        "--data",
+        type=Path,
+        default=SHARED_DATA,
+        help=f"shared data root, with the sequences in mot/ and the DPM models in dpm/ "
+        f"(default {SHARED_DATA})",
     )
-    parser.add_argument("--timing-frames", type=int, default=5)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--workers", type=int, default=1, help="DPM level threads")
+    parser.add_argument(
+        "--sequences",
+        nargs="+",
+        default=list(DEFAULT_SEQUENCES),
+        help="MOTChallenge sequence folders, or names under DATA/mot (default: "
+        f"{' '.join(DEFAULT_SEQUENCES)})",
+    )
+    parser.add_argument(
+        "--detectors",
+        type=detector_names,
+        metavar="A,B,...",
+        default=",".join(DEFAULT_DETECTORS),
+        help=f"comma-separated detectors, each {DETECTOR_FORMS} (default: "
+        f"{','.join(DEFAULT_DETECTORS)})",
+    )
+    parser.add_argument(
+        "--step",
+        type=int,
+        metavar="N",
+        default=2,
+        help="score every N-th frame of each sequence, starting with the first (default 2: "
+        "frames 1, 3, 5...; 1: every frame)",
+    )
+    parser.add_argument(
+        "--timing-frames",
+        type=int,
+        default=5,
+        help="frames of each sequence the speed section times, spread over it (default 5)",
+    )
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="timed runs per frame or region (default 3)"
+    )
+    parser.add_argument("--workers", type=int, default=1, help="DPM level threads (default 1)")
     parser.add_argument(
         "--height", type=int, help="resize the frames to this height in pixels (default: as is)"
     )
     parser.add_argument(
         "--picture",
         type=lambda v: Path(v) if v else None,
-        default=DEFAULT_PICTURE,
-        help="PNG of detections and parts on a frame ('' for none)",
+        default=None,
+        metavar="PNG",
+        help="write a PNG of the first DPM variant's detections and parts on a frame to this "
+        "path (default: no picture)",
     )
-    parser.add_argument("--plot", type=Path, help="miss rate / FPPI plot (PNG)")
+    parser.add_argument("--plot", type=Path, metavar="PNG", help="miss rate / FPPI plot (PNG)")
     parser.add_argument("--no-timing", action="store_true", help="skip the speed section")
     parser.add_argument("--no-accuracy", action="store_true", help="skip the AP section")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
-    if args.step < 1:
-        parser.error("--step must be positive")
+    for name in ("step", "timing_frames", "repeats", "workers"):
+        value = getattr(args, name)
+        if value < 1:
+            parser.error(f"--{name.replace('_', '-')} must be at least 1, got {value}")
     if args.height is not None and args.height < 16:
         parser.error("--height must be at least 16 pixels")
+    return args
 
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        report = run(args)
+    except (MotFormatError, ModelFileError) as error:
+        # a missing or malformed input file: one line, the exit status of argparse's errors
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    if args.json:
+        print_json(report, indent=2)
+    else:
+        print_table(report)
+    return 0
+
+
+def run(args: argparse.Namespace) -> dict:
+    """Every measurement the arguments ask for, as the report; the picture and plot saved.
+
+    Raises
+    ------
+    MotFormatError
+        If a sequence folder, its ground truth, public detections or a frame is missing or
+        malformed.
+    ModelFileError
+        If a DPM model file is missing or malformed.
+    """
     sequences = _sequences(args)
-    entries = build_entries(args, [n.strip() for n in args.detectors.split(",") if n.strip()])
-    results: dict[str, dict[str, dict[str, float]]] = {}
-    curves: dict[str, dict[str, DetectionCurve]] = {}
-    for sequence in [] if args.no_accuracy else sequences:
-        frames = list(range(0, len(sequence), args.step))
-        results[sequence.name] = {}
-        curves[sequence.name] = {}
-        for name, entry in entries.items():
-            curve, seconds = evaluate(entry, sequence, frames)
-            curves[sequence.name][name] = curve
-            results[sequence.name][name] = {
-                "ap": average_precision(curve),
-                "log_average_miss_rate": log_average_miss_rate(curve),
-                "seconds_per_frame": seconds,
-                "frames": len(frames),
-            }
-            if not args.json:
-                r = results[sequence.name][name]
-                print(
-                    f"{sequence.name:16s} {name:18s} AP {r['ap']:.3f}  "
-                    f"LAMR {r['log_average_miss_rate']:.3f}  {seconds:.3f} s/frame",
-                    flush=True,
-                )
+    entries = build_entries(args, args.detectors)
+    if "public" in entries:  # a bad det.txt is refused before the slow detectors run
+        for sequence in sequences:
+            sequence.load_public()
+    results, curves = ({}, {}) if args.no_accuracy else accuracy(entries, sequences, args)
     speed = {} if args.no_timing else timing(entries, sequences, args.timing_frames, args.repeats)
     dpm = next((e.dpm for e in entries.values() if e.dpm is not None), None)
     if dpm is not None and args.picture:
@@ -521,11 +643,44 @@ def main(argv: list[str] | None = None) -> int:
         "accuracy": results,
         "speed_fps": speed,
     }
-    if args.json:
-        print_json(report, indent=2)
-    else:
-        print_table(report)
-    return 0
+    return report
+
+
+def accuracy(
+    entries: dict[str, Entry], sequences: list[Sequence], args: argparse.Namespace
+) -> tuple[dict[str, dict[str, dict[str, float]]], dict[str, dict[str, DetectionCurve]]]:
+    """AP, log-average miss rate and seconds per frame of every detector on every ``--step``-th
+    frame of each sequence (printed as they come unless ``--json``), and the curves."""
+    results: dict[str, dict[str, dict[str, float]]] = {}
+    curves: dict[str, dict[str, DetectionCurve]] = {}
+    for sequence in sequences:
+        frames = list(range(0, len(sequence), args.step))
+        results[sequence.name] = {}
+        curves[sequence.name] = {}
+        for name, entry in entries.items():
+            curve, seconds = evaluate(entry, sequence, frames)
+            curves[sequence.name][name] = curve
+            r = results[sequence.name][name] = {
+                "ap": average_precision(curve),
+                "log_average_miss_rate": log_average_miss_rate(curve),
+                "seconds_per_frame": seconds,
+                "frames": len(frames),
+            }
+            if not args.json:  # progress: the DPM variants take minutes per sequence
+                timed = f"  {seconds:.3f} s/frame" if math.isfinite(seconds) else ""
+                print(
+                    f"{sequence.name:16s} {name:18s} AP {r['ap']:.3f}  "
+                    f"LAMR {r['log_average_miss_rate']:.3f}{timed}",
+                    flush=True,
+                )
+    return results, curves
+
+
+def _seconds(value: float, width: int = 0) -> str:
+    """Seconds per frame to 3 decimals; "-" for a time that was not measured (NaN: the public
+    detections are read, not detected)."""
+    text = f"{value:.3f}" if math.isfinite(value) else "-"
+    return f"{text:>{width}}"
 
 
 def print_table(report: dict) -> None:
@@ -536,7 +691,7 @@ def print_table(report: dict) -> None:
         for name, r in rows.items():
             print(
                 f"{sequence:16s} {name:18s} {r['ap']:6.3f} {r['log_average_miss_rate']:6.3f} "
-                f"{r['seconds_per_frame']:8.3f}"
+                f"{_seconds(r['seconds_per_frame'], 8)}"
             )
     if report["speed_fps"]:
         print()

@@ -9,7 +9,8 @@
 Sequences: the MOTChallenge folders under ``--data`` (default ``<repo>/../shared/data/mot`` or
 ``$VTRACK_SHARED_DATA/mot``: PETS09-S2L1 and TUD-Stadtmitte), or those named by
 ``--sequences`` (names under ``--data``, or paths of any MOTChallenge-layout folder:
-``seqinfo.ini``, ``img1/``, ``gt/gt.txt``, ``det/det.txt``).
+``seqinfo.ini``, ``img1/``, ``gt/gt.txt``, ``det/det.txt``). A sequence without a readable
+``gt/gt.txt`` is refused before anything runs: no tracker could be scored on it.
 
 Trackers, all in one run:
 
@@ -56,8 +57,14 @@ detections). Peers are timed in their own process, ours in this one.
 
 Output: a table per sequence and tracker, then the best peer per metric and the difference of
 each of ours to it; ``--json`` prints one JSON object on stdout instead (the table goes to
-stderr). ``--picture`` (default ``docs/images/mot.png``; ``''`` for none) draws our tracks on a
-PETS09-S2L1 frame: boxes with ids, 20-frame trails, body parts (filled: visible; hollow: hidden).
+stderr). ``--picture PNG`` (default: none) draws our tracks on a PETS09-S2L1 frame: boxes with
+ids, 20-frame trails, body parts (filled: visible; hollow: hidden); the committed
+``docs/images/mot.png`` is made by passing its path (``docs/benchmarks.md``).
+
+Exit status: 0 when at least one tracker was scored; 2 for bad arguments or sequences (a
+tracker named in ``--trackers`` that another option leaves out is a bad argument); 1 when no
+tracker ran or none could be scored (TrackEval's environment unavailable, TrackEval failing),
+with an ``error:`` line after the report.
 """
 
 from __future__ import annotations
@@ -102,13 +109,13 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_DATA = SHARED_DATA / "mot"
 DEFAULT_DPM = SHARED_DATA / "dpm" / "INRIA" / "inriaperson_final.mat"
-DEFAULT_PICTURE = REPO_ROOT / "docs" / "images" / "mot.png"
 PEER_SCRIPT = Path(__file__).resolve().parent / "peers" / "mot_trackers.py"
 SCORE_SCRIPT = Path(__file__).resolve().parent / "peers" / "trackeval_score.py"
 
 PEERS = ("sort", "bytetrack", "ocsort", "botsort")
 OURS = "ours"
 END_TO_END = ("ours_hog", "ours_dpm")
+TRACKERS = (*PEERS, OURS, *END_TO_END)
 PICTURE_SEQUENCE = "PETS09-S2L1"
 PICTURE_TRAIL = 20  # frames of trail behind each track
 PICTURE_MAX_BYTES = 300_000
@@ -324,7 +331,7 @@ def build_ours(
     from tracking.people import MultiPersonTracker, PeopleTrackerConfig
 
     config = tracker_config or PeopleTrackerConfig()
-    recorded = {"config": dataclasses.asdict(config), "fill_gaps": fill_gaps}
+    recorded = {"fill_gaps": fill_gaps}
     sources = {
         OURS: (None, None, {"detections": "public"}),
         "ours_hog": (
@@ -351,10 +358,12 @@ def build_ours(
             seeded = dataclasses.replace(config, seed=seed)
             key = name if seed == 0 else f"{name}_seed{seed}"
             detector = ReplayedDetector(recorder) if recorder is not None and seed else recorder
+            # the configuration the run uses, its seed included, is the one reported
+            used = {**details, "config": dataclasses.asdict(seeded)}
             out[key] = OurTracker(
                 lambda c=seeded, d=detector: MultiPersonTracker(c, detector=d),
                 source is None,
-                {**details, "seed": seed} if seed else details,
+                {**used, "seed": seed} if seed else used,
                 fill_gaps,
             )
     return out
@@ -827,7 +836,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         nargs="+",
         help="sequence names under --data or MOTChallenge folders (default: all under --data)",
     )
-    parser.add_argument("--trackers", help="comma-separated tracker names (default: all); --list")
+    parser.add_argument(
+        "--trackers",
+        help=f"comma-separated tracker names, of {', '.join(TRACKERS)} (default: all that the "
+        "other options leave in)",
+    )
     parser.add_argument("--frames", type=int, help="only the first N frames of every sequence")
     parser.add_argument(
         "--repeats", type=int, default=3, help="timed runs per tracker and sequence (default 3)"
@@ -897,27 +910,68 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--picture",
         type=lambda v: Path(v) if v else None,
-        default=DEFAULT_PICTURE,
-        help=f"PNG of our tracks on a {PICTURE_SEQUENCE} frame ('' for none; "
-        f"default {DEFAULT_PICTURE.relative_to(REPO_ROOT)})",
+        default=None,
+        metavar="PNG",
+        help=f"write a PNG of our tracks on a {PICTURE_SEQUENCE} frame to this path (default: "
+        "no picture)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     parser.add_argument("--list", action="store_true", help="list the tracker names and exit")
     args = parser.parse_args(argv)
-    for name in ("frames", "repeats", "end_to_end_repeats"):
+    for name in ("frames", "repeats", "seeds", "end_to_end_repeats"):
         value = getattr(args, name)
         if value is not None and value < 1:
-            parser.error(f"--{name.replace('_', '-')} must be positive, got {value}")
+            parser.error(f"--{name.replace('_', '-')} must be at least 1, got {value}")
+    problem = tracker_problem(args)
+    if problem is not None:
+        parser.error(problem)
     return args
 
 
+def tracker_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with ``--trackers`` given the other options, or None.
+
+    A tracker asked for by name is run or refused, never dropped: unknown names, and names
+    that ``--no-peers``, ``--no-end-to-end`` or a missing ``--dpm`` model leave out, are
+    argument errors.
+    """
+    requested = _names(args.trackers)
+    if requested is None:  # all: the options choose, and a missing DPM model becomes a note
+        return None
+    if not requested:
+        return f"--trackers names no tracker; choose from {', '.join(TRACKERS)}"
+    unknown = [n for n in requested if n not in TRACKERS]
+    if unknown:
+        return f"unknown tracker {', '.join(unknown)}; choose from {', '.join(TRACKERS)}"
+    switched_off = (
+        ("--no-peers", PEERS, args.no_peers),
+        ("--no-end-to-end", END_TO_END, not args.end_to_end),
+    )
+    for flag, group, off in switched_off:
+        excluded = [n for n in requested if n in group]
+        if off and excluded:
+            return (
+                f"--trackers asks for {', '.join(excluded)}, which {flag} leaves out; "
+                "drop one or the other"
+            )
+    if "ours_dpm" in requested and not args.dpm.is_file():
+        return (
+            f"--trackers asks for ours_dpm but there is no DPM model at {args.dpm}; give its "
+            "path with --dpm"
+        )
+    return None
+
+
 def load_sequences(args: argparse.Namespace) -> list[SequenceInfo]:
-    """The sequences to run (raises MotFileError with what is wrong)."""
+    """The sequences to run, each with a readable ground truth (raises MotFileError with what
+    is wrong)."""
     if args.sequences is None:
         paths = find_mot_sequences(args.data)
     else:
         paths = [Path(s) if Path(s).is_dir() else args.data / s for s in args.sequences]
     sequences = [read_sequence_info(p) for p in paths]
+    for sequence in sequences:
+        check_ground_truth(sequence)
     names = [s.name for s in sequences]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
@@ -925,20 +979,97 @@ def load_sequences(args: argparse.Namespace) -> list[SequenceInfo]:
     return sequences
 
 
+def check_ground_truth(sequence: SequenceInfo) -> None:
+    """Refuse a sequence whose ``gt/gt.txt`` is missing or malformed before anything runs: no
+    tracker could be scored on it, and the trackers (the DPM most of all) take long.
+
+    Raises
+    ------
+    MotFileError
+        Naming the file, or its bad line.
+    """
+    if not sequence.gt_path.is_file():
+        raise MotFileError(
+            f"{sequence.path} has no ground truth gt/gt.txt, so no tracker can be scored on it"
+        )
+    read_mot_rows(sequence.gt_path, min_columns=6)  # as prepare_ground_truth will read it
+
+
 def select(args: argparse.Namespace) -> tuple[list[str], list[str]]:
-    """(peers, ours) to run."""
-    known = [*PEERS, OURS, *END_TO_END]
+    """(peers, ours) to run: those of ``--trackers`` (checked by :func:`tracker_problem`), else
+    all that ``--no-peers`` and ``--no-end-to-end`` leave in."""
     requested = _names(args.trackers)
     if requested is None:
-        requested = [*PEERS, OURS, *(END_TO_END if args.end_to_end else ())]
-    unknown = [n for n in requested if n not in known]
-    if unknown:
-        raise SystemExit(f"unknown tracker(s) {', '.join(unknown)}; known: {', '.join(known)}")
-    peers = [] if args.no_peers else [n for n in PEERS if n in requested]
+        requested = [
+            *(() if args.no_peers else PEERS),
+            OURS,
+            *(END_TO_END if args.end_to_end else ()),
+        ]
+    peers = [n for n in PEERS if n in requested]
     ours = [n for n in (OURS, *END_TO_END) if n in requested]
-    if not args.end_to_end:
-        ours = [n for n in ours if n not in END_TO_END]
     return peers, ours
+
+
+def mot_python(args: argparse.Namespace, outcome: Outcome) -> Path | None:
+    """The interpreter of the peers' and TrackEval's environment; None (and a note) if it is
+    unavailable."""
+    try:  # run as a script: benchmarks/ is on sys.path
+        from _mot_env import PeerEnvError, ensure_mot_env
+    except ImportError:  # python -m benchmarks.mot from the repository root
+        from benchmarks._mot_env import PeerEnvError, ensure_mot_env
+    try:
+        return ensure_mot_env(*([args.mot_env] if args.mot_env else []))
+    except PeerEnvError as exc:
+        outcome.notes.append(f"note: peers and TrackEval skipped: {exc}")
+        print(f"the MOT environment is unavailable, no peers, no scores: {exc}", file=sys.stderr)
+        return None
+
+
+def make_ours(
+    args: argparse.Namespace, names: list[str], outcome: Outcome
+) -> dict[str, OurTracker]:
+    """Our trackers of ``names``; those that cannot be made are left out with a note (only in a
+    run of all trackers: :func:`tracker_problem` refuses a named ``ours_dpm`` without model)."""
+    if "ours_dpm" in names and not args.dpm.is_file():
+        outcome.notes.append(f"note: ours_dpm left out: no DPM model at {args.dpm}")
+        names = [n for n in names if n != "ours_dpm"]
+    if not names:
+        return {}
+    try:
+        return build_ours(
+            names,
+            args.dpm,
+            args.seeds,
+            args.dpm_config,
+            args.hog_config,
+            args.tracker_config,
+            args.fill_gaps,
+        )
+    except ImportError as exc:
+        outcome.notes.append(f"note: our tracker is unavailable (tracking.people: {exc})")
+        return {}
+
+
+def score(
+    python: Path | None, outcome: Outcome, results: Path
+) -> tuple[dict[str, object], str | None]:
+    """TrackEval's figures, and why there are none if so (None when TrackEval ran)."""
+    if python is None:
+        return {}, "TrackEval's environment is unavailable (see the notes)"
+    try:
+        return run_trackeval(python, outcome, results), None
+    except (RuntimeError, ValueError) as exc:
+        outcome.notes.append(f"note: TrackEval failed, no scores: {exc}")
+        return {}, f"TrackEval failed ({exc})"
+
+
+def scored_trackers(report: dict[str, object]) -> list[str]:
+    """The trackers with a TrackEval score (HOTA) on at least one sequence."""
+    return [
+        tracker
+        for tracker, entry in report["trackers"].items()
+        if any("HOTA" in figures for figures in entry["sequences"].values())
+    ]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -956,39 +1087,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     frames = {s.name: min(len(s), args.frames or len(s)) for s in sequences}
     outcome = Outcome(sequences=sequences, frames=frames)
 
-    try:  # run as a script: benchmarks/ is on sys.path
-        from _mot_env import PeerEnvError, ensure_mot_env
-    except ImportError:  # python -m benchmarks.mot from the repository root
-        from benchmarks._mot_env import PeerEnvError, ensure_mot_env
-    try:
-        python = ensure_mot_env(*([args.mot_env] if args.mot_env else []))
-    except PeerEnvError as exc:
-        python = None
-        outcome.notes.append(f"note: peers and TrackEval skipped: {exc}")
-        print(f"the MOT environment is unavailable, no peers, no scores: {exc}", file=sys.stderr)
+    python = mot_python(args, outcome)
     if python is not None and peers:
         run_peers(python, peers, outcome, args.repeats, args.frames, args.peer_frame_rate)
-
-    if "ours_dpm" in ours_names and not args.dpm.is_file():
-        outcome.notes.append(f"note: ours_dpm left out: no DPM model at {args.dpm}")
-        ours_names.remove("ours_dpm")
-    try:
-        ours = (
-            build_ours(
-                ours_names,
-                args.dpm,
-                max(args.seeds, 1),
-                args.dpm_config,
-                args.hog_config,
-                args.tracker_config,
-                args.fill_gaps,
-            )
-            if ours_names
-            else {}
-        )
-    except ImportError as exc:
-        ours = {}
-        outcome.notes.append(f"note: our tracker is unavailable (tracking.people: {exc})")
+    ours = make_ours(args, ours_names, outcome)
     picture_sequence = PICTURE_SEQUENCE if args.picture is not None else None
     run_ours(ours, outcome, args.repeats, args.end_to_end_repeats, picture_sequence)
     if not outcome.runs:
@@ -999,13 +1101,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     results = args.results or Path(tempfile.mkdtemp(prefix="vtrack-mot-results-"))
     write_results(outcome, results)
-    scored: dict[str, object] = {}
-    if python is not None:
-        try:
-            scored = run_trackeval(python, outcome, results)
-        except (RuntimeError, ValueError) as exc:
-            outcome.notes.append(f"note: TrackEval failed, no scores: {exc}")
+    scored, unscored = score(python, outcome, results)
     report = summarize(outcome, scored, results)
+    if not scored_trackers(report):  # a run that scored nothing has not measured anything
+        report["error"] = f"no tracker was scored: {unscored or 'see the notes and errors'}"
     if args.picture is not None:
         drawn = make_picture(outcome, args.picture)
         report["picture"] = drawn
@@ -1019,6 +1118,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print_json(report)
     else:
         print(table)
+    if "error" in report:  # after the report, so that it is the last line the user sees
+        print(f"error: {report['error']}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -1,14 +1,18 @@
 """The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``,
-``opencv-hog@<upscale>``, ``default@<upscale>``) and its resized sequences (``--height``)."""
+``opencv-hog@<upscale>``, ``default@<upscale>``), its resized sequences (``--height``), and how
+its command line reports bad arguments and bad input files."""
 
 from __future__ import annotations
 
 import json
+import shlex
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.conftest import benchmark_module
+from tests.conftest import REPO_ROOT, benchmark_module
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +44,7 @@ def test_dpm_names_give_config_fields(detection, name, fields):
      "dpm-inria:0", "dpm-inria>."],
 )  # fmt: skip
 def test_bad_dpm_names_are_refused(detection, name):
-    with pytest.raises(SystemExit, match="detector name"):
+    with pytest.raises(detection.DetectorNameError, match="detector name"):
         detection.parse_dpm_name(name)
 
 
@@ -52,7 +56,7 @@ def test_hog_names_give_their_scale(detection, detector):
 
 @pytest.mark.parametrize("name", ["opencv-hog@", "opencv-hog@x", "opencv-hog@0", "opencv-hog@inf"])
 def test_bad_hog_names_are_refused(detection, name):
-    with pytest.raises(SystemExit, match="bad detector name"):
+    with pytest.raises(detection.DetectorNameError, match="bad detector name"):
         detection._upscale(name, "opencv-hog")
 
 
@@ -89,3 +93,139 @@ def test_json_report_is_strict_json_when_a_figure_is_missing(detection, shared_d
     public = report["accuracy"]["TUD-Stadtmitte"]["public"]
     assert public["seconds_per_frame"] is None
     assert 0 < public["ap"] <= 1
+
+
+# --------------------------------------------------------------------------------- command line
+
+
+def _copy_sequence(shared_data: Path, folder: Path, frames: int = 2) -> Path:
+    """The first ``frames`` frames of TUD-Stadtmitte with its gt/ and det/ (to break a copy)."""
+    source = shared_data / "mot" / "TUD-Stadtmitte"
+    (folder / "img1").mkdir(parents=True)
+    for index in range(1, frames + 1):
+        name = f"img1/{index:06d}.jpg"
+        shutil.copyfile(source / name, folder / name)
+    text = (source / "seqinfo.ini").read_text()
+    (folder / "seqinfo.ini").write_text(text.replace("seqLength=179", f"seqLength={frames}"))
+    for part in ("gt/gt.txt", "det/det.txt"):
+        (folder / part).parent.mkdir()
+        shutil.copyfile(source / part, folder / part)
+    return folder
+
+
+def _no_gt(folder: Path) -> None:
+    shutil.rmtree(folder / "gt")
+
+
+def _bad_det(folder: Path) -> None:
+    (folder / "det" / "det.txt").write_text("1,-1,323,75,124\n")
+
+
+@pytest.mark.parametrize(
+    ("break_it", "argv", "message"),
+    [
+        # a name under --data/mot that is not there
+        (None, ["--sequences", "NoSuch"], "no such sequence folder: {data}/mot/NoSuch"),
+        # a --data without mot/: the default sequences are looked up in it
+        (None, ["--data", "{tmp}/nonexist"], "no such sequence folder: {tmp}/nonexist/mot/PETS"),
+        # nothing to score against
+        (_no_gt, ["--sequences", "{seq}"], "{seq} has no gt/gt.txt, so no detector can be scored"),
+        # refused before any detector runs
+        (_bad_det, ["--sequences", "{seq}"], "{seq}/det/det.txt:1: expected at least 7 columns"),
+        # no DPM model under this --data
+        (None, ["--sequences", "{seq}", "--data", "{tmp}", "--detectors", "dpm-inria"],
+         "DPM model file not found: {tmp}/dpm/INRIA/inriaperson_final.mat"),
+    ],
+)  # fmt: skip
+def test_bad_inputs_end_in_one_error_line(
+    detection, shared_data, tmp_path, capsys, break_it, argv, message
+):
+    """As argparse's errors: one ``error:`` line on stderr and exit status 2, no traceback."""
+    sequence = _copy_sequence(shared_data, tmp_path / "SEQ")
+    if break_it is not None:
+        break_it(sequence)
+    names = {"data": shared_data, "tmp": tmp_path, "seq": sequence}
+    defaults = ["--data", str(shared_data), "--detectors", "public"]  # the fast detector
+    code = detection.main([*defaults, *(a.format(**names) for a in argv), "--no-timing"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("error: " + message.format(**names))
+    assert err.count("\n") == 1
+
+
+def test_an_unknown_detector_lists_the_valid_forms(detection, capsys):
+    with pytest.raises(SystemExit) as stopped:
+        detection.main(["--detectors", "public,foo"])
+    assert stopped.value.code == 2  # an argument error, before any file is read
+    err = capsys.readouterr().err
+    assert "unknown detector 'foo'; the detectors are " in err
+    for form in ("dpm-<model>[@upscale][:levels][>min height][+exact]", "inria", "voc2007",
+                 "default[@upscale]", "opencv-hog[@upscale]", "public"):  # fmt: skip
+        assert form in err
+
+
+@pytest.mark.parametrize("text", ["dpm-inria@1.3:5>96+exact", "default", "default@0.5",
+                                  "opencv-hog", "opencv-hog@1", "public"])  # fmt: skip
+def test_every_detector_form_is_accepted(detection, text):
+    assert detection.parse_args(["--detectors", f" {text} ,public"]).detectors == [text, "public"]
+
+
+@pytest.mark.parametrize("option", ["--step", "--timing-frames", "--repeats", "--workers"])
+def test_counts_must_be_at_least_one(detection, capsys, option):
+    with pytest.raises(SystemExit) as stopped:
+        detection.parse_args([option, "0"])
+    assert stopped.value.code == 2
+    assert f"{option} must be at least 1, got 0" in capsys.readouterr().err
+
+
+def test_help_describes_detectors_and_step(detection, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # argparse wraps lines, also at hyphens
+    with pytest.raises(SystemExit):
+        detection.parse_args(["--help"])
+    text = capsys.readouterr().out
+    assert "(default: dpm-inria,dpm-inria@1.3:5,dpm-voc2007,default,opencv-hog,public)" in text
+    assert "score every N-th frame" in text
+    assert "see above" not in text  # the help has no "above" to point at
+
+
+def test_no_picture_unless_asked(detection, tmp_path):
+    """A quick run must not overwrite the committed docs/images/detections.png."""
+    assert detection.parse_args([]).picture is None
+    assert detection.parse_args(["--picture", str(tmp_path / "d.png")]).picture == (
+        tmp_path / "d.png"
+    )
+
+
+def test_text_output_shows_no_nan_for_times_not_measured(detection, shared_data, capsys):
+    """The public detections are read, not detected: no time per frame, shown as "-"."""
+    code = detection.main(
+        ["--data", str(shared_data), "--sequences", "TUD-Stadtmitte", "--step", "30",
+         "--detectors", "public", "--no-timing"]
+    )  # fmt: skip
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out
+    (row,) = [line for line in out.splitlines() if line.split()[1:2] == ["public"] and
+              line.split()[2] != "AP"]  # fmt: skip
+    assert row.split()[-1] == "-"
+
+
+def _documented_commands(script: str) -> list[list[str]]:
+    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md
+    (lines joined at a trailing backslash, comments and backticks dropped)."""
+    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
+    commands = []
+    for line in text.splitlines():
+        start = line.find(f"python benchmarks/{script}")
+        if start >= 0:
+            command = line[start:].split(" #")[0].split("`")[0]
+            commands.append(shlex.split(command)[2:])
+    return commands
+
+
+def test_the_documented_commands_are_accepted(detection):
+    """docs/benchmarks.md's commands still parse, their detector names included."""
+    commands = _documented_commands("detection.py")
+    assert len(commands) >= 10
+    for argv in commands:
+        detection.parse_args(argv)

@@ -1,15 +1,21 @@
-"""The MOT benchmark's own machinery: seeded runs, replayed detections, configuration options."""
+"""The MOT benchmark's own machinery: seeded runs, replayed detections, configuration options,
+and what its command line refuses or reports as a failure."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
+import json
+import shlex
+import shutil
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from tests.conftest import benchmark_module
+from tests.conftest import REPO_ROOT, benchmark_module
 from tracking.detection import DPM_TRACKING_CONFIG, make_detector
 from tracking.people import PeopleTrackerConfig
 
@@ -68,6 +74,8 @@ def test_seeded_runs_share_one_detector(mot, tmp_path: Path) -> None:
                           "ours_hog_seed2"]  # fmt: skip
     trackers = {name: entry.factory() for name, entry in ours.items()}
     assert [t.config.seed for t in trackers.values()] == [0, 1, 2, 0, 1, 2]
+    for name, entry in ours.items():  # the configuration reported is the one the run uses
+        assert entry.details["config"] == dataclasses.asdict(trackers[name].config), name
     assert all(t.config.report_missing == 0.5 for t in trackers.values())
     hog = [trackers[n]._detector for n in ("ours_hog", "ours_hog_seed1", "ours_hog_seed2")]
     assert isinstance(hog[0], mot.RecordingDetector)
@@ -114,3 +122,159 @@ def test_filled_gaps_add_rows_and_keep_the_tracked_ones(mot, shared_data: Path) 
     # on the public detections of these 60 frames (7 fps) tracks break and come back
     assert len(filled) >= 3
     assert all(r[0] < 60 for r in filled)
+
+
+# --------------------------------------------------------------------------------- command line
+
+
+def _copy_sequence(shared_data: Path, folder: Path, frames: int = 3) -> Path:
+    """The first ``frames`` frames of TUD-Stadtmitte with its gt/ and det/ (to break a copy)."""
+    source = shared_data / "mot" / "TUD-Stadtmitte"
+    (folder / "img1").mkdir(parents=True)
+    for index in range(1, frames + 1):
+        name = f"img1/{index:06d}.jpg"
+        shutil.copyfile(source / name, folder / name)
+    text = (source / "seqinfo.ini").read_text()
+    (folder / "seqinfo.ini").write_text(text.replace("seqLength=179", f"seqLength={frames}"))
+    for part in ("gt/gt.txt", "det/det.txt"):
+        (folder / part).parent.mkdir()
+        shutil.copyfile(source / part, folder / part)
+    return folder
+
+
+def _refused_env(folder: Path) -> Path:
+    """A --mot-env folder the benchmark will not use (not empty, not made by it): no peers, no
+    TrackEval, and no pip run."""
+    folder.mkdir()
+    (folder / "something").write_text("not an environment\n")
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        # named trackers that another option leaves out: refused, not dropped
+        (["--no-end-to-end", "--trackers", "ours_hog"],
+         "--trackers asks for ours_hog, which --no-end-to-end leaves out"),
+        (["--no-peers", "--trackers", "sort"],
+         "--trackers asks for sort, which --no-peers leaves out"),
+        (["--trackers", "ours_hog,sort", "--no-peers"],
+         "--trackers asks for sort, which --no-peers leaves out"),
+        (["--trackers", "ours_dpm", "--dpm", "{tmp}/none.mat"],
+         "--trackers asks for ours_dpm but there is no DPM model at {tmp}/none.mat"),
+        # an unknown name: the valid ones listed
+        (["--trackers", "foo"],
+         "unknown tracker foo; choose from sort, bytetrack, ocsort, botsort, ours, ours_hog, "
+         "ours_dpm"),
+        (["--trackers", ","], "--trackers names no tracker"),
+        (["--seeds", "0"], "--seeds must be at least 1, got 0"),  # as --repeats 0 is
+    ],
+)  # fmt: skip
+def test_bad_tracker_arguments_are_argument_errors(
+    mot, shared_data, tmp_path, capsys, argv, message
+):
+    # were an argument let through, the run would stay short and create no environment
+    short = ["--data", str(shared_data / "mot"), "--sequences", "TUD-Stadtmitte", "--frames", "2",
+             "--repeats", "1", "--mot-env", str(_refused_env(tmp_path / "env"))]  # fmt: skip
+    with pytest.raises(SystemExit) as stopped:
+        mot.main([*short, *(a.format(tmp=tmp_path) for a in argv)])
+    assert stopped.value.code == 2  # argparse's error, before anything runs
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last.partition(": error: ")[2].startswith(message.format(tmp=tmp_path))
+
+
+@pytest.mark.parametrize(
+    ("argv", "peers", "ours"),
+    [
+        (["--trackers", "ours_hog,sort"], ["sort"], ["ours_hog"]),
+        (["--no-peers", "--no-end-to-end"], [], ["ours"]),  # all that the options leave in
+        ([], ["sort", "bytetrack", "ocsort", "botsort"], ["ours", "ours_hog", "ours_dpm"]),
+    ],
+)
+def test_selection_runs_what_was_asked(mot, argv, peers, ours):
+    assert mot.select(mot.parse_args(argv)) == (peers, ours)
+
+
+def test_no_picture_unless_asked(mot, tmp_path):
+    """A quick run must not overwrite the committed docs/images/mot.png."""
+    assert mot.parse_args([]).picture is None
+    assert mot.parse_args(["--picture", str(tmp_path / "m.png")]).picture == tmp_path / "m.png"
+
+
+@pytest.mark.parametrize(
+    ("gt", "message"),
+    [
+        (None, "{seq} has no ground truth gt/gt.txt, so no tracker can be scored on it"),
+        ("1,1,10,20\n", "{seq}/gt/gt.txt:1: expected at least 6 columns, got 4"),
+    ],
+)
+def test_a_sequence_without_usable_ground_truth_is_refused_before_tracking(
+    mot, shared_data, tmp_path, capsys, gt, message
+):
+    sequence = _copy_sequence(shared_data, tmp_path / "SEQ")
+    if gt is None:
+        shutil.rmtree(sequence / "gt")
+    else:
+        (sequence / "gt" / "gt.txt").write_text(gt)
+    results = tmp_path / "results"
+    code = mot.main(
+        ["--sequences", str(sequence), "--trackers", "ours", "--no-peers", "--seeds", "1",
+         "--repeats", "1", "--mot-env", str(_refused_env(tmp_path / "env")),
+         "--results", str(results)]
+    )  # fmt: skip
+    assert code == 2
+    assert capsys.readouterr().err == f"error: {message.format(seq=sequence)}\n"
+    assert not results.exists()  # nothing was tracked
+
+
+@pytest.fixture(scope="module")
+def unscored_run(mot, shared_data, tmp_path_factory):
+    """``ours`` with two seeds on 3 frames, with a --mot-env the benchmark refuses: it tracks,
+    but nothing can score it. (exit status, stdout, stderr)"""
+    tmp = tmp_path_factory.mktemp("unscored")
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = mot.main(
+            ["--data", str(shared_data / "mot"), "--sequences", "TUD-Stadtmitte", "--frames", "3",
+             "--trackers", "ours", "--no-peers", "--seeds", "2", "--repeats", "1",
+             "--mot-env", str(_refused_env(tmp / "env")), "--results", str(tmp / "results"),
+             "--json"]
+        )  # fmt: skip
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_a_run_that_scores_nothing_fails(unscored_run):
+    code, out, err = unscored_run
+    assert code == 1
+    why = "no tracker was scored: TrackEval's environment is unavailable (see the notes)"
+    assert err.splitlines()[-1] == f"error: {why}"
+    report = json.loads(out)  # the report is still written: the trackers did run
+    assert report["error"] == why
+    assert set(report["trackers"]) == {"ours", "ours_seed1"}
+
+
+def test_seeded_runs_report_the_configuration_they_used(unscored_run):
+    trackers = json.loads(unscored_run[1])["trackers"]
+    assert trackers["ours"]["config"]["seed"] == 0 and "seed" not in trackers["ours"]
+    assert trackers["ours_seed1"]["config"]["seed"] == trackers["ours_seed1"]["seed"] == 1
+
+
+def _documented_commands(script: str) -> list[list[str]]:
+    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md
+    (lines joined at a trailing backslash, comments and backticks dropped)."""
+    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
+    commands = []
+    for line in text.splitlines():
+        start = line.find(f"python benchmarks/{script}")
+        if start >= 0:
+            command = line[start:].split(" #")[0].split("`")[0]
+            commands.append(shlex.split(command)[2:])
+    return commands
+
+
+def test_the_documented_commands_are_accepted(mot):
+    """docs/benchmarks.md's commands still parse: none names a tracker its options leave out."""
+    commands = _documented_commands("mot.py")
+    assert len(commands) >= 15
+    for argv in commands:
+        mot.parse_args(argv)

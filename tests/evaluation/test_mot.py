@@ -206,8 +206,12 @@ def test_sequence_info_from_seqinfo_ini(tmp_path):
     ("frames", "length", "rate", "message"),
     [
         (2, 3, "7", "seqLength 3 but 2 images"),  # frames missing
-        (2, 2, "0", "frameRate must be a positive number"),  # no usable frame rate
-        (2, 2, "fast", "could not convert"),  # not a number
+        # no usable frame rate: the file and the key are named, with the value as written
+        (2, 2, "0", r"seqinfo\.ini: frameRate '0' is not a positive number of frames per second"),
+        (2, 2, "nan", "frameRate 'nan' is not a positive number"),
+        # not a number: a sentence, not Python's "could not convert string to float"
+        (2, 2, "abc", r"seqinfo\.ini: frameRate 'abc' is not a number of frames per second$"),
+        (2, 2, "", "frameRate '' is not a number"),  # the key with no value
     ],
 )
 def test_bad_sequence_folders_are_refused(tmp_path, frames, length, rate, message):
@@ -216,9 +220,36 @@ def test_bad_sequence_folders_are_refused(tmp_path, frames, length, rate, messag
         read_sequence_info(folder)
 
 
+def test_a_seqinfo_without_frame_rate_says_so(tmp_path):
+    folder = write_sequence(tmp_path / "SEQ")
+    ini = folder / "seqinfo.ini"
+    ini.write_text(ini.read_text().replace("frameRate=7\n", ""))
+    with pytest.raises(MotFileError) as caught:
+        read_sequence_info(folder)
+    assert str(caught.value) == f"{ini} has no frameRate"  # not "..., got nan"
+
+
+@pytest.mark.parametrize("key", ["seqLength", "imWidth", "imHeight"])
+def test_a_seqinfo_size_that_is_not_a_whole_number_is_named(tmp_path, key):
+    folder = write_sequence(tmp_path / "SEQ")
+    ini = folder / "seqinfo.ini"
+    text = "\n".join(
+        f"{key}=3.5" if line.startswith(f"{key}=") else line for line in ini.read_text().split("\n")
+    )
+    ini.write_text(text)
+    with pytest.raises(MotFileError, match=rf"seqinfo\.ini: {key} '3\.5' is not a whole number"):
+        read_sequence_info(folder)
+
+
 def test_a_folder_without_seqinfo_is_refused(tmp_path):
-    with pytest.raises(MotFileError, match=r"no seqinfo\.ini"):
+    with pytest.raises(MotFileError, match=r"has no seqinfo\.ini"):
         read_sequence_info(tmp_path)
+
+
+def test_a_missing_sequence_folder_is_named_as_missing(tmp_path):
+    with pytest.raises(MotFileError) as caught:
+        read_sequence_info(tmp_path / "NoSuch")
+    assert str(caught.value) == f"no such sequence folder: {tmp_path / 'NoSuch'}"
 
 
 def test_find_sequences_in_a_root_or_the_sequence_itself(tmp_path):

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -122,22 +122,20 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
     ------
     MotFileError
         If the folder or its ``seqinfo.ini`` is missing, ``frameRate`` is missing or not a
-        positive number, or there are fewer images than ``seqLength``.
+        positive number, ``seqLength``, ``imWidth`` or ``imHeight`` is not a whole number, or
+        there are fewer images than ``seqLength``; the message names the file and the key.
     """
     path = Path(path)
+    if not path.is_dir():
+        raise MotFileError(f"no such sequence folder: {path}")
     ini = path / "seqinfo.ini"
     if not ini.is_file():
-        raise MotFileError(f"{path}: no seqinfo.ini (a MOTChallenge sequence folder has one)")
+        raise MotFileError(f"{path} has no seqinfo.ini, which every MOTChallenge sequence has")
     section = read_seqinfo(path)
-    try:
-        frame_rate = float(section.get("frameRate", "nan"))
-        length = int(section["seqLength"]) if "seqLength" in section else None
-        width = int(section.get("imWidth", "0"))
-        height = int(section.get("imHeight", "0"))
-    except ValueError as exc:
-        raise MotFileError(f"{ini}: {exc}") from exc
-    if not (math.isfinite(frame_rate) and frame_rate > 0):
-        raise MotFileError(f"{ini}: frameRate must be a positive number, got {frame_rate}")
+    frame_rate = _frame_rate(ini, section)
+    length = _whole_number(ini, section, "seqLength")
+    width = _whole_number(ini, section, "imWidth") or 0
+    height = _whole_number(ini, section, "imHeight") or 0
     image_dir = path / section.get("imDir", "img1")
     suffix = section.get("imExt", ".jpg").lower()
     frames = sorted(p for p in image_dir.glob("*") if p.suffix.lower() == suffix)
@@ -155,6 +153,36 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
         width=width,
         height=height,
     )
+
+
+def _frame_rate(ini: Path, section: Mapping[str, str]) -> float:
+    """``frameRate`` of ``ini``'s ``[Sequence]``: a finite, positive number of frames per second
+    (timestamps are frame indices divided by it, so there is no default to fall back on)."""
+    if "frameRate" not in section:  # keys in any case, as configparser reads them
+        raise MotFileError(f"{ini} has no frameRate")
+    text = section["frameRate"]
+    try:
+        rate = float(text)
+    except ValueError:
+        raise MotFileError(
+            f"{ini}: frameRate {text!r} is not a number of frames per second"
+        ) from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise MotFileError(
+            f"{ini}: frameRate {text!r} is not a positive number of frames per second"
+        )
+    return rate
+
+
+def _whole_number(ini: Path, section: Mapping[str, str], key: str) -> int | None:
+    """Integer ``key`` of ``ini``'s ``[Sequence]``; None when the file does not have it."""
+    if key not in section:
+        return None
+    text = section[key]
+    try:
+        return int(text)
+    except ValueError:
+        raise MotFileError(f"{ini}: {key} {text!r} is not a whole number") from None
 
 
 def find_mot_sequences(root: str | os.PathLike[str]) -> list[Path]:
