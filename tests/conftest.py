@@ -14,6 +14,7 @@ import contextlib
 import fcntl
 import importlib.util
 import os
+import shlex
 import shutil
 import sys
 import tempfile
@@ -25,6 +26,34 @@ import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = REPO_ROOT / "benchmarks"
+
+
+def copy_mot_sequence(shared_data: Path, folder: Path, frames: int) -> Path:
+    """The first ``frames`` frames of TUD-Stadtmitte with its gt/ and det/ (to break a copy)."""
+    source = shared_data / "mot" / "TUD-Stadtmitte"
+    (folder / "img1").mkdir(parents=True)
+    for index in range(1, frames + 1):
+        name = f"img1/{index:06d}.jpg"
+        shutil.copyfile(source / name, folder / name)
+    text = (source / "seqinfo.ini").read_text()
+    (folder / "seqinfo.ini").write_text(text.replace("seqLength=179", f"seqLength={frames}"))
+    for part in ("gt/gt.txt", "det/det.txt"):
+        (folder / part).parent.mkdir()
+        shutil.copyfile(source / part, folder / part)
+    return folder
+
+
+def documented_commands(script: str) -> list[list[str]]:
+    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md
+    (lines joined at a trailing backslash, comments and backticks dropped)."""
+    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
+    commands = []
+    for line in text.splitlines():
+        start = line.find(f"python benchmarks/{script}")
+        if start >= 0:
+            command = line[start:].split(" #")[0].split("`")[0]
+            commands.append(shlex.split(command)[2:])
+    return commands
 
 
 @contextlib.contextmanager

@@ -5,14 +5,13 @@ its command line reports bad arguments and bad input files."""
 from __future__ import annotations
 
 import json
-import shlex
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.conftest import REPO_ROOT, benchmark_module
+from tests.conftest import benchmark_module, copy_mot_sequence, documented_commands
 
 
 @pytest.fixture(scope="module")
@@ -98,21 +97,6 @@ def test_json_report_is_strict_json_when_a_figure_is_missing(detection, shared_d
 # --------------------------------------------------------------------------------- command line
 
 
-def _copy_sequence(shared_data: Path, folder: Path, frames: int = 2) -> Path:
-    """The first ``frames`` frames of TUD-Stadtmitte with its gt/ and det/ (to break a copy)."""
-    source = shared_data / "mot" / "TUD-Stadtmitte"
-    (folder / "img1").mkdir(parents=True)
-    for index in range(1, frames + 1):
-        name = f"img1/{index:06d}.jpg"
-        shutil.copyfile(source / name, folder / name)
-    text = (source / "seqinfo.ini").read_text()
-    (folder / "seqinfo.ini").write_text(text.replace("seqLength=179", f"seqLength={frames}"))
-    for part in ("gt/gt.txt", "det/det.txt"):
-        (folder / part).parent.mkdir()
-        shutil.copyfile(source / part, folder / part)
-    return folder
-
-
 def _no_gt(folder: Path) -> None:
     shutil.rmtree(folder / "gt")
 
@@ -141,7 +125,7 @@ def test_bad_inputs_end_in_one_error_line(
     detection, shared_data, tmp_path, capsys, break_it, argv, message
 ):
     """As argparse's errors: one ``error:`` line on stderr and exit status 2, no traceback."""
-    sequence = _copy_sequence(shared_data, tmp_path / "SEQ")
+    sequence = copy_mot_sequence(shared_data, tmp_path / "SEQ", 2)
     if break_it is not None:
         break_it(sequence)
     names = {"data": shared_data, "tmp": tmp_path, "seq": sequence}
@@ -210,22 +194,9 @@ def test_text_output_shows_no_nan_for_times_not_measured(detection, shared_data,
     assert row.split()[-1] == "-"
 
 
-def _documented_commands(script: str) -> list[list[str]]:
-    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md
-    (lines joined at a trailing backslash, comments and backticks dropped)."""
-    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
-    commands = []
-    for line in text.splitlines():
-        start = line.find(f"python benchmarks/{script}")
-        if start >= 0:
-            command = line[start:].split(" #")[0].split("`")[0]
-            commands.append(shlex.split(command)[2:])
-    return commands
-
-
 def test_the_documented_commands_are_accepted(detection):
     """docs/benchmarks.md's commands still parse, their detector names included."""
-    commands = _documented_commands("detection.py")
+    commands = documented_commands("detection.py")
     assert len(commands) >= 10
     for argv in commands:
         detection.parse_args(argv)

@@ -7,7 +7,6 @@ import contextlib
 import dataclasses
 import io
 import json
-import shlex
 import shutil
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.conftest import REPO_ROOT, benchmark_module
+from tests.conftest import benchmark_module, copy_mot_sequence, documented_commands
 from tracking.detection import DPM_TRACKING_CONFIG, make_detector
 from tracking.people import PeopleTrackerConfig
 
@@ -127,21 +126,6 @@ def test_filled_gaps_add_rows_and_keep_the_tracked_ones(mot, shared_data: Path) 
 # --------------------------------------------------------------------------------- command line
 
 
-def _copy_sequence(shared_data: Path, folder: Path, frames: int = 3) -> Path:
-    """The first ``frames`` frames of TUD-Stadtmitte with its gt/ and det/ (to break a copy)."""
-    source = shared_data / "mot" / "TUD-Stadtmitte"
-    (folder / "img1").mkdir(parents=True)
-    for index in range(1, frames + 1):
-        name = f"img1/{index:06d}.jpg"
-        shutil.copyfile(source / name, folder / name)
-    text = (source / "seqinfo.ini").read_text()
-    (folder / "seqinfo.ini").write_text(text.replace("seqLength=179", f"seqLength={frames}"))
-    for part in ("gt/gt.txt", "det/det.txt"):
-        (folder / part).parent.mkdir()
-        shutil.copyfile(source / part, folder / part)
-    return folder
-
-
 def _refused_env(folder: Path) -> Path:
     """A --mot-env folder the benchmark will not use (not empty, not made by it): no peers, no
     TrackEval, and no pip run."""
@@ -211,7 +195,7 @@ def test_no_picture_unless_asked(mot, tmp_path):
 def test_a_sequence_without_usable_ground_truth_is_refused_before_tracking(
     mot, shared_data, tmp_path, capsys, gt, message
 ):
-    sequence = _copy_sequence(shared_data, tmp_path / "SEQ")
+    sequence = copy_mot_sequence(shared_data, tmp_path / "SEQ", 3)
     if gt is None:
         shutil.rmtree(sequence / "gt")
     else:
@@ -259,22 +243,9 @@ def test_seeded_runs_report_the_configuration_they_used(unscored_run):
     assert trackers["ours_seed1"]["config"]["seed"] == trackers["ours_seed1"]["seed"] == 1
 
 
-def _documented_commands(script: str) -> list[list[str]]:
-    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md
-    (lines joined at a trailing backslash, comments and backticks dropped)."""
-    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
-    commands = []
-    for line in text.splitlines():
-        start = line.find(f"python benchmarks/{script}")
-        if start >= 0:
-            command = line[start:].split(" #")[0].split("`")[0]
-            commands.append(shlex.split(command)[2:])
-    return commands
-
-
 def test_the_documented_commands_are_accepted(mot):
     """docs/benchmarks.md's commands still parse: none names a tracker its options leave out."""
-    commands = _documented_commands("mot.py")
+    commands = documented_commands("mot.py")
     assert len(commands) >= 15
     for argv in commands:
         mot.parse_args(argv)
