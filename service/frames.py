@@ -508,8 +508,9 @@ def _open_folder(path: Path, fps: float | None) -> FrameSource:
     if not images:
         raise FrameSourceError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
     height, width = read_image(images[0]).shape[:2]
-    # a MOTChallenge frame is its file's number (000001.jpg is frame 1), whatever comes first
-    indices = _frame_indices(images, first=1 if info else None)
+    # a MOTChallenge frame is its file's number (000001.jpg is frame 1); other folders' names
+    # follow no rule (times in milliseconds, every fifth frame...): their images are counted
+    indices = _mot_frame_indices(images) if info else tuple(range(len(images)))
     notes = _missing_images(images, indices, folder)
     stated_rate = info.get("frameRate") if info else None
     if stated_rate is not None and (rate := _number(stated_rate)) and rate > 0:
@@ -565,18 +566,18 @@ def _natural(path: Path) -> tuple[tuple[int, int | str], ...]:
     )
 
 
-def _frame_indices(images: tuple[Path, ...], first: int | None) -> tuple[int, ...]:
-    """Each image's frame index: its name's last number less the first frame's number
-    (``first``, else the first image's), so a missing image leaves its frame's gap as a
-    frame of a video that does not decode does; the images' positions when the names do not
-    all carry increasing numbers."""
-    found = [re.search(r"(\d+)\D*$", p.stem) for p in images]
+def _mot_frame_indices(images: tuple[Path, ...]) -> tuple[int, ...]:
+    """Each image's 0-based frame index in a MOTChallenge sequence: its name's number less 1,
+    so a missing image leaves its frame's gap (as a frame of a video that does not decode
+    does) and the frames keep the numbers of gt.txt and det.txt; the images' positions when
+    the names do not all carry increasing numbers from 1."""
+    found = [re.fullmatch(r"\D*(\d+)", p.stem) for p in images]
     numbers = [int(m.group(1)) for m in found if m]
-    positions = tuple(range(len(images)))
-    if len(numbers) < len(images) or any(b <= a for a, b in itertools.pairwise(numbers)):
-        return positions
-    origin = first if first is not None and numbers[0] >= first else numbers[0]
-    return tuple(n - origin for n in numbers)
+    if len(numbers) < len(images) or numbers[0] < 1:
+        return tuple(range(len(images)))
+    if any(b <= a for a, b in itertools.pairwise(numbers)):
+        return tuple(range(len(images)))
+    return tuple(n - 1 for n in numbers)
 
 
 def _missing_images(images: tuple[Path, ...], indices: tuple[int, ...], folder: Path) -> list[str]:
