@@ -15,7 +15,12 @@ import av
 import cv2
 import numpy as np
 
-from tracking.seqinfo import MotFormatError, read_seqinfo
+from tracking.seqinfo import (
+    MotFormatError,
+    read_seqinfo,
+    seqinfo_frame_rate,
+    seqinfo_whole_number,
+)
 
 DEFAULT_FPS = 25.0
 """Frame rate assumed for image folders and videos that declare none."""
@@ -512,15 +517,20 @@ def _open_folder(path: Path, fps: float | None) -> FrameSource:
     # follow no rule (times in milliseconds, every fifth frame...): their images are counted
     indices = _mot_frame_indices(images) if info else tuple(range(len(images)))
     notes = _missing_images(images, indices, folder)
-    stated_rate = info.get("frameRate") if info else None
-    if stated_rate is not None and (rate := _number(stated_rate)) and rate > 0:
-        fps = fps or rate
-    elif stated_rate is not None:
-        notes.append(f"{ini}'s frameRate {stated_rate!r} is not a frame rate")
-    length = _number(info.get("seqLength", "")) if info else None
+    rate = length = None
+    if info:  # a malformed entry is told, not fatal: the images can be tracked all the same
+        try:
+            rate = seqinfo_frame_rate(ini, info)
+        except MotFormatError as error:
+            notes.append(str(error))
+        try:
+            length = seqinfo_whole_number(ini, info, "seqLength")
+        except MotFormatError as error:
+            notes.append(str(error))
+    fps = fps or rate
     if length is not None and length != indices[-1] + 1:
         notes.append(
-            f"{ini} states seqLength {length:g}, but the images of {folder} end at frame "
+            f"{ini} states seqLength {length}, but the images of {folder} end at frame "
             f"{indices[-1] + 1}: the frames there were tracked"
         )
     return FrameSource(
@@ -547,14 +557,6 @@ def _seqinfo_beside(path: Path) -> tuple[Mapping[str, str], Path | None]:
         if info:
             return info, sequence / "seqinfo.ini"
     return {}, None
-
-
-def _number(text: str) -> float | None:
-    try:
-        value = float(text)
-    except ValueError:
-        return None
-    return value if math.isfinite(value) else None
 
 
 def _natural(path: Path) -> tuple[tuple[int, int | str], ...]:

@@ -253,7 +253,9 @@ def test_a_motchallenge_sequence_cut_from_later_keeps_its_frame_numbers(shared_d
     source = open_frames(copy)
     assert [f.index for f in source.timed()] == [40, 41, 42, 43, 44]  # 000041.jpg is frame 41
     assert source.fps is None
-    assert f"{copy / 'seqinfo.ini'}'s frameRate 'abc' is not a frame rate" in source.notes
+    assert f"{copy / 'seqinfo.ini'}: frameRate 'abc' is not a number of frames per second" in (
+        source.notes
+    )
     # a folder without seqinfo.ini counts its images (names may be times in milliseconds)
     plain = _copy_frames(sequence, range(41, 50, 2), tmp_path / "plain")
     assert [f.index for f in open_frames(plain).timed()] == [0, 1, 2, 3, 4]

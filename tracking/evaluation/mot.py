@@ -30,9 +30,8 @@ environment (``benchmarks/_mot_env.py``) and reads the files written here.
 
 from __future__ import annotations
 
-import math
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,6 +45,7 @@ from tracking.detection.sequences import (
     read_mot_rows,
     read_seqinfo,
 )
+from tracking.seqinfo import seqinfo_frame_rate, seqinfo_whole_number
 from tracking.tracks import TrackEstimate
 
 __all__ = [
@@ -132,10 +132,12 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
     if not ini.is_file():
         raise MotFileError(f"{path} has no seqinfo.ini, which every MOTChallenge sequence has")
     section = read_seqinfo(path)
-    frame_rate = _frame_rate(ini, section)
-    length = _whole_number(ini, section, "seqLength")
-    width = _whole_number(ini, section, "imWidth") or 0
-    height = _whole_number(ini, section, "imHeight") or 0
+    frame_rate = seqinfo_frame_rate(ini, section)
+    if frame_rate is None:  # timestamps are frame indices over it: no default to fall back on
+        raise MotFileError(f"{ini} has no frameRate")
+    length = seqinfo_whole_number(ini, section, "seqLength")
+    width = seqinfo_whole_number(ini, section, "imWidth") or 0
+    height = seqinfo_whole_number(ini, section, "imHeight") or 0
     image_dir = path / section.get("imDir", "img1")
     suffix = section.get("imExt", ".jpg").lower()
     frames = sorted(p for p in image_dir.glob("*") if p.suffix.lower() == suffix)
@@ -153,36 +155,6 @@ def read_sequence_info(path: str | os.PathLike[str]) -> SequenceInfo:
         width=width,
         height=height,
     )
-
-
-def _frame_rate(ini: Path, section: Mapping[str, str]) -> float:
-    """``frameRate`` of ``ini``'s ``[Sequence]``: a finite, positive number of frames per second
-    (timestamps are frame indices divided by it, so there is no default to fall back on)."""
-    if "frameRate" not in section:  # keys in any case, as configparser reads them
-        raise MotFileError(f"{ini} has no frameRate")
-    text = section["frameRate"]
-    try:
-        rate = float(text)
-    except ValueError:
-        raise MotFileError(
-            f"{ini}: frameRate {text!r} is not a number of frames per second"
-        ) from None
-    if not (math.isfinite(rate) and rate > 0):
-        raise MotFileError(
-            f"{ini}: frameRate {text!r} is not a positive number of frames per second"
-        )
-    return rate
-
-
-def _whole_number(ini: Path, section: Mapping[str, str], key: str) -> int | None:
-    """Integer ``key`` of ``ini``'s ``[Sequence]``; None when the file does not have it."""
-    if key not in section:
-        return None
-    text = section[key]
-    try:
-        return int(text)
-    except ValueError:
-        raise MotFileError(f"{ini}: {key} {text!r} is not a whole number") from None
 
 
 def find_mot_sequences(root: str | os.PathLike[str]) -> list[Path]:
