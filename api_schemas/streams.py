@@ -36,6 +36,11 @@ CAMERA_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$"
 PREFIX_PATTERN = r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$"
 """Key prefixes: one or more such chunks separated by ``/``."""
 
+MAX_TIMESTAMP = 1e10
+"""Latest capture time a frame may carry, in seconds since 1970 (the year 2286). Unix time in
+milliseconds (1.7e12 in 2025) is beyond it, and so is every time whose nanoseconds do not fit
+the unsigned 64 bits of an MCAP log time (1.8e10 s)."""
+
 
 class PixelFormat(StrEnum):
     """Layout of a raw frame payload: 8 bits per channel, rows packed without padding."""
@@ -57,9 +62,10 @@ class FrameAttachment(BaseModel):
     sequence: int = Field(ge=0, description="Frame counter of the camera, increasing by one.")
     timestamp: float = Field(
         ge=0,
+        le=MAX_TIMESTAMP,
         allow_inf_nan=False,
-        description="Capture time in seconds (Unix time recommended). Tracks carry it back, "
-        "and the tracker's motion model runs on it.",
+        description="Capture time in seconds (Unix time recommended; not milliseconds). Tracks "
+        "carry it back, and the tracker's motion model runs on it.",
     )
     width: int | None = Field(default=None, ge=1, le=16384, description="Raw frames only.")
     height: int | None = Field(default=None, ge=1, le=16384, description="Raw frames only.")

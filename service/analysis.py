@@ -21,7 +21,7 @@ from pathlib import Path
 from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
-from service.frames import FrameSource, ReadProgress, open_frames
+from service.frames import FrameSource, ReadProgress, frame_size_problem, open_frames
 from service.outputs import RESULT_FILES, RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
@@ -134,10 +134,13 @@ def check_options(
 ) -> None:
     """Raise :class:`OptionsError` for options that could not run; cheap (loads no model).
 
-    ``frame_size`` is ``(width, height)`` of the video, to check a single target's first box
+    ``frame_size`` is ``(width, height)`` of the video, to check that it is large enough to
+    track (:data:`~service.frames.MIN_SIDE`), a single target's first box
     and how large ``detector.upscale`` makes the frames; ``length`` its seconds
     (:attr:`FrameSource.length`), to check that ``start`` falls within it.
     """
+    if frame_size is not None and (problem := frame_size_problem(*frame_size)):
+        raise OptionsError(problem)
     if length is not None and options.start > 0 and options.start >= length:
         raise OptionsError(
             f"start {options.start:g} s is not within the video, which lasts {length:.2f} s"
@@ -157,12 +160,16 @@ def check_options(
         problem := enlargement_problem(options.detector.upscale, frame_size)
     ):
         raise OptionsError(problem)
-    if options.detector.name == "dpm" and (
-        resources.dpm_model is None or not resources.dpm_model.is_file()
-    ):
+    if options.detector.name == "dpm" and resources.dpm_model is None:
         raise OptionsError(
             "detector 'dpm' needs a voc-release5 model, and this service has none: set "
             "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
+        )
+    if options.detector.name == "dpm" and not resources.dpm_model.is_file():
+        raise OptionsError(
+            f"detector 'dpm' needs the model {resources.dpm_model} (VTRACK_DPM_MODEL), which is "
+            "no longer there: the service's operator must put it back, or use detector "
+            "'default'"
         )
 
 

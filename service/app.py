@@ -132,9 +132,7 @@ async def _http_error(request: Request, error: Exception) -> Response:
 async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     """422 with one sentence naming each bad field, and the checks that failed."""
     errors = error.errors() if isinstance(error, RequestValidationError) else []
-    problems = [
-        f"{'.'.join(str(p) for p in item.get('loc', ()))}: {item.get('msg')}" for item in errors
-    ]
+    problems = [_problem(item) for item in errors]
     listed = [
         {"loc": list(item.get("loc", ())), "msg": str(item.get("msg")), "type": item.get("type")}
         for item in errors
@@ -142,6 +140,16 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     detail = "invalid request: " + "; ".join(problems)
     _log_refusal(request, 422, detail)
     return JSONResponse({"detail": detail, "errors": listed}, status_code=422)
+
+
+def _problem(item: dict) -> str:
+    """One failed check as a phrase; a body that is not JSON says where the parser stopped
+    (FastAPI's own words are "body.10: JSON decode error")."""
+    loc = item.get("loc", ())
+    if item.get("type") == "json_invalid" and len(loc) == 2:
+        reason = (item.get("ctx") or {}).get("error", "not JSON")
+        return f"the body is not valid JSON: {reason} at character {loc[1]}"
+    return f"{'.'.join(str(p) for p in loc)}: {item.get('msg')}"
 
 
 class _InternalErrorsAsJson:

@@ -125,7 +125,8 @@ def _writable_database(path: Path) -> None:
         finally:
             store.close()
     except sqlite3.Error as error:
-        reason = storage_problem(error) or str(error)
+        found = storage_problem(error)
+        reason = found.problem if found else str(error)
         name = getattr(error, "sqlite_errorname", "")
         if name.startswith(("SQLITE_READONLY", "SQLITE_CANTOPEN", "SQLITE_PERM")):
             reason += (

@@ -32,6 +32,23 @@ FAILED_READS_AT_END = 25
 """Failed reads in a row taken for the end of a video. OpenCV moves past a frame it cannot
 decode (one failed read, the next frame reads), and fails every read at the end of the file."""
 
+MIN_SIDE = 32
+"""Fewest pixels a frame's width and height may have, in uploads, folders and streams alike.
+The smallest sensors sold as cameras (80x60 thermal cores, 128x96 SQCIF) are above it; below it
+a person is a few pixels tall, out of reach of any detector (the default one needs 64 px at its
+largest enlargement), and a target a few pixels wide has nothing for a filter to learn."""
+
+
+def frame_size_problem(width: int, height: int) -> str | None:
+    """Why frames of ``width`` x ``height`` cannot be tracked (:data:`MIN_SIDE`), or None."""
+    if min(width, height) >= MIN_SIDE:
+        return None
+    return (
+        f"a frame size of {width}x{height} is too small to track: width and height must be at "
+        f"least {MIN_SIDE} pixels"
+    )
+
+
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm")
 
 

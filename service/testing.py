@@ -75,6 +75,9 @@ class Server:
     file_size_limit:
         Largest file in bytes the service and its workers may write (``ulimit -f``): beyond
         it a write fails with ``EFBIG``, as a full disk fails one with ``ENOSPC``.
+    prefix:
+        Command words before the service's (``setpriv`` options that take root's power to
+        write through file modes, say).
     **settings:
         Service settings by name, passed as ``VTRACK_<NAME>`` (``api_token="..."``,
         ``zenoh_listen='["tcp/..."]'``...). ``zenoh_listen`` defaults to a free loopback port.
@@ -86,9 +89,11 @@ class Server:
         workers: int | None = 2,
         log_level: str = "info",
         file_size_limit: int | None = None,
+        prefix: tuple[str, ...] = (),
         **settings: object,
     ) -> None:
         self.data_dir = data_dir
+        self.prefix = prefix
         self.file_size_limit = file_size_limit
         self.workers = workers
         self.log_level = log_level
@@ -119,9 +124,9 @@ class Server:
         """Start the service and wait until ``/readyz`` answers 200."""
         env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
         env.update({f"VTRACK_{k.upper()}": str(v) for k, v in self.settings.items()})
-        command = [sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1"]
-        command += ["--port", str(self.port), "--data-dir", str(self.data_dir)]
-        command += ["--log-level", self.log_level]
+        command = [*self.prefix, sys.executable, "-m", "service.cli", "serve"]
+        command += ["--host", "127.0.0.1", "--port", str(self.port)]
+        command += ["--data-dir", str(self.data_dir), "--log-level", self.log_level]
         if self.workers is not None:
             command += ["--workers", str(self.workers)]
         with self.log_path.open("a") as log:

@@ -21,7 +21,7 @@ from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import parse_options_header
 from starlette.requests import ClientDisconnect
 
-from service.storage import FREE_SPACE, storage_problem
+from service.storage import storage_problem
 
 log = logging.getLogger(__name__)
 
@@ -215,7 +215,8 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
         await _drain(request)
         raise HTTPException(
             status.HTTP_507_INSUFFICIENT_STORAGE,
-            f"{problem}: the upload was not kept; {FREE_SPACE}, then send the video again",
+            f"{problem.problem}: the upload was not kept; {problem.remedy}, then send the video "
+            "again",
         ) from None
     except ClientDisconnect:
         # the client gave up mid-upload: nothing was kept, nobody reads an answer, and it is

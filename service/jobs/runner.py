@@ -21,7 +21,7 @@ from service.analysis import AnalysisStopped, OptionsError, PipelineResources, a
 from service.frames import FrameSourceError
 from service.jobs.result_folders import attempt_folder, discard, remove_attempts
 from service.jobs.store import JobRecord, JobStore
-from service.storage import FREE_SPACE, storage_problem
+from service.storage import storage_problem
 from service.worker_processes import ignore_stop_signals
 
 log = logging.getLogger(__name__)
@@ -127,10 +127,10 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
             log.exception("job %s: internal error", job.id)
             message = f"internal error while tracking ({type(error).__name__}: {error})"
         else:
-            log.error("job %s: failed: %s", job.id, problem)
+            log.error("job %s: failed: %s", job.id, problem.problem)
             message = (
-                f"{problem} while the results were written; the partial results were removed: "
-                f"{FREE_SPACE}, then submit the job again"
+                f"{problem.problem} while the results were written; the partial results were "
+                f"removed: {problem.remedy}, then submit the job again"
             )
         _failed(store, job, message)
         return

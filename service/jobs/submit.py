@@ -17,7 +17,7 @@ from service.analysis import OptionsError, PipelineResources, check_options
 from service.frames import FrameSource, FrameSourceError, open_frames
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
-from service.storage import FREE_SPACE, storage_problem
+from service.storage import storage_problem
 from service.uploads import receive_upload
 
 log = logging.getLogger(__name__)
@@ -123,7 +123,8 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             raise
         raise HTTPException(
             status.HTTP_507_INSUFFICIENT_STORAGE,
-            f"{problem}: the job was not recorded; {FREE_SPACE}, then send the video again",
+            f"{problem.problem}: the job was not recorded; {problem.remedy}, then send the "
+            "video again",
         ) from None
     log.info(
         "job %s queued: %s, %d bytes, %d frames announced",

@@ -57,6 +57,11 @@ class Download(FileResponse):
             })  # fmt: skip
             await send({"type": "http.response.body", "body": b""})
             return
+        requested = headers.get("range")
+        if requested is not None and requested.partition("=")[0].strip().lower() != "bytes":
+            # a range unit other than bytes: ignored, the whole file is sent (RFC 9110 14.2)
+            kept = [(k, v) for k, v in scope["headers"] if k.lower() != b"range"]
+            scope = {**scope, "headers": kept}
         await super().__call__(scope, receive, self._json_range_errors(headers, send))
 
     def _json_range_errors(self, headers: Headers, send: Send) -> Send:
@@ -81,6 +86,8 @@ class Download(FileResponse):
             else:
                 text = message.get("body", b"").decode(errors="replace")
                 reason = text.removeprefix("Range header: ").strip(" .")
+                if reason == "range must be requested":  # Starlette's words for no range found
+                    reason = "no range in it"
                 detail = (
                     f"Range {requested!r} cannot be served ({reason or 'malformed'}): ask for "
                     "bytes=START-END, bytes=START- or bytes=-LENGTH"

@@ -192,7 +192,11 @@ class StreamManager:
             )
         with self._lock:
             existing = self._streams.get(spec.camera)
-            if existing is not None and existing.state is not StreamState.stopped:
+            # a failed stream is started again as a stopped one is: it runs no worker
+            if existing is not None and existing.state not in (
+                StreamState.stopped,
+                StreamState.failed,
+            ):
                 raise StreamConflict(f"camera {spec.camera} is tracked already by this service")
             stream = _Stream(self._store.put(spec))
             self._streams[spec.camera] = stream

@@ -14,7 +14,8 @@ import cv2
 import numpy as np
 from pydantic import ValidationError
 
-from api_schemas.streams import FrameAttachment, PixelFormat, UpstreamDetections
+from api_schemas.streams import MAX_TIMESTAMP, FrameAttachment, PixelFormat, UpstreamDetections
+from service.frames import frame_size_problem
 from service.outputs.h264 import IDR, nal_unit_types
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
@@ -23,11 +24,6 @@ JPEG = "image/jpeg"
 RAW = "application/octet-stream"
 H264 = "video/h264"
 MAX_PIXELS = 8192 * 8192
-MIN_SIDE = 32
-"""Fewest pixels a frame's width and height may have. The smallest sensors sold as cameras
-(80x60 thermal cores, 128x96 SQCIF) are above it; below it a person is a few pixels tall, out of
-reach of any detector (the default one needs 64 px at its largest enlargement), so such a frame
-is a glitch (a 1x1 placeholder, a broken encoder's output), not a change of resolution."""
 
 
 class PayloadError(ValueError):
@@ -47,6 +43,12 @@ def parse_attachment(attachment: bytes | None) -> FrameAttachment:
     try:
         return FrameAttachment.model_validate_json(attachment)
     except ValidationError as error:
+        item = error.errors()[0]
+        if item.get("loc") == ("timestamp",) and item.get("type") == "less_than_equal":
+            raise PayloadError(
+                f"bad frame attachment (timestamp {item.get('input'):.4g} is more than "
+                f"{MAX_TIMESTAMP:.0e} s after 1970: timestamps are seconds, not milliseconds)"
+            ) from None
         raise PayloadError(f"bad frame attachment ({_first_line(error)})") from None
 
 
@@ -86,11 +88,8 @@ def decode_frame(payload: bytes, encoding: str, attachment: FrameAttachment) -> 
 def check_frame_size(image: np.ndarray) -> None:
     """Raise :class:`PayloadError` for a frame too small to be a camera's (:data:`MIN_SIDE`)."""
     height, width = image.shape[:2]
-    if min(width, height) < MIN_SIDE:
-        raise PayloadError(
-            f"frame of {width}x{height} is too small to track: width and height must be at "
-            f"least {MIN_SIDE}"
-        )
+    if problem := frame_size_problem(width, height):
+        raise PayloadError(problem)
 
 
 def is_h264(encoding: str) -> bool:

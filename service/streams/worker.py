@@ -601,7 +601,8 @@ class StreamWorker:
             self._recorder = None
         segment = self.spec.record_segment
         self._recording_resumes = timestamp + segment
-        problem = storage_problem(error) or f"{type(error).__name__}: {error}"
+        found = storage_problem(error)
+        problem = found.problem if found else f"{type(error).__name__}: {error}"
         self._note_error(
             f"recording paused: {problem}; tracking goes on and recording tries again in "
             f"{segment:g} s",
@@ -756,3 +757,8 @@ def stream_main(context: StreamContext, parent_pid: int, stop, updates) -> None:
     except ZenohUnavailable as error:
         updates.put({"state": StreamState.failed.value, "error": f"Zenoh: {error}"})
         raise SystemExit(3) from None
+    except Exception as error:  # the status says why the worker died, the log says where
+        log.exception("camera %s: the stream worker failed", context.spec.camera)
+        why = f"the worker process failed ({type(error).__name__}: {error})"
+        updates.put({"state": StreamState.failed.value, "error": why})
+        raise SystemExit(1) from None

@@ -87,6 +87,20 @@ def _voice_memo(folder, video):
         # before: the same words as for junk, for a phone recording and for sound
         (_unfinished_mp4, None, 415, "an MP4/MOV file without its index (no 'moov' box)"),
         (_voice_memo, None, 415, "it holds no video track (its tracks: audio)"),
+        # before: accepted, then failed with "frame is empty or too small: shape (400, 2, 3)"
+        (
+            lambda d, v: write_gray(d / "strip.mp4", 2, 400),
+            None,
+            422,
+            "a frame size of 2x400 is too small to track: width and height must be at least 32",
+        ),
+        # before: "succeeded" without a word, nobody could be found in it
+        (
+            lambda d, v: write_gray(d / "thumb.mp4", 16, 8),
+            {"mode": "single_target", "first_box": {"x": 2, "y": 2, "w": 4, "h": 4}},
+            422,
+            "a frame size of 16x8 is too small to track",
+        ),
         # A misspelt option.
         (lambda d, v: v, {"formats": ["json"], "frame_stp": 2}, 422, "unknown option 'frame_stp'"),
         # An unknown nested option.

@@ -21,7 +21,7 @@ from service.jobs.store import JobStore
 from service.settings import Settings
 from service.streams.store import StreamStore
 from service.testing import Server, free_port
-from tests.service.conftest import FAST_OPTIONS, submit, wait_for_frames
+from tests.service.conftest import FAST_OPTIONS, submit, wait_for_frames, wait_for_state
 
 pytestmark = pytest.mark.slow
 
@@ -114,6 +114,45 @@ def test_an_unexpected_error_in_a_request_answers_json_and_is_logged_once(make_s
     server.stop()
     assert server.log().count("Traceback (most recent call last)") == 1
     assert server.log().count("FileExistsError") == 1
+
+
+def test_a_folder_made_read_only_under_a_running_service_is_named_not_an_internal_error(
+    make_server, pets_short
+):
+    # before: uploads answered 500 "internal error (PermissionError)", /readyz said ready, and
+    # a job failed with "internal error while tracking (PermissionError: ...)"
+    server = make_server(workers=1, prefix=_as_an_unprivileged_user())
+    writable = f"writable by the user the service runs as (uid {os.geteuid()})"
+    with server.client() as client:
+        for name in ("uploads", "results"):
+            folder = server.data_dir / name
+            folder.mkdir(exist_ok=True)
+            folder.chmod(0o555)
+            try:
+                ready = client.get("/readyz")
+                assert ready.status_code == 503 and ready.json()["status"] == "unwritable"
+                assert ready.json()["detail"] == (
+                    f"the data folder cannot be written ({folder}): the service's operator "
+                    f"must make its data folder (VTRACK_DATA_DIR) {writable}"
+                )
+                response = submit(client, pets_short, FAST_OPTIONS)
+                if name == "uploads":
+                    assert response.status_code == 507, response.text
+                    detail = response.json()["detail"]
+                else:  # the upload is kept; the job fails when its results cannot be written
+                    assert response.status_code == 202, response.text
+                    job = wait_for_state(client, response.json()["id"], ("succeeded", "failed"))
+                    assert job["state"] == "failed"
+                    detail = job["error"]
+                assert detail.startswith(f"the data folder cannot be written ({folder}"), detail
+                assert "Permission denied" in detail and writable in detail
+            finally:
+                folder.chmod(0o755)
+            assert client.get("/readyz").status_code == 200
+        # the service goes on
+        job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        assert wait_for_state(client, job_id, ("succeeded", "failed"))["state"] == "succeeded"
+    assert "Traceback" not in server.log()
 
 
 def test_a_second_service_on_the_same_data_folder_refuses_to_start(make_server, long_video):

@@ -421,6 +421,16 @@ def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
         assert client.post("/v1/streams", json={"camera": "a/b"}).status_code == 422
         bad = client.post("/v1/streams", json={"camera": "x", "speed": 2})
         assert bad.status_code == 422 and "speed" in bad.json()["detail"]
+        # before: "invalid request: body.15: JSON decode error"
+        broken = client.post(
+            "/v1/streams",
+            content=b'{"camera": "x" "record": true}',
+            headers={"content-type": "application/json"},
+        )
+        assert broken.status_code == 422
+        assert broken.json()["detail"] == (
+            "invalid request: the body is not valid JSON: Expecting ',' delimiter at character 15"
+        )
         dpm = client.post("/v1/streams", json={"camera": "x", "detector": {"name": "dpm"}})
         assert dpm.status_code == 422 and "VTRACK_DPM_MODEL" in dpm.json()["detail"]
         # before: accepted, and nothing was recorded
@@ -909,6 +919,41 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
             60,
             "the new worker to count on",
         )
+
+
+def test_a_stream_whose_worker_keeps_failing_says_why_and_can_be_started_again(
+    shared_data, tmp_path
+):
+    # The DPM model moved away under a running service: each new worker fails to load it.
+    # Before: "the worker process died (exit code 1); gave up after 5 quick restarts", and a
+    # POST to start the camera again was refused: "camera ... is tracked already".
+    import shutil
+
+    model = tmp_path / "person.mat"
+    shutil.copyfile(shared_data / "dpm" / "INRIA" / "inriaperson_final.mat", model)
+    server = Server(tmp_path / "data", workers=1, dpm_model=model).start()
+    session = member_session(ZenohOptions(listen=server.zenoh_listen))
+    camera, spec = "lantern", {"detector": {"name": "dpm"}}
+    try:
+        with server.client() as client:
+            start_stream(client, session, camera, **spec)
+            model.rename(tmp_path / "moved.mat")
+            os.kill(status(client, camera)["worker_pid"], signal.SIGKILL)
+            failed = wait_for(
+                lambda: (s := status(client, camera))["state"] == "failed" and s, 120, "failed"
+            )
+            assert failed["error"].startswith("the worker process failed ("), failed
+            assert str(model) in failed["error"]
+            assert failed["error"].endswith("; gave up after 5 quick restarts")
+            (tmp_path / "moved.mat").rename(model)
+            again = client.post("/v1/streams", json={"camera": camera, **spec})
+            assert again.status_code == 201, again.text
+            wait_for(lambda: status(client, camera)["state"] == "waiting", 60, "a new worker")
+            assert reach_tracker(session, StreamKeys("vtrack", camera), timeout=30)
+            assert status(client, camera)["error"] is None
+    finally:
+        session.close()
+        server.stop()
 
 
 def test_a_stream_worker_leaves_stop_signals_to_the_service(server, session, pets_frames):

@@ -208,7 +208,7 @@ def test_a_bad_frame_is_dropped_and_the_tracks_go_on(
         follower.close()
         assert final["malformed"] == 2 and final["restarts"] == 0, final
         errors = " | ".join(status(client, camera)["errors"])
-        assert "frame 20: frame of 1x1 is too small to track" in errors
+        assert "frame 20: a frame size of 1x1 is too small to track" in errors
         assert "frame 21: 240x180 between frames of 480x360; dropped" in errors
         messages = follower.received()
         assert 20 not in {m.sequence for m in messages}
@@ -238,13 +238,14 @@ def test_frames_the_upscale_would_enlarge_beyond_8k_are_refused_one_by_one(serve
 
 
 def test_timestamps_in_milliseconds_are_warned_of_once(server, session, pets_frames):
-    # each frame of a 10 fps camera stamped in milliseconds looks 100 s after the one before:
-    # every track would end at once, and the stream would track nobody without saying why
+    # each frame of a 10 fps camera stamped in milliseconds (since the camera started: Unix
+    # time in milliseconds is refused outright) looks 100 s after the one before: every track
+    # would end at once, and the stream would track nobody without saying why
     camera = "millis"
     keys = StreamKeys("vtrack", camera)
     with server.client() as client:
         start_stream(client, session, camera)
-        started = time.time() * 1000
+        started = 3_600_000.0
         for index, frame in enumerate(pets_frames[:6]):
             attachment = frame_attachment(index, started + 100 * index)
             put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
@@ -256,4 +257,35 @@ def test_timestamps_in_milliseconds_are_warned_of_once(server, session, pets_fra
         assert errors[0].startswith("frames ") and "00 s apart but arrived 0." in errors[0]
         assert "attachment timestamps are seconds (Unix time)" in errors[0]
         assert final["frames_processed"] >= 2
+        assert client.delete(f"/v1/streams/{camera}").status_code == 200
+
+
+def test_unix_time_in_milliseconds_is_refused_and_the_recording_stream_goes_on(
+    server, session, pets_frames
+):
+    # 1.7e12 "seconds" were accepted, and a recording worker died on each such frame (the MCAP
+    # log time in nanoseconds overflows 64 bits) until the stream gave up as failed
+    camera = "unixmillis"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera, record=True)
+        now = time.time()
+        for index, frame in enumerate(pets_frames[:3]):
+            attachment = frame_attachment(index, (now + 0.1 * index) * 1000)
+            put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
+            time.sleep(0.1)
+        wait_for(lambda: status(client, camera)["counters"]["malformed"] == 3, 30, "3 refusals")
+        errors = status(client, camera)["errors"]
+        assert errors == [
+            f"bad frame attachment (timestamp {(now + 0.1 * index) * 1000:.4g} is more than "
+            "1e+10 s after 1970: timestamps are seconds, not milliseconds)"
+            for index in range(3)
+        ]
+        for index, frame in enumerate(pets_frames[3:6], start=3):
+            attachment = frame_attachment(index, now + 0.1 * index)
+            put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
+            time.sleep(0.1)
+        assert all_taken(client, camera, 6)["frames_processed"] >= 1
+        final = status(client, camera)
+        assert final["state"] == "running" and final["error"] is None, final
         assert client.delete(f"/v1/streams/{camera}").status_code == 200
