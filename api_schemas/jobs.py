@@ -154,6 +154,9 @@ class PeopleTrackerOptions(BaseModel):
     )
 
 
+DEFAULT_PRESET = "hog_cn_scale"
+"""The correlation preset of a single target whose options name none."""
+
 _MODE_OF = {
     "first_box": ("single_target", "people are found by the detector"),
     "preset": ("single_target", "people are followed by the particle filter (tracker options)"),
@@ -180,10 +183,12 @@ class JobOptions(BaseModel):
     first_box: FirstBox | None = Field(
         default=None, description="single_target only: the object's box in the first frame."
     )
-    preset: str = Field(
-        default="hog_cn_scale",
+    preset: str | None = Field(
+        default=None,
         pattern=r"^[a-z0-9_]+$",
-        description="single_target only: correlation tracker preset (see `vtrack track --help`).",
+        description="single_target only: correlation tracker preset (see `vtrack track --help`); "
+        f"None: '{DEFAULT_PRESET}' in mode 'single_target', and stays None in mode 'people', "
+        "which uses none.",
     )
     detector: DetectorOptions = Field(default_factory=DetectorOptions)
     tracker: PeopleTrackerOptions = Field(default_factory=PeopleTrackerOptions)
@@ -247,7 +252,10 @@ class JobOptions(BaseModel):
         mode, reason = _MODE_OF[info.field_name]
         given = info.data.get("mode")
         default = cls.model_fields[info.field_name].get_default(call_default_factory=True)
-        if given is not None and given != mode and value != default:
+        # the preset's default was DEFAULT_PRESET in every mode: options copied from an earlier
+        # people job's status still pass (and show None)
+        old_default = DEFAULT_PRESET if info.field_name == "preset" else default
+        if given is not None and given != mode and value not in (default, old_default):
             raise ValueError(f"only for mode '{mode}': {reason}")
         return value
 
@@ -272,6 +280,10 @@ class JobOptions(BaseModel):
     def _mode_fields(self) -> JobOptions:
         if self.mode == "single_target" and self.first_box is None:
             raise ValueError("mode 'single_target' needs first_box: the object's first box")
+        if self.mode == "single_target" and self.preset is None:
+            self.preset = DEFAULT_PRESET
+        elif self.mode == "people":
+            self.preset = None
         if len(set(self.formats)) != len(self.formats):
             raise ValueError("formats must not repeat a format")
         if self.end is not None and self.end <= self.start:
@@ -293,6 +305,13 @@ class JobProgress(BaseModel):
     )
     fps: float | None = Field(default=None, ge=0, description="Frames processed per second.")
     fraction: float | None = Field(default=None, ge=0, le=1, description="frames_done / total.")
+    eta_seconds: float | None = Field(
+        default=None,
+        ge=0,
+        description="Seconds until a running job has read its frames_total, at the rate it has "
+        "read frames since it started (None: not running, total unknown, or no frame read "
+        "yet). Writing the results' last bytes comes after.",
+    )
 
 
 class JobLinks(BaseModel):

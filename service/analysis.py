@@ -18,6 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
@@ -258,6 +260,7 @@ def analyze(
     writers = open_writers(list(options.formats), scratch, info)
     filler = GapFiller(options.fill_gaps) if options.fill_gaps > 0 else None
     processed, read, last_report = 0, ReadProgress(), time.perf_counter()
+    greyscale = False
 
     def report() -> None:  # after every frame read, those before options.start too
         nonlocal last_report
@@ -272,6 +275,8 @@ def analyze(
     read.on_read = report
     try:
         for frame in source.timed(options.frame_step, read, options.start, options.end):
+            if processed == 0:
+                greyscale = _greyscale(frame.image)
             given = None if detections is None else detections(frame.index)
             tracks = pipeline.process(frame.image, frame.timestamp, given)
             if filler is not None:
@@ -292,7 +297,7 @@ def analyze(
                 else f"no frame of the video is at or after start {options.start:g} s: its "
                 f"last frame is at {read.end_time:.2f} s"
             )
-        summary = _summary(source, options, read, processed, filename)
+        summary = _summary(source, options, read, processed, filename, greyscale)
         for writer in writers.values():
             writer.close(summary)
     except BaseException:
@@ -309,12 +314,38 @@ def analyze(
     )
 
 
+def _greyscale(image: np.ndarray) -> bool:
+    """Whether an RGB frame is grey: an infrared or monochrome camera's (channels equal but for
+    the rounding of a compressed video's neutral chroma)."""
+    pixels = image.reshape(-1, 3).astype(np.int16)
+    return bool(np.abs(pixels[:, 1:] - pixels[:, :1]).max() <= 2)
+
+
+def _greyscale_warning(options: JobOptions) -> str | None:
+    """What greyscale video takes from the job's colour cues; None for a grey preset."""
+    if options.mode == "people":
+        return (
+            "the video is greyscale (an infrared or monochrome camera?): every person's "
+            "clothing colours are the same grey, so they do not help keep people apart or "
+            "recognise those who come back; identities rest on motion and appearance alone"
+        )
+    feature = PRESETS[options.preset].feature
+    colour = feature.partition("+")[2]
+    if not colour:
+        return None
+    return (
+        f"the video is greyscale: the colour features ({colour}) of preset {options.preset} see "
+        "no colour in it; a grey preset (rcsk_gray) follows the same intensities without them"
+    )
+
+
 def _summary(
     source: FrameSource,
     options: JobOptions,
     read: ReadProgress,
     processed: int,
     filename: str | None,
+    greyscale: bool = False,
 ) -> RunSummary:
     warnings = []
     frames_read = read.frames
@@ -330,6 +361,8 @@ def _summary(
         )
     warnings.extend(source.notes)
     warnings.extend(damage_warnings(source, read))
+    if greyscale and (lost := _greyscale_warning(options)):
+        warnings.append(lost)
     confirm_hits = options.tracker.confirm_hits or PeopleTrackerConfig().confirm_hits
     if options.mode == "people" and processed < confirm_hits:
         tracked = "1 frame was" if processed == 1 else f"{processed} frames were"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from datetime import UTC, datetime
 
 from api_schemas.jobs import JobLinks, JobOptions, JobProgress, JobState, JobStatus, ProgressEvent
@@ -35,7 +36,15 @@ def job_progress(record: JobRecord) -> JobProgress:
         fraction = min(done / total, 1.0)
     else:
         fraction = None
-    return JobProgress(frames_done=done, frames_total=total, fps=record.fps, fraction=fraction)
+    eta = None
+    if record.state == JobState.running and total and done and record.started_at is not None:
+        # the rate of frames read, not fps (frames tracked): frames skipped by frame_step or
+        # before start are read too, and count in frames_done and frames_total
+        elapsed = max(time.time() - record.started_at, 0.0)
+        eta = max(total - done, 0) * elapsed / done
+    return JobProgress(
+        frames_done=done, frames_total=total, fps=record.fps, fraction=fraction, eta_seconds=eta
+    )
 
 
 def job_status(record: JobRecord) -> JobStatus:

@@ -73,6 +73,14 @@ def test_events_stream_progress_to_the_end(finished_job):
     done = [event["progress"]["frames_done"] for _, event in events]
     assert done == sorted(done) and done[-1] == 24
     assert any(event["state"] == "running" for _, event in events)
+    # the time left, from the rate of the frames read so far; none once the job is done
+    for _, event in events:
+        progress = event["progress"]
+        if event["state"] == "running" and 0 < progress["frames_done"] < 24:
+            assert progress["eta_seconds"] > 0, event
+    assert any(event["progress"]["eta_seconds"] for _, event in events)
+    assert status["progress"]["eta_seconds"] is None
+    assert status["options"]["preset"] is None  # a people job uses no correlation preset
     assert status["state"] == "succeeded" and status["progress"]["fraction"] == 1.0
     assert set(status["links"]["results"]) == {"json", "mcap", "mot", "mp4"}
     jsonschema.validate(status, schema_for("JobStatus"))
