@@ -236,7 +236,7 @@ def test_check_frame_size(height, width, taken):
     if taken:
         check_frame_size(image)
     else:
-        with pytest.raises(PayloadError, match=f"frame of {width}x{height} is too small"):
+        with pytest.raises(PayloadError, match=f"a frame size of {width}x{height} is too small"):
             check_frame_size(image)
 
 
