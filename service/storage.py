@@ -19,7 +19,7 @@ FREE_SPACE = "the service's operator must free space in its data folder (VTRACK_
 """What to do, the same in every answer about a full data folder."""
 
 
-def make_writable() -> str:
+def writable_remedy() -> str:
     """What to do about a data folder the service may not write."""
     return (
         "the service's operator must make its data folder (VTRACK_DATA_DIR) writable by the "
@@ -52,6 +52,6 @@ def storage_problem(error: BaseException) -> StorageProblem | None:
     if error.errno in _DENIED:
         return StorageProblem(
             f"the data folder cannot be written{where}: {os.strerror(error.errno)}",
-            make_writable(),
+            writable_remedy(),
         )
     return None

@@ -9,7 +9,7 @@ from fastapi.responses import JSONResponse
 
 from service.deps import PoolDep, SettingsDep, StoreDep, StreamsDep
 from service.settings import Settings
-from service.storage import make_writable
+from service.storage import writable_remedy
 
 router = APIRouter(tags=["health"])
 
@@ -62,5 +62,5 @@ def _unwritable(settings: Settings) -> str | None:
     for folder in (settings.uploads_dir, settings.results_dir):
         folder = folder if folder.exists() else settings.data_dir  # made by the first job
         if not os.access(folder, os.W_OK):
-            return f"the data folder cannot be written ({folder}): {make_writable()}"
+            return f"the data folder cannot be written ({folder}): {writable_remedy()}"
     return None

@@ -86,7 +86,9 @@ def decode_frame(payload: bytes, encoding: str, attachment: FrameAttachment) -> 
 
 
 def check_frame_size(image: np.ndarray) -> None:
-    """Raise :class:`PayloadError` for a frame too small to be a camera's (:data:`MIN_SIDE`)."""
+    """Raise :class:`PayloadError` for a frame too small to be a camera's
+    (:data:`~service.frames.MIN_SIDE`): a glitch (a 1x1 placeholder, a broken encoder's output)
+    that is dropped, not a change of resolution that would start the tracks over."""
     height, width = image.shape[:2]
     if problem := frame_size_problem(width, height):
         raise PayloadError(problem)

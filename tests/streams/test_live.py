@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import threading
@@ -927,8 +928,6 @@ def test_a_stream_whose_worker_keeps_failing_says_why_and_can_be_started_again(
     # The DPM model moved away under a running service: each new worker fails to load it.
     # Before: "the worker process died (exit code 1); gave up after 5 quick restarts", and a
     # POST to start the camera again was refused: "camera ... is tracked already".
-    import shutil
-
     model = tmp_path / "person.mat"
     shutil.copyfile(shared_data / "dpm" / "INRIA" / "inriaperson_final.mat", model)
     server = Server(tmp_path / "data", workers=1, dpm_model=model).start()
