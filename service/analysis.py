@@ -18,12 +18,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
-from service.frames import FrameSource, ReadProgress, frame_size_problem, open_frames
+from service.frames import (
+    FrameSource,
+    ReadProgress,
+    frame_size_problem,
+    is_greyscale,
+    open_frames,
+)
 from service.outputs import RESULT_FILES, RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
 from tracking.correlation import PRESETS
@@ -276,7 +280,7 @@ def analyze(
     try:
         for frame in source.timed(options.frame_step, read, options.start, options.end):
             if processed == 0:
-                greyscale = _greyscale(frame.image)
+                greyscale = is_greyscale(frame.image)
             given = None if detections is None else detections(frame.index)
             tracks = pipeline.process(frame.image, frame.timestamp, given)
             if filler is not None:
@@ -314,27 +318,20 @@ def analyze(
     )
 
 
-def _greyscale(image: np.ndarray) -> bool:
-    """Whether an RGB frame is grey: an infrared or monochrome camera's (channels equal but for
-    the rounding of a compressed video's neutral chroma)."""
-    pixels = image.reshape(-1, 3).astype(np.int16)
-    return bool(np.abs(pixels[:, 1:] - pixels[:, :1]).max() <= 2)
-
-
-def _greyscale_warning(options: JobOptions) -> str | None:
-    """What greyscale video takes from the job's colour cues; None for a grey preset."""
-    if options.mode == "people":
+def greyscale_warning(mode: str, preset: str | None) -> str | None:
+    """What greyscale video takes from the colour cues of a job of ``mode`` (a single target
+    tracked with ``preset``); None for a grey preset."""
+    if mode == "people":
         return (
             "the video is greyscale (an infrared or monochrome camera?): every person's "
             "clothing colours are the same grey, so they do not help keep people apart or "
             "recognise those who come back; identities rest on motion and appearance alone"
         )
-    feature = PRESETS[options.preset].feature
-    colour = feature.partition("+")[2]
+    colour = "+".join(PRESETS[preset].colour_features) if preset in PRESETS else ""
     if not colour:
         return None
     return (
-        f"the video is greyscale: the colour features ({colour}) of preset {options.preset} see "
+        f"the video is greyscale: the colour features ({colour}) of preset {preset} see "
         "no colour in it; a grey preset (rcsk_gray) follows the same intensities without them"
     )
 
@@ -361,7 +358,7 @@ def _summary(
         )
     warnings.extend(source.notes)
     warnings.extend(damage_warnings(source, read))
-    if greyscale and (lost := _greyscale_warning(options)):
+    if greyscale and (lost := greyscale_warning(options.mode, options.preset)):
         warnings.append(lost)
     confirm_hits = options.tracker.confirm_hits or PeopleTrackerConfig().confirm_hits
     if options.mode == "people" and processed < confirm_hits:

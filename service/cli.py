@@ -23,7 +23,13 @@ from typing import TYPE_CHECKING
 from tqdm import tqdm
 
 from service.argument_types import number_type, time_type
-from service.frames import FrameSource, ReadProgress, open_frames
+from service.frames import (
+    FrameSource,
+    ReadProgress,
+    frame_size_problem,
+    is_greyscale,
+    open_frames,
+)
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
 from tracking.correlation import PRESETS, CorrelationTracker
@@ -112,11 +118,10 @@ def _color_names_file(given: Path | None) -> Path | None:
 def _warn_unused_table(w2c: Path | None, preset: str) -> None:
     """Say so when ``--w2c`` is given for a preset that uses no Color Names: it is loaded,
     checked and then has no effect on the boxes."""
-    feature = PRESETS[preset].feature if preset in PRESETS else "cn"  # unknown: refused later
-    if w2c is not None and "cn" not in feature.split("+"):
+    if w2c is not None and preset in PRESETS and "cn" not in PRESETS[preset].colour_features:
         print(
-            f"vtrack: warning: --w2c: preset {preset} uses no Color Names ({feature} features); "
-            "the table has no effect",
+            f"vtrack: warning: --w2c: preset {preset} uses no Color Names "
+            f"({PRESETS[preset].feature} features); the table has no effect",
             file=sys.stderr,
         )
 
@@ -178,6 +183,8 @@ def _track(args: argparse.Namespace) -> int:
         return 2
     try:
         source = _open_source(args)
+        if problem := frame_size_problem(source.width, source.height):
+            raise ValueError(problem)  # as uploads and streams are refused
         folder, length = source.path.is_dir(), source.length
         if folder and source.fps is None and (start > 0 or args.end is not None):
             print(
@@ -217,7 +224,7 @@ def _track(args: argparse.Namespace) -> int:
     except (ValueError, OSError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
-    read, written = ReadProgress(), 0
+    read, written, greyscale = ReadProgress(), 0, False
     bar = _progress_bar(source.frames_until(args.end), args.quiet)
     read.on_read = lambda: bar.update(read.frames - bar.n)
     try:
@@ -227,6 +234,7 @@ def _track(args: argparse.Namespace) -> int:
                 if fmt == "csv":  # with the first row: a range without frames prints nothing
                     print("frame,x,y,w,h,peak,psr", file=out_file)
                 tracker.initialize(frame.image, box)
+                greyscale = is_greyscale(frame.image)
                 row = _format_row(number, box, None, fmt)
             else:
                 output = tracker.update(frame.image)
@@ -260,9 +268,13 @@ def _track(args: argparse.Namespace) -> int:
             out_file.close()
         if partial:
             partial.unlink(missing_ok=True)  # gone already when the run completed
-    from service.analysis import damage_warnings  # as `vtrack analyze` judges it
+    # as `vtrack analyze` judges them
+    from service.analysis import damage_warnings, greyscale_warning
 
-    for warning in (*source.notes, *damage_warnings(source, read)):
+    warnings = [*source.notes, *damage_warnings(source, read)]
+    if greyscale and (lost := greyscale_warning("single_target", args.preset)):
+        warnings.append(lost)
+    for warning in warnings:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if args.out and not args.quiet:
         print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)

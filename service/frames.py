@@ -49,6 +49,13 @@ def frame_size_problem(width: int, height: int) -> str | None:
     )
 
 
+def is_greyscale(image: np.ndarray) -> bool:
+    """Whether an RGB frame is grey: an infrared or monochrome camera's (channels equal but for
+    the rounding of a compressed video's neutral chroma)."""
+    pixels = image.reshape(-1, 3).astype(np.int16)
+    return bool(np.abs(pixels[:, 1:] - pixels[:, :1]).max() <= 2)
+
+
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm")
 
 

@@ -152,6 +152,13 @@ def test_a_preset_may_be_given_by_name():
         CorrelationTracker(3)
 
 
+def test_a_preset_names_the_features_that_read_colour():
+    assert PRESETS["hog_cn_scale"].colour_features == ("cn",)
+    assert PRESETS["rcsk_opp_angle"].colour_features == ("opp_angle",)
+    assert PRESETS["rcsk_gray"].colour_features == ()
+    assert CorrelationConfig(feature="hog+gray").colour_features == ()
+
+
 @pytest.mark.slow
 def test_rcsk_with_color_names_stays_on_a_real_target(shared_data):
     """Skating1 (400 frames, a skater under changing stage light): with the w2c table the

@@ -167,6 +167,15 @@ class CorrelationConfig:
             raise ValueError(f"max_patch_area must be >= 64 pixels, got {self.max_patch_area}")
 
     @property
+    def colour_features(self) -> tuple[str, ...]:
+        """The components of :attr:`feature` that read colour (``("cn",)`` of ``"gray+cn"``):
+        all but the intensity ones, ``gray`` and ``hog``, which see a greyscale video as they
+        see a colour one."""
+        from tracking.features.maps import feature_components
+
+        return tuple(c for c in feature_components(self.feature) if c not in ("gray", "hog"))
+
+    @property
     def mu(self) -> float:
         """The projection learning rate mu of Algorithm 4.1 (§4.3 defaults)."""
         if self.projection_learning_rate is not None:
