@@ -10,6 +10,7 @@ import dataclasses
 import errno
 import fcntl
 import importlib.metadata
+import ipaddress
 import json
 import os
 import re
@@ -38,6 +39,7 @@ from tracking.types import Box, TrackerOutput, box_problem
 
 if TYPE_CHECKING:
     from api_schemas.jobs import JobOptions
+    from service.settings import Settings
     from tracking.detection.base import Detections
     from tracking.detection.external import MotDetections
 
@@ -681,6 +683,8 @@ def _serve(args: argparse.Namespace) -> int:
         file=sys.stderr,
         flush=True,
     )
+    for warning in _exposure_warnings(settings, where):
+        print(f"vtrack: warning: {warning}", file=sys.stderr, flush=True)
     config = uvicorn.Config(
         create_app(settings, data_folder),
         host=settings.host,
@@ -691,6 +695,42 @@ def _serve(args: argparse.Namespace) -> int:
     )
     StoppingServer(config).run(sockets=[listener])
     return 0
+
+
+def _loopback(address: str) -> bool:
+    """Whether a listening address is reachable from this machine only."""
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address.strip("[]")).is_loopback
+    except ValueError:  # a wildcard is an address; a host name is whatever it resolves to
+        return False
+
+
+def _exposure_warnings(settings: Settings, where: str) -> list[str]:
+    """What anyone on the network can do with a service listening beyond loopback: the whole
+    API without a token, and the Zenoh side always (the token does not cover it; only Zenoh's
+    own configuration can)."""
+    warnings = []
+    if settings.api_token is None and not _loopback(settings.host):
+        warnings.append(
+            f"no VTRACK_API_TOKEN, and the API listens on {where}: anyone who reaches it can "
+            "upload, download and delete jobs and stream recordings; set VTRACK_API_TOKEN "
+            "(docs/service.md, Security)"
+        )
+    if settings.zenoh_enabled and settings.zenoh_config is None:
+        # <protocol>/<address>:<port>[?metadata][#config]; unixsock-stream/<path> stays local
+        for endpoint in settings.zenoh_listen:
+            protocol, _, rest = endpoint.partition("/")
+            address = re.split(r"[?#]", rest)[0].rpartition(":")[0]
+            if protocol != "unixsock-stream" and not _loopback(address):
+                warnings.append(
+                    f"Zenoh listens on {endpoint} without access control: anyone who reaches "
+                    "it can read every camera's frames and tracks and send frames of their "
+                    "own (VTRACK_API_TOKEN does not cover Zenoh); give Zenoh TLS and access "
+                    "control with VTRACK_ZENOH_CONFIG, or listen on 127.0.0.1"
+                )
+    return warnings
 
 
 def _version() -> str:

@@ -13,6 +13,9 @@ one sentence, a folder:
   it runs. The kernel releases the lock when the process ends, however it ends, so a crashed
   service never leaves a stale lock behind; the file stays, holding the pid of its last owner;
 - whose job database does not open or take a write.
+
+A folder it creates is readable by the service's user alone (``0700``): it holds footage and
+people's tracks. An existing folder keeps the permissions its operator gave it.
 """
 
 from __future__ import annotations
@@ -70,7 +73,10 @@ def claim_data_folder(settings: Settings) -> DataFolder:
         The folder, a subfolder or the job database cannot be written; the message names it
         and the reason.
     """
+    new = not settings.data_dir.exists()
     folder = _writable_folder(settings.data_dir)
+    if new:  # footage and people's tracks: the service's user alone reads them
+        folder.chmod(0o700)
     lock_fd = _lock(folder)
     claim = DataFolder(folder, lock_fd)
     try:

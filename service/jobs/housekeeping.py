@@ -3,7 +3,8 @@
 - A finished job (succeeded, failed or cancelled) never reads its video again: its upload is
   removed; its results stay.
 - With ``VTRACK_RETENTION_HOURS``, a job that finished longer ago than that is deleted with its
-  results, as ``DELETE /v1/jobs/{id}`` deletes it.
+  results, as ``DELETE /v1/jobs/{id}`` deletes it; so is a stream's recording finished longer
+  ago than that (running and stopped streams alike: recordings hold the cameras' footage).
 - When the service starts, uploads and result folders that no job owns (an upload cut by a
   crash, a deletion cut between the job and its files) are removed too. Only then: while the
   service runs, an upload exists a moment before its job does. So are the partial results
@@ -35,6 +36,7 @@ class Swept:
 
     uploads: int = 0
     jobs: int = 0
+    recordings: int = 0
 
 
 def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
@@ -50,9 +52,10 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
     """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
     and result folders that no job owns (only safe before uploads are accepted) and the
     partial results of attempts that are over. Each deleted job is logged by id."""
-    jobs = 0
+    jobs = recordings = 0
     if settings.retention_hours is not None:
         now = time.time()
+        recordings = _expire_recordings(settings, now - settings.retention_hours * 3600)
         for record in store.finished_before(now - settings.retention_hours * 3600):
             remove_job(settings, store, record)
             jobs += 1
@@ -86,7 +89,29 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
         log.info("housekeeping: the uploads of %d finished jobs removed", uploads)
     if strays:
         log.info("housekeeping: %d uploads or result folders that no job owns removed", strays)
-    return Swept(uploads + strays, jobs)
+    return Swept(uploads + strays, jobs, recordings)
+
+
+def _expire_recordings(settings: Settings, cutoff: float) -> int:
+    """Delete the streams' recordings finished (last written) before ``cutoff``; a recording
+    still being written is a ``.mcap.partial`` and stays."""
+    expired = 0
+    for pattern in ("*/*.mcap", "*/*.mcap.broken"):  # a broken one holds footage too
+        for path in settings.streams_dir.glob(pattern):
+            try:
+                if path.stat().st_mtime >= cutoff:
+                    continue
+                path.unlink()
+            except FileNotFoundError:  # its worker's record_keep was first
+                continue
+            expired += 1
+            log.info(
+                "housekeeping: recording %s of camera %s deleted (VTRACK_RETENTION_HOURS=%g)",
+                path.name,
+                path.parent.name,
+                settings.retention_hours,
+            )
+    return expired
 
 
 class Housekeeper:

@@ -403,6 +403,45 @@ def test_serve_on_every_address_prints_a_link_a_browser_can_open(tmp_path):
         service.stderr.close()
 
 
+@pytest.mark.parametrize(
+    ("host", "token", "zenoh_host", "warned"),
+    [
+        ("0.0.0.0", None, "127.0.0.1", ["no VTRACK_API_TOKEN, and the API listens on every"]),
+        ("0.0.0.0", "s3cret", "0.0.0.0", ["Zenoh listens on tcp/0.0.0.0:"]),
+        ("127.0.0.1", None, "[::1]", []),
+    ],
+)
+def test_serve_says_what_a_service_open_to_the_network_exposes(
+    tmp_path, host, token, zenoh_host, warned
+):
+    # before: a service bound to every address without a token (the Docker image's) said
+    # nothing, and nothing said that the token does not cover Zenoh
+    port = free_port()
+    env = {**os.environ, "VTRACK_DATA_DIR": str(tmp_path / "data"),
+           "VTRACK_ZENOH_LISTEN": f'["tcp/{zenoh_host}:{free_port()}"]'}  # fmt: skip
+    if token:
+        env["VTRACK_API_TOKEN"] = token
+    service = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "serve", "--host", host, "--port", str(port)],
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        wait_for(lambda: try_get(f"http://127.0.0.1:{port}/readyz"), 60, "the service")
+    finally:
+        service.terminate()
+        stderr = service.communicate(timeout=30)[1]
+    warnings = [line for line in stderr.splitlines() if line.startswith("vtrack: warning: ")]
+    assert len(warnings) == len(warned), stderr
+    for line, start in zip(warnings, warned, strict=True):
+        assert line.startswith(f"vtrack: warning: {start}")
+    if token is None and warned:
+        assert "upload, download and delete jobs and stream recordings" in warnings[0]
+    if zenoh_host == "0.0.0.0":
+        assert "(VTRACK_API_TOKEN does not cover Zenoh)" in warnings[0]
+
+
 def test_an_output_behind_a_link_or_a_pipe_is_written_through_not_replaced(scene_video, tmp_path):
     path, truth = scene_video
     box = ",".join(str(int(v)) for v in truth[0])

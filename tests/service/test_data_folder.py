@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import os
 import shutil
+import stat
 import subprocess
 import sys
 
@@ -203,3 +204,15 @@ def test_a_claim_holds_the_folder_until_it_is_released(tmp_path):
         "uploads",
         LOCK_NAME,
     ]
+
+
+def test_a_data_folder_the_service_creates_is_its_users_alone(tmp_path):
+    # it holds footage and people's tracks (before: 0755 under the usual umask, so every user
+    # of the machine could read them)
+    claim_data_folder(Settings(data_dir=tmp_path / "new" / "data")).release()
+    assert stat.S_IMODE((tmp_path / "new" / "data").stat().st_mode) == 0o700
+    existing = tmp_path / "shared"
+    existing.mkdir(mode=0o750)
+    existing.chmod(0o750)  # whatever the umask
+    claim_data_folder(Settings(data_dir=existing)).release()
+    assert stat.S_IMODE(existing.stat().st_mode) == 0o750  # the operator's choice

@@ -3,7 +3,9 @@ the jobs themselves (a real server, real files)."""
 
 from __future__ import annotations
 
+import os
 import re
+import time
 
 import pytest
 
@@ -65,3 +67,27 @@ def test_at_start_files_no_job_owns_are_removed(make_server, pets_short):
     assert "housekeeping: 2 uploads or result folders that no job owns removed" in second.log()
     with second.client() as client:
         assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
+
+
+def test_stream_recordings_past_the_retention_are_deleted(make_server, tmp_path):
+    # before: VTRACK_RETENTION_HOURS covered jobs only; a camera's footage stayed for ever
+    folder = tmp_path / "data" / "streams" / "gate"
+    folder.mkdir(parents=True)
+    hour_ago, in_an_hour = time.time() - 3600, time.time() + 3600
+    for name, when in [
+        ("gate-1.mcap", hour_ago),  # finished an hour ago
+        ("gate-2.mcap.broken", hour_ago),  # a killed worker's, which could not be salvaged
+        ("gate-3.mcap", in_an_hour),  # finished now (as the clock of the test sees it)
+        ("gate-4.mcap.partial", hour_ago),  # still being written
+    ]:
+        (folder / name).write_bytes(b"footage")
+        os.utime(folder / name, (when, when))
+    server = make_server(tmp_path / "data", housekeeping_interval=0.3, retention_hours=1.5 / 3600)
+    wait_for(lambda: not (folder / "gate-1.mcap").exists(), 20, "the old recording to expire")
+    assert _files(folder) == ["gate-3.mcap", "gate-4.mcap.partial"]
+    log = server.log()
+    assert (
+        "housekeeping: recording gate-1.mcap of camera gate deleted "
+        "(VTRACK_RETENTION_HOURS=0.000416667)" in log
+    )
+    assert "recording gate-2.mcap.broken of camera gate deleted" in log

@@ -130,3 +130,24 @@ def test_a_job_accepted_before_a_new_refusal_still_shows_as_it_was(store):
     store.create("old", stored, store.path.parent / "v", store.path.parent)
     status = job_status(store.get("old"))
     assert status.options.mcap_images == "jpeg" and status.state == JobState.queued
+
+
+def _bytes_on_disk(path):
+    """Every byte of a database and its write-ahead log."""
+    return b"".join(p.read_bytes() for p in path.parent.glob(path.name + "*"))
+
+
+def test_a_deleted_job_leaves_no_copy_of_its_file_name_on_disk(store):
+    # a client's file name is personal data (a shop, a camera, a name)
+    for job_id in ("a", "b"):
+        store.create(
+            job_id, {}, store.path / "v", store.path, video_filename=f"JaneDoe-{job_id}.avi"
+        )
+    store.finish(store.claim(11), 11, JobState.succeeded)
+    assert b"JaneDoe-a" in _bytes_on_disk(store.path)
+    assert store.delete("a")
+    # before: the write-ahead log kept the row's pages until the service's next start
+    on_disk = _bytes_on_disk(store.path)
+    assert b"JaneDoe-a" not in on_disk
+    assert b"JaneDoe-b" in on_disk  # the other job is intact
+    assert store.get("b").video_filename == "JaneDoe-b.avi"
