@@ -14,13 +14,13 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
-import queue
 import shutil
 import threading
 import time
 import uuid
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
 from typing import Any
 
@@ -162,8 +162,7 @@ class StreamManager:
             thread.join()
         with self._lock:
             streams = list(self._streams.values())
-        for stream in streams:
-            self._halt(stream)
+        self._halt(*streams)
         if self._hub is not None:
             self._hub.close()
             self._hub = None
@@ -324,14 +323,19 @@ class StreamManager:
         )
         single_threaded_blas()
         stream.stop = shared_flag(self._ctx)
-        stream.updates = self._ctx.Queue()
+        # A pipe whose only write end the worker holds (a Queue's is shared with the service
+        # and written by a thread): a report cut short by the worker's death then reads as the
+        # end of the pipe, where the Queue's reader waited for its rest for ever; and a worker
+        # whose service died gets EPIPE, where a Queue's thread waited for room for ever.
+        stream.updates, reports = self._ctx.Pipe(duplex=False)
         stream.process = self._ctx.Process(
             target=stream_main,
-            args=(context, os.getpid(), stream.stop, stream.updates),
+            args=(context, os.getpid(), stream.stop, reports),
             name=f"vtrack-stream-{spec.camera}",
             daemon=True,
         )
         stream.process.start()
+        reports.close()  # the worker has its own copy now
         stream.started_at = time.monotonic()
         stream.worker_error = None
         stream.starts += 1
@@ -341,27 +345,42 @@ class StreamManager:
             stream.error = f"{stream.death}; restarted"
         log.info("stream %s: worker %d started", spec.camera, stream.process.pid)
 
-    def _halt(self, stream: _Stream) -> None:
-        process = stream.process
-        if process is None:
-            return
-        stream.stop.value = True
-        process.join(STOP_GRACE)
-        if process.is_alive():
-            log.warning("stream %s: worker did not stop in time; killed", stream.record.id)
-            process.kill()
-            process.join(5.0)
-        self._drain(stream)
-        self._fold(stream)
-        process.close()
-        stream.process = None
-        stream.updates.close()
+    def _halt(self, *streams: _Stream) -> None:
+        """Stop the workers of ``streams`` together: each gets :data:`STOP_GRACE` seconds to
+        close its recording and session, then is killed. Their reports are read meanwhile: a
+        worker that cannot send its report (its pipe full) cannot finish."""
+        running = [stream for stream in streams if stream.process is not None]
+        for stream in running:
+            stream.stop.value = True
+        deadline = time.monotonic() + STOP_GRACE
+        while time.monotonic() < deadline:
+            alive = [stream for stream in running if stream.process.is_alive()]
+            if not alive:
+                break
+            pipes = [stream.updates for stream in alive]
+            sentinels = [stream.process.sentinel for stream in alive]
+            wait_for_any([*pipes, *sentinels], timeout=deadline - time.monotonic())
+            for stream in alive:
+                self._drain(stream)
+        for stream in running:
+            process = stream.process
+            if process.is_alive():
+                log.warning("stream %s: worker did not stop in time; killed", stream.record.id)
+                process.kill()
+                process.join(5.0)
+            self._drain(stream)
+            self._fold(stream)
+            process.close()
+            stream.process = None
+            stream.updates.close()
 
     def _drain(self, stream: _Stream) -> None:
         while True:
             try:
-                update = stream.updates.get_nowait()
-            except (queue.Empty, OSError, ValueError):
+                if not stream.updates.poll():
+                    return
+                update = stream.updates.recv()
+            except (EOFError, OSError, ValueError):  # the worker is gone (mid-report, maybe)
                 return
             if update.get("state") == StreamState.failed.value:
                 stream.worker_error = update.get("error")
@@ -437,8 +456,10 @@ class StreamManager:
             return
         how = describe_exit(stream.process.exitcode)
         lived = time.monotonic() - stream.started_at
+        self._drain(stream)  # what it said since the look above: why it failed, say
         stream.process.close()
         stream.process = None
+        stream.updates.close()
         if stream.yield_to:  # stopped to make way for another instance: no death
             self._stand_by(stream, stream.yield_to)
             return

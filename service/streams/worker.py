@@ -11,6 +11,7 @@ process over a queue a few times per second.
 from __future__ import annotations
 
 import collections
+import contextlib
 import ctypes
 import logging
 import os
@@ -19,6 +20,7 @@ import statistics
 import threading
 import time
 from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
@@ -744,21 +746,29 @@ def job_options(spec: StreamSpec) -> JobOptions:
     return JobOptions(detector=spec.detector, tracker=spec.tracker)
 
 
-def stream_main(context: StreamContext, parent_pid: int, stop, updates) -> None:
-    """Entry point of a stream worker process."""
+def stream_main(context: StreamContext, parent_pid: int, stop, reports: Connection) -> None:
+    """Entry point of a stream worker process; ``reports`` is the write end of the pipe its
+    service reads the status from."""
     ignore_stop_signals()
     logging.basicConfig(
         level=context.log_level.upper(),
         format=f"%(asctime)s %(levelname)s stream[{context.spec.camera}] %(name)s: %(message)s",
     )
-    worker = StreamWorker(context, updates.put)
+
+    def report(update: dict[str, Any]) -> None:
+        # Waits while the pipe is full (the service reads it ten times a second, and while it
+        # stops its streams); EPIPE once the service is gone, which the loop then notices.
+        with contextlib.suppress(OSError):
+            reports.send(update)
+
+    worker = StreamWorker(context, report)
     try:
         worker.run(stop, parent_alive=lambda: os.getppid() == parent_pid)
     except ZenohUnavailable as error:
-        updates.put({"state": StreamState.failed.value, "error": f"Zenoh: {error}"})
+        report({"state": StreamState.failed.value, "error": f"Zenoh: {error}"})
         raise SystemExit(3) from None
     except Exception as error:  # the status says why the worker died, the log says where
         log.exception("camera %s: the stream worker failed", context.spec.camera)
         why = f"the worker process failed ({type(error).__name__}: {error})"
-        updates.put({"state": StreamState.failed.value, "error": why})
+        report({"state": StreamState.failed.value, "error": why})
         raise SystemExit(1) from None

@@ -978,3 +978,102 @@ def test_a_stream_worker_leaves_stop_signals_to_the_service(server, session, pet
         stopped = client.delete(f"/v1/streams/{camera}").json()
         assert stopped["state"] == "stopped" and len(stopped["recordings"]) == 1, stopped
         assert client.delete(f"/v1/streams/{camera}").status_code == 204
+
+
+class BusyCameras:
+    """Cameras publishing the PETS frames in a loop at 10 fps, each to a started stream, until
+    closed: the workers track people and their status reports carry tracks."""
+
+    def __init__(self, server: Server, cameras: list[str], frames) -> None:
+        self.session = member_session(ZenohOptions(listen=server.zenoh_listen))
+        self._stop = threading.Event()
+        self._threads = []
+        with server.client() as client:
+            for camera in cameras:
+                start_stream(client, self.session, camera)
+            for camera in cameras:
+                looped = (frames[i % len(frames)] for i in range(10**6))
+                thread = threading.Thread(
+                    target=publish_frames,
+                    args=(self.session, StreamKeys("vtrack", camera), looped, 10.0),
+                    kwargs={"stop": self._stop},
+                )
+                thread.start()
+                self._threads.append(thread)
+            for camera in cameras:
+                wait_for(
+                    lambda c=camera: status(client, c)["counters"]["frames_processed"] >= 10,
+                    120,
+                    f"{camera} to track",
+                )
+            self.workers = {c: status(client, c)["worker_pid"] for c in cameras}
+
+    def close(self) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            thread.join()
+        self.session.close()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"  # not a zombie
+
+
+UNREAD = 8.0
+"""Seconds the service is paused (SIGSTOP) so that it reads no status reports: at four reports
+a second with tracks in them, more than a pipe holds."""
+
+
+def test_a_worker_killed_in_the_middle_of_a_report_is_restarted_and_the_service_stops(
+    tmp_path, pets_frames
+):
+    # before: the service read the rest of the cut report for ever, holding the streams' lock
+    # (no status, no restart, no stop); and it stopped its streams one after the other without
+    # reading their reports, so that a busy worker could not finish and was killed
+    server = Server(tmp_path / "data", workers=1).start()
+    cameras = BusyCameras(server, ["east", "west", "north"], pets_frames)
+    try:
+        server.process.send_signal(signal.SIGSTOP)
+        time.sleep(UNREAD)
+        os.kill(cameras.workers["east"], signal.SIGKILL)
+        server.process.send_signal(signal.SIGCONT)
+        with server.client() as client:
+            restarted = wait_for(
+                lambda: (
+                    (s := status(client, "east"))["worker_starts"] == 2
+                    and s["state"] in ("waiting", "running")
+                    and s
+                ),
+                60,
+                "the killed worker to be restarted",
+            )
+            assert restarted["error"].startswith("the worker process died (killed by SIGKILL)")
+            assert status(client, "west")["worker_pid"] == cameras.workers["west"]
+        server.process.send_signal(signal.SIGTERM)
+        server.process.wait(timeout=30)  # each worker stops well within its grace
+    finally:
+        cameras.close()
+        server.stop()
+    assert "did not stop in time" not in server.log()
+
+
+def test_stream_workers_of_a_service_that_died_end(tmp_path, pets_frames):
+    # before: a worker whose reports the service had stopped reading waited for room in the
+    # pipe for ever once the service was gone (it held the pipe's read end too): 300 MB each
+    server = Server(tmp_path / "data", workers=1).start()
+    cameras = BusyCameras(server, ["east", "west"], pets_frames)
+    try:
+        server.process.send_signal(signal.SIGSTOP)
+        time.sleep(UNREAD)
+        server.kill()
+        for camera, pid in cameras.workers.items():
+            wait_for(lambda p=pid: not _alive(p), 30, f"the worker of {camera} to end")
+    finally:
+        cameras.close()
+        for pid in cameras.workers.values():
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
