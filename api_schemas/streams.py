@@ -124,8 +124,9 @@ class StreamTracksMessage(FrameTracksMessage):
     )
     frames_skipped: int = Field(
         ge=0,
-        description="Frames that arrived since the previous message and were skipped because "
-        "tracking was behind (latest-first).",
+        description="Frames skipped because tracking was behind (latest-first) that came "
+        "between the previous message's frame and this one's: the gap between their sequence "
+        "numbers, less one.",
     )
     detections: str = Field(
         description="Where this frame's detections came from: 'upstream' (the detections "

@@ -130,6 +130,7 @@ class LatestFrame:
         self._ready = threading.Condition()
         self._frame: Incoming | None = None
         self.skipped = 0
+        self.skipped_before_taken = 0  # of them, those before the frame taken last
 
     def offer(self, frame: Incoming) -> None:
         with self._ready:
@@ -143,6 +144,8 @@ class LatestFrame:
             if self._frame is None:
                 self._ready.wait(timeout)
             frame, self._frame = self._frame, None
+            if frame is not None:  # those skipped later came after it
+                self.skipped_before_taken = self.skipped
             return frame
 
     def count_skipped(self) -> None:
@@ -517,7 +520,9 @@ class StreamWorker:
             track.track_id += self._id_offset
             self._max_id = max(self._max_id, track.track_id)
         self._reserve_ids(self._max_id)
-        skipped = self._latest.skipped
+        # the frames between the previous message's and this one (skipped while this one was
+        # tracked, later frames replaced each other: they count in the next message)
+        skipped = self._latest.skipped_before_taken
         message = StreamTracksMessage(
             frame_index=self._processed,
             timestamp=attachment.timestamp,

@@ -5,6 +5,7 @@ loopback. Waits poll with a deadline; nothing sleeps hoping something has happen
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -120,8 +121,11 @@ def test_a_camera_faster_than_the_tracker_is_skipped_not_queued(server, session,
         follower = Follower(session, keys)
         rss = []
         # Raw frames (518 kB each) as fast as the tracker's link takes them, five rounds.
-        for _ in range(5):
-            publish_frames(session, keys, iter(pets_frames), None, payload="raw", block=True)
+        for first in range(0, 5 * len(pets_frames), len(pets_frames)):
+            publish_frames(
+                session, keys, iter(pets_frames), None, payload="raw", block=True,
+                first_sequence=first,
+            )  # fmt: skip
             rss.append(resident_kib(pid))
         sent = 5 * len(pets_frames)
 
@@ -138,7 +142,13 @@ def test_a_camera_faster_than_the_tracker_is_skipped_not_queued(server, session,
         )
         follower.close()
         assert counters["frames_skipped"] > sent / 2
-        assert sum(m.frames_skipped for m in follower.received()) == counters["frames_skipped"]
+        received = follower.received()
+        assert sum(m.frames_skipped for m in received) == counters["frames_skipped"]
+        # each message counts the frames between the previous message's and its own (before:
+        # also those skipped while it was tracked, which came after it)
+        assert received[0].frames_skipped == received[0].sequence
+        for previous, message in itertools.pairwise(received):
+            assert message.frames_skipped == message.sequence - previous.sequence - 1
         # Nothing queues: after the first round the worker's memory stays where it was.
         assert max(rss[1:]) - rss[1] < 64 * 1024, f"worker memory grew: {rss} KiB"
 

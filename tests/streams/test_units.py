@@ -318,6 +318,19 @@ def test_latest_frame_keeps_the_newest():
     assert slot.skipped == 2
 
 
+def test_latest_frame_counts_the_frames_skipped_before_the_one_taken():
+    # a tracks message says how many frames came between the previous one's and its own
+    slot = LatestFrame()
+    for sequence in range(3):
+        slot.offer(incoming(sequence))
+    assert slot.take(timeout=0.1).attachment.sequence == 2
+    for sequence in range(3, 6):  # while frame 2 is tracked, 3 and 4 are replaced
+        slot.offer(incoming(sequence))
+    assert slot.skipped_before_taken == 2  # 0 and 1, skipped before frame 2
+    assert slot.take(timeout=0.1).attachment.sequence == 5
+    assert slot.skipped_before_taken == slot.skipped == 4  # with 3 and 4, before frame 5
+
+
 def test_latest_frame_take_times_out():
     slot = LatestFrame()
     started = time.perf_counter()
