@@ -280,6 +280,12 @@ class StreamStatus(BaseModel):
     stopped_at: datetime | None = None
     counters: StreamCounters
     fps: float | None = Field(default=None, ge=0, description="Frames tracked per second, lately.")
+    input_fps: float | None = Field(
+        default=None,
+        ge=0,
+        description="Frames arriving per second, lately: beside fps, how far tracking keeps up "
+        "with the camera (the difference is skipped, latest first).",
+    )
     latency: float | None = Field(
         default=None, ge=0, description="Median processing latency of recent frames, seconds."
     )

@@ -94,7 +94,8 @@ class ServiceCollector(Collector):
                 ("malformed", c.malformed),
             ):
                 frames.add_metric([status.camera, fate], value)
-            if status.latency is not None:
+            # a camera that sends nothing has no latency (its last figure would stay for ever)
+            if status.latency is not None and status.state is StreamState.running:
                 latency.add_metric([status.camera], status.latency)
         yield frames
         yield latency

@@ -505,6 +505,7 @@ class StreamManager:
             stopped_at=_utc(record.stopped_at) if record.stopped_at else None,
             counters=counters,
             fps=report.get("fps"),
+            input_fps=report.get("input_fps"),
             latency=report.get("latency"),
             latency_p95=report.get("latency_p95"),
             last_frame_at=_utc(last) if last else None,

@@ -220,6 +220,7 @@ class StreamWorker:
         self._errors: collections.deque[str] = collections.deque(maxlen=5)
         self._latencies: collections.deque[float] = collections.deque(maxlen=RECENT)
         self._done_at: collections.deque[float] = collections.deque(maxlen=RECENT)
+        self._arrived_at: collections.deque[float] = collections.deque(maxlen=RECENT)
         self._last_arrival: float | None = None  # time.monotonic()
         self._last_frame_wall: float | None = None
         self._last_timestamp: float | None = None
@@ -254,6 +255,7 @@ class StreamWorker:
         arrived = time.perf_counter()
         with self._lock:
             self._frames_in += 1
+            self._arrived_at.append(arrived)
             self._last_arrival = time.monotonic()
             self._last_frame_wall = time.time()
         try:
@@ -712,14 +714,13 @@ class StreamWorker:
             )
             errors = list(self._errors)
             last_frame = self._last_frame_wall
+            arrived = list(self._arrived_at)
         latencies = sorted(self._latencies)
-        fps = None
-        if len(self._done_at) >= 2 and time.perf_counter() - self._done_at[-1] < 2.0:
-            fps = (len(self._done_at) - 1) / max(self._done_at[-1] - self._done_at[0], 1e-9)
         return {
             "state": self._state.value,
             "counters": counters.model_dump(),
-            "fps": fps,
+            "fps": _recent_rate(list(self._done_at)),
+            "input_fps": _recent_rate(arrived),
             "latency": statistics.median(latencies) if latencies else None,
             "latency_p95": latencies[int(0.95 * (len(latencies) - 1))] if latencies else None,
             "last_frame_at": last_frame,
@@ -732,6 +733,14 @@ class StreamWorker:
         if force or now - self._last_report >= self.context.status_interval:
             self._last_report = now
             self._report(self.status())
+
+
+def _recent_rate(times: list[float]) -> float | None:
+    """Events per second over ``times`` (``time.perf_counter()``, oldest first); None unless
+    the last was within 2 s."""
+    if len(times) < 2 or time.perf_counter() - times[-1] >= 2.0:
+        return None
+    return (len(times) - 1) / max(times[-1] - times[0], 1e-9)
 
 
 def _recording_name(folder: Path, camera: str) -> Path:

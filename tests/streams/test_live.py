@@ -294,6 +294,8 @@ def test_a_camera_that_stops_goes_idle_its_tracks_end_and_it_resumes(
             **camera_options,
         )
         wait_for(lambda: status(client, camera)["state"] == "idle", 30, "the stream to go idle")
+        # a camera that sends nothing has no latency to alert on (before: its last, for ever)
+        assert 'vtrack_stream_latency_seconds{camera="door"}' not in client.get("/metrics").text
         ended = wait_for(
             lambda: (s := status(client, camera))["counters"]["restarts"] == 1 and s,
             30,
@@ -1047,6 +1049,12 @@ def test_a_worker_killed_in_the_middle_of_a_report_is_restarted_and_the_service_
     server = Server(tmp_path / "data", workers=1).start()
     cameras = BusyCameras(server, ["east", "west", "north"], pets_frames)
     try:
+        with server.client() as client:  # how far tracking keeps up with the cameras' 10 fps
+            busy = status(client, "west")
+            assert 7 < busy["input_fps"] < 13, busy
+            assert busy["fps"] is None or busy["fps"] <= busy["input_fps"] * 1.2, busy
+            metrics = client.get("/metrics").text
+            assert 'vtrack_stream_latency_seconds{camera="west"}' in metrics
         server.process.send_signal(signal.SIGSTOP)
         time.sleep(UNREAD)
         os.kill(cameras.workers["east"], signal.SIGKILL)
