@@ -312,6 +312,12 @@ class JobProgress(BaseModel):
         "read frames since it started (None: not running, total unknown, or no frame read "
         "yet). Writing the results' last bytes comes after.",
     )
+    queued_ahead: int | None = Field(
+        default=None,
+        ge=0,
+        description="For a queued job, the queued jobs that start before it (0: it starts as "
+        "soon as a worker is free; jobs start oldest first). None once it has started.",
+    )
 
 
 class JobLinks(BaseModel):

@@ -180,6 +180,18 @@ class JobStore:
             rows = self._db.execute(query, (*args, limit)).fetchall()
         return [JobRecord.from_row(row) for row in rows]
 
+    def queued_ahead(self, record: JobRecord) -> int | None:
+        """Queued jobs that :meth:`claim` takes before ``record``; None unless it is queued."""
+        if record.state != JobState.queued:
+            return None
+        with self._lock:
+            (count,) = self._db.execute(
+                "SELECT count(*) FROM jobs WHERE state = ? AND (created_at < ? OR "
+                "(created_at = ? AND rowid < (SELECT rowid FROM jobs WHERE id = ?)))",
+                (JobState.queued.value, record.created_at, record.created_at, record.id),
+            ).fetchone()
+        return count
+
     def running(self) -> list[JobRecord]:
         return self.list(limit=1_000_000, state=JobState.running)
 

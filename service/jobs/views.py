@@ -27,7 +27,7 @@ def result_url(job_id: str, fmt: str) -> str:
     return f"{API_PREFIX}/{job_id}/result?format={fmt}"
 
 
-def job_progress(record: JobRecord) -> JobProgress:
+def job_progress(record: JobRecord, queued_ahead: int | None = None) -> JobProgress:
     total = record.frames_total
     done = record.frames_done
     if record.state == JobState.succeeded:
@@ -43,11 +43,16 @@ def job_progress(record: JobRecord) -> JobProgress:
         elapsed = max(time.time() - record.started_at, 0.0)
         eta = max(total - done, 0) * elapsed / done
     return JobProgress(
-        frames_done=done, frames_total=total, fps=record.fps, fraction=fraction, eta_seconds=eta
+        frames_done=done,
+        frames_total=total,
+        fps=record.fps,
+        fraction=fraction,
+        eta_seconds=eta,
+        queued_ahead=queued_ahead,
     )
 
 
-def job_status(record: JobRecord) -> JobStatus:
+def job_status(record: JobRecord, queued_ahead: int | None = None) -> JobStatus:
     results = {}
     if record.state == JobState.succeeded:
         results = {fmt: result_url(record.id, fmt) for fmt in record.results}
@@ -57,7 +62,7 @@ def job_status(record: JobRecord) -> JobStatus:
         created_at=_time(record.created_at),
         started_at=_time(record.started_at),
         finished_at=_time(record.finished_at),
-        progress=job_progress(record),
+        progress=job_progress(record, queued_ahead),
         error=record.error if record.state != JobState.succeeded else None,
         warnings=record.warnings,
         attempts=record.attempts,
@@ -67,10 +72,10 @@ def job_status(record: JobRecord) -> JobStatus:
     )
 
 
-def progress_event(record: JobRecord) -> ProgressEvent:
+def progress_event(record: JobRecord, queued_ahead: int | None = None) -> ProgressEvent:
     return ProgressEvent(
         id=record.id,
         state=record.state,
-        progress=job_progress(record),
+        progress=job_progress(record, queued_ahead),
         error=record.error if record.state in (JobState.failed, JobState.cancelled) else None,
     )

@@ -123,12 +123,13 @@ def list_jobs(
     if len(records) > limit:
         query = {"limit": limit, "before": page[-1].id} | ({"state": state.value} if state else {})
         following = f"{API_PREFIX}?{urlencode(query)}"
-    return JobList(jobs=[job_status(r) for r in page], next=following)
+    return JobList(jobs=[job_status(r, store.queued_ahead(r)) for r in page], next=following)
 
 
 @router.get("/{job_id}", summary="A job's state and progress", responses=error_responses(404))
 def get_job(job_id: str, store: StoreDep) -> JobStatus:
-    return job_status(_job(store, job_id))
+    record = _job(store, job_id)
+    return job_status(record, store.queued_ahead(record))
 
 
 @router.head("/{job_id}/result", include_in_schema=False)  # players and download managers
@@ -210,7 +211,7 @@ async def job_events(job_id: str, request: Request, store: StoreDep) -> Streamin
             if record is None:
                 yield f'event: end\ndata: {{"id": "{job_id}", "deleted": true}}\n\n'
                 return
-            data = progress_event(record).model_dump_json()
+            data = progress_event(record, store.queued_ahead(record)).model_dump_json()
             if record.state.finished:
                 yield f"event: end\ndata: {data}\n\n"
                 return

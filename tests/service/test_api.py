@@ -22,6 +22,7 @@ from tests.service.conftest import (
     Server,
     schema_for,
     submit,
+    wait_for_frames,
     wait_for_state,
 )
 
@@ -437,3 +438,24 @@ def test_docs_and_openapi_are_served(client):
     assert {"/v1/jobs", "/v1/jobs/{job_id}", "/v1/jobs/{job_id}/result"} <= set(spec["paths"])
     body = spec["paths"]["/v1/jobs"]["post"]["requestBody"]["content"]["multipart/form-data"]
     assert body["schema"]["required"] == ["video"]
+
+
+def test_a_queued_job_says_how_many_start_before_it(make_server, long_video, pets_short):
+    # before: a queued job said nothing of its wait (a third upload to a busy service)
+    server = make_server(workers=1)
+    with server.client() as client:
+        first = submit(client, long_video, FAST_OPTIONS).json()["id"]
+        wait_for_frames(client, first, 1)
+        second, third = (submit(client, pets_short, FAST_OPTIONS).json()["id"] for _ in range(2))
+
+        def ahead(job_id):
+            return client.get(f"/v1/jobs/{job_id}").json()["progress"]["queued_ahead"]
+
+        assert (ahead(first), ahead(second), ahead(third)) == (None, 0, 1)
+        jobs = client.get("/v1/jobs").json()["jobs"]
+        listed = {j["id"]: j["progress"]["queued_ahead"] for j in jobs}
+        assert listed == {first: None, second: 0, third: 1}
+        assert client.delete(f"/v1/jobs/{second}").json()["state"] == "cancelled"
+        assert ahead(third) == 0
+        for job_id in (first, third):
+            client.delete(f"/v1/jobs/{job_id}")
