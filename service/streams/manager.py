@@ -2,7 +2,7 @@
 
 :class:`StreamManager` lives in the service process. It opens the hub Zenoh session (the one
 cameras and workers meet at), starts a spawned worker per stream, and keeps each stream's latest
-status from the reports its worker sends over a queue. A supervisor thread restarts a worker
+status from the reports its worker sends over a pipe. A supervisor thread restarts a worker
 that died, waiting longer after each quick death, and gives up (state ``failed``) after
 :data:`MAX_QUICK_DEATHS` in a row. An arbiter thread keeps one tracker per camera across
 instances: a stream whose camera another instance tracks stands by until that instance's

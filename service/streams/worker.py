@@ -5,7 +5,7 @@ One process per stream, started with the "spawn" method; it opens its own Zenoh 
 check the attachment and drop the sample into a one-frame slot (:class:`LatestFrame`), so the
 frame the tracker takes next is always the newest and a slow tracker skips frames instead of
 queueing them. The main thread tracks, publishes, and reports its status to the service
-process over a queue a few times per second.
+process over a pipe a few times per second.
 """
 
 from __future__ import annotations
