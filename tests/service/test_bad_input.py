@@ -385,8 +385,10 @@ def test_a_full_data_folder_is_reported_and_the_service_goes_on(make_server, sha
         assert "free space" in refused.json()["detail"]
         assert list((server.data_dir / "uploads").iterdir()) == [], "the partial upload stays"
 
-        # 100 frames as JPEG in an MCAP need about 3.5 MB
-        job = submit(client, start, {"formats": ["mcap"], "mcap_images": "jpeg"})
+        # 100 frames as JPEG in an MCAP need about 3.5 MB (the detector on the frames as they
+        # are, not enlarged: a quarter of the work)
+        options = {"formats": ["mcap"], "mcap_images": "jpeg", "detector": {"upscale": 1.0}}
+        job = submit(client, start, options)
         assert job.status_code == 202, job.text
         failed = wait_for_state(client, job.json()["id"], ("succeeded", "failed"))
         assert failed["state"] == "failed"
@@ -395,7 +397,7 @@ def test_a_full_data_folder_is_reported_and_the_service_goes_on(make_server, sha
         assert [p for p in left if p.is_file()] == [], "the partial results stay"
 
         # the service goes on: a job whose results fit succeeds, on the same worker
-        job = submit(client, start, {"formats": ["json"]})
+        job = submit(client, start, {"formats": ["json"], "end": 1})
         done = wait_for_state(client, job.json()["id"], ("succeeded", "failed"))
         assert done["state"] == "succeeded", done["error"]
         assert "vtrack_workers_replaced_total 0.0" in client.get("/metrics").text

@@ -1035,7 +1035,7 @@ def _alive(pid: int) -> bool:
     return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"  # not a zombie
 
 
-UNREAD = 8.0
+UNREAD = 5.0
 """Seconds the service is paused (SIGSTOP) so that it reads no status reports: at four reports
 a second with tracks in them, more than a pipe holds."""
 
