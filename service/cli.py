@@ -719,11 +719,11 @@ def _exposure_warnings(settings: Settings, where: str) -> list[str]:
             "(docs/service.md, Security)"
         )
     if settings.zenoh_enabled and settings.zenoh_config is None:
-        # <protocol>/<address>:<port>[?metadata][#config]; unixsock-stream/<path> stays local
+        from service.streams.session import endpoint_address
+
         for endpoint in settings.zenoh_listen:
-            protocol, _, rest = endpoint.partition("/")
-            address = re.split(r"[?#]", rest)[0].rpartition(":")[0]
-            if protocol != "unixsock-stream" and not _loopback(address):
+            address = endpoint_address(endpoint)
+            if address is not None and not _loopback(address):
                 warnings.append(
                     f"Zenoh listens on {endpoint} without access control: anyone who reaches "
                     "it can read every camera's frames and tracks and send frames of their "

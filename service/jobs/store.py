@@ -286,7 +286,9 @@ class JobStore:
         moves them into the database and empties the log."""
         with self._lock:
             cursor = self._db.execute("DELETE FROM jobs WHERE id = ?", (job_id,))
-            empty_log(self._db)
+            # as far as no reader still needs the log: a worker's open read is rare and short,
+            # and the next deletion empties what it kept
+            self._db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
         return cursor.rowcount > 0
 
     def requeue_orphans(self, max_attempts: int) -> tuple[list[str], list[str]]:
@@ -449,13 +451,6 @@ class JobStore:
             " ON CONFLICT (name) DO UPDATE SET value = value + excluded.value",
             (name, delta),
         )
-
-
-def empty_log(db: sqlite3.Connection) -> None:
-    """Copy the write-ahead log into the database and truncate it to nothing (as far as no
-    reader still needs it: a worker's open read is rare and short, and the next deletion
-    empties what it kept)."""
-    db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
 
 
 def _times(count: int) -> str:

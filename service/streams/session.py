@@ -94,6 +94,15 @@ def zenoh_endpoint(text: str) -> str:
     return text
 
 
+def endpoint_address(endpoint: str) -> str | None:
+    """The address an endpoint ``<protocol>/<address>:<port>[?metadata][#config]`` names
+    (``0.0.0.0``, ``[::1]``, a host name); None for a Unix socket's path, local by nature."""
+    protocol, _, rest = endpoint.partition("/")
+    if protocol == "unixsock-stream":
+        return None
+    return re.split(r"[?#]", rest)[0].rpartition(":")[0]
+
+
 def _reachable(endpoint: str) -> str:
     """A listen endpoint as another local process connects to it (0.0.0.0 -> 127.0.0.1)."""
     for wildcard in ("0.0.0.0", "[::]"):
