@@ -9,12 +9,13 @@ from __future__ import annotations
 
 from datetime import datetime
 from enum import StrEnum
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StringConstraints,
     ValidationInfo,
     field_validator,
     model_validator,
@@ -239,6 +240,19 @@ class JobOptions(BaseModel):
         "linearly in time and marked interpolated (mcap and mp4 show the frames as tracked). "
         "0: off. 0.5-1 joins trajectories broken by brief occlusions; see docs/benchmarks.md "
         "for what it does to the scores.",
+    )
+
+    labels: dict[
+        Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9_.:-]{1,64}$")],
+        Annotated[str, StringConstraints(max_length=256)],
+    ] = Field(
+        default_factory=dict,
+        max_length=20,
+        description="Your own names for the video, copied into its results (the json's options, "
+        "the mcap's metadata) and listed with the job, for joining them with your records: "
+        "the camera, the site, when the recording began... Up to 20; keys of 1-64 letters, "
+        "digits and _ . : -, values up to 256 characters.",
+        examples=[{"camera": "entrance-2", "site": "store-042"}],
     )
 
     # An option of the other mode would be ignored: set to anything but its default, it is

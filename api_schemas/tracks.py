@@ -11,6 +11,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from api_schemas.common import BoxModel
+from api_schemas.jobs import JobOptions
 
 INTERPOLATED = (
     "True when the tracker did not report the object in this frame: the estimate was filled "
@@ -164,7 +165,20 @@ class Trajectories(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
+    vtrack_version: str = Field(
+        description="Version of visual-tracking that wrote it (`vtrack --version`); fields may "
+        "be added in a later version, and a changed or removed field comes with a new major "
+        "version."
+    )
     job_id: str | None = Field(default=None, description="The job that produced it (None: CLI).")
+    options: JobOptions = Field(
+        description="The options it was tracked with, defaults filled in (with the job's labels)."
+    )
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="What the run told of the video (damaged frames, a truncated file...): the "
+        "job's warnings.",
+    )
     mode: Literal["people", "single_target"]
     video: VideoInfo
     part_names: list[str] = Field(description="Names of the parts the tracks carry.")

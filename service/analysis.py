@@ -133,24 +133,19 @@ def enlargement_problem(upscale: float | None, frame_size: tuple[int, int]) -> s
 
 
 def check_options(
-    options: JobOptions,
-    resources: PipelineResources,
-    frame_size: tuple[int, int] | None = None,
-    length: float | None = None,
+    options: JobOptions, resources: PipelineResources, source: FrameSource | None = None
 ) -> None:
     """Raise :class:`OptionsError` for options that could not run; cheap (loads no model).
 
-    ``frame_size`` is ``(width, height)`` of the video, to check that it is large enough to
-    track (:data:`~service.frames.MIN_SIDE`), a single target's first box
-    and how large ``detector.upscale`` makes the frames; ``length`` its seconds
-    (:attr:`FrameSource.length`), to check that ``start`` falls within it.
+    ``source``, the video, to check that its frames are large enough to track
+    (:data:`~service.frames.MIN_SIDE`), a single target's first box, how large
+    ``detector.upscale`` makes the frames, and that a frame is at or after ``start``.
     """
+    frame_size = None if source is None else (source.width, source.height)
     if frame_size is not None and (problem := frame_size_problem(*frame_size)):
         raise OptionsError(problem)
-    if length is not None and options.start > 0 and options.start >= length:
-        raise OptionsError(
-            f"start {options.start:g} s is not within the video, which lasts {length:.2f} s"
-        )
+    if source is not None and (problem := source.start_problem(options.start)):
+        raise OptionsError(problem)
     if options.mode == "single_target":
         if options.preset not in PRESETS:
             raise OptionsError(
@@ -230,7 +225,7 @@ def analyze(
     resources = resources or PipelineResources()
     started = time.perf_counter()
     source = video if isinstance(video, FrameSource) else open_frames(video)
-    check_options(options, resources, (source.width, source.height), source.length)
+    check_options(options, resources, source)
     if detections is None:
         pipeline = build_pipeline(options, resources)
     elif options.mode == "people":
@@ -256,6 +251,7 @@ def analyze(
         frame_step=options.frame_step,
         part_names=tuple(pipeline.part_names),
         mode=options.mode,
+        options=options,
         job_id=job_id,
         filename=filename,
         mcap_images=options.mcap_images,

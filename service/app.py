@@ -24,6 +24,7 @@ from starlette.exceptions import HTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from service import __version__
 from service.data_folder import DataFolder, claim_data_folder
 from service.deps import token_refusal
 from service.jobs.housekeeping import Housekeeper, sweep
@@ -227,7 +228,7 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app = FastAPIOffline(
         static_url=DOCS_ASSETS,
         title="visual-tracking",
-        version="0.1.0",
+        version=__version__,
         summary="Multi-person tracking of uploaded surveillance video",
         description=DESCRIPTION,
         lifespan=lifespan,

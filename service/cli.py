@@ -9,7 +9,6 @@ import copy
 import dataclasses
 import errno
 import fcntl
-import importlib.metadata
 import ipaddress
 import json
 import os
@@ -23,6 +22,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
+from service import __version__
 from service.argument_types import number_type, time_type
 from service.frames import (
     FrameSource,
@@ -187,21 +187,15 @@ def _track(args: argparse.Namespace) -> int:
         source = _open_source(args)
         if problem := frame_size_problem(source.width, source.height):
             raise ValueError(problem)  # as uploads and streams are refused
-        folder, length = source.path.is_dir(), source.length
-        if folder and source.fps is None and (start > 0 or args.end is not None):
+        if source.path.is_dir() and source.fps is None and (start > 0 or args.end is not None):
             print(
                 "vtrack: warning: the image folder states no frame rate (no seqinfo.ini "
                 f"frameRate): --start and --end count {source.timing_fps:g} frames per second; "
                 "give its rate with --fps",
                 file=sys.stderr,
             )
-        if folder and not source.image_range(start):
-            last = (source.frame_count - 1) / source.timing_fps
-            raise ValueError(
-                f"no frame is at or after --start {start:g} s: the last is at {last:.2f} s"
-            )
-        if length is not None and start > 0 and start >= length:
-            raise ValueError(f"--start {start:g} s is not within the video ({length:.2f} s)")
+        if problem := source.start_problem(start):
+            raise ValueError(problem.replace("start", "--start", 1))
         box = args.box or _truth_box(source, start)
     except ValueError as error:  # FrameSourceError and SequenceError are ValueErrors
         print(f"vtrack: {error}", file=sys.stderr)
@@ -554,7 +548,7 @@ def _analyze(args: argparse.Namespace) -> int:
             if problem := box_problem(Box(b.x, b.y, b.w, b.h), (source.height, source.width)):
                 raise ValueError(f"{given.get(('first_box',), '--options: first_box')} {problem}")
         # before the bar
-        check_options(options, resources, (source.width, source.height), source.length)
+        check_options(options, resources, source)
         created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it
         _lock_out_dir(args.out_dir)
@@ -733,13 +727,6 @@ def _exposure_warnings(settings: Settings, where: str) -> list[str]:
     return warnings
 
 
-def _version() -> str:
-    try:
-        return importlib.metadata.version("visual-tracking")
-    except importlib.metadata.PackageNotFoundError:  # run from a checkout without installing
-        return "(not installed)"
-
-
 QUIET_HELP = "no progress bar or closing summary (warnings and errors still print)"
 W2C_HELP = "van de Weijer w2c.mat Color Names table (VTRACK_COLOR_NAMES; default: embedded)"
 
@@ -772,7 +759,7 @@ def _add_range_arguments(command: argparse.ArgumentParser, note: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="vtrack", description=__doc__)
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
     track = commands.add_parser(
         "track",

@@ -6,6 +6,9 @@ import secrets
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request, status
+from fastapi.dependencies.models import Dependant
+from fastapi.exceptions import RequestValidationError
+from fastapi.routing import APIRoute
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from service.jobs.store import JobStore
@@ -77,3 +80,36 @@ def require_token(
 
 
 AuthDep = Depends(require_token)
+
+
+def _query_names(dependant: Dependant) -> set[str]:
+    """The query parameters a route's function and its dependencies take."""
+    return {p.alias for p in dependant.query_params}.union(
+        *(_query_names(d) for d in dependant.dependencies)
+    )
+
+
+def refuse_unknown_query_parameters(request: Request) -> None:
+    """A query parameter the route does not take is refused (422), as an unknown field of a
+    job's options is: a misspelt filter (``?stat=succeeded``) would otherwise list every job."""
+    route = request.scope.get("route")
+    if not isinstance(route, APIRoute):
+        return
+    known = _query_names(route.dependant)
+    unknown = sorted(set(request.query_params) - known)
+    if unknown:
+        takes = f"it takes {', '.join(sorted(known))}" if known else "it takes none"
+        raise RequestValidationError(
+            [
+                {
+                    "type": "extra_forbidden",
+                    "loc": ("query", name),
+                    "msg": f"not a query parameter of this route ({takes})",
+                    "input": request.query_params[name],
+                }
+                for name in unknown
+            ]
+        )
+
+
+KnownQueryDep = Depends(refuse_unknown_query_parameters)

@@ -201,6 +201,33 @@ class FrameSource:
             return self.frame_count
         return min(self.frame_count, math.ceil(end * self.timing_fps))
 
+    def start_problem(self, start: float) -> str | None:
+        """Why no frame is at or after ``start`` seconds, for the user; ``None`` when one is
+        (or may be: a video that states neither duration nor frame count).
+
+        A video's last frame shows one frame period before its end: a start between the two
+        would be accepted and then find nothing to track.
+        """
+        if start <= 0:
+            return None
+        if self._images:
+            if self.image_range(start):
+                return None
+            last = self._indices[-1] / self.timing_fps
+            return f"no frame is at or after start {start:g} s: the last is at {last:.2f} s"
+        length = self.length
+        if length is None:
+            return None
+        if start >= length:
+            return f"start {start:g} s is not within the video, which lasts {length:.2f} s"
+        last = length - 1 / self.timing_fps
+        if start > last + 1e-3:  # containers round their durations to the millisecond
+            return (
+                f"start {start:g} s is after the video's last frame, at {last:.2f} s (the "
+                f"video lasts {length:.2f} s)"
+            )
+        return None
+
     def image_range(self, start: float = 0.0, end: float | None = None) -> range:
         """The indices of an image folder's frames from ``start`` seconds until ``end``
         (``range(0)`` for a video, whose frames' times are known only as they are read)."""
@@ -510,7 +537,8 @@ _MATROSKA_DURATION = re.compile(r"^(\d+):(\d{2}):(\d{2}(?:\.\d+)?)$")
 
 def _video_duration(container: av.container.InputContainer, video: av.VideoStream) -> float | None:
     """The duration of the video stream: its own, else the per-track ``DURATION`` tag that
-    Matroska and WebM writers add, else the container's if the video is its only stream.
+    Matroska and WebM writers add, else the container's if the video is its only stream;
+    from the video's first frame.
 
     A container's duration spans all its streams: with an audio track that runs on after the
     last picture (common in recordings), it would make a complete video look truncated.
@@ -519,10 +547,18 @@ def _video_duration(container: av.container.InputContainer, video: av.VideoStrea
         return float(video.duration * video.time_base)
     if match := _MATROSKA_DURATION.match(video.metadata.get("DURATION", "")):
         hours, minutes, seconds = match.groups()
-        return int(hours) * 3600 + int(minutes) * 60 + float(seconds)
-    if len(container.streams) == 1 and container.duration:
-        return container.duration / av.time_base
-    return None
+        end = int(hours) * 3600 + int(minutes) * 60 + float(seconds)
+    elif len(container.streams) == 1 and container.duration:
+        end = container.duration / av.time_base
+    else:
+        return None
+    # FFmpeg's Matroska writer states when the track ends, not how long it lasts: a file cut
+    # with -copyts or a recorder's later segment starts past 0 (MP4's duration is a length)
+    if "matroska" in container.format.name and video.start_time and video.time_base:
+        start = float(video.start_time * video.time_base)
+        if 0 < start < end:
+            return end - start
+    return end
 
 
 def _open_folder(path: Path, fps: float | None) -> FrameSource:

@@ -153,9 +153,14 @@ class JobStore:
         return JobRecord.from_row(row) if row else None
 
     def list(
-        self, limit: int = 100, state: JobState | None = None, before: str | None = None
+        self,
+        limit: int = 100,
+        state: JobState | None = None,
+        before: str | None = None,
+        finished_after: float | None = None,
     ) -> list[JobRecord]:
-        """Newest first; with ``before``, only jobs older than that job (a page after it).
+        """Newest first; with ``before``, only jobs older than that job (a page after it); with
+        ``finished_after`` (Unix time), only jobs finished after it.
 
         Raises
         ------
@@ -166,6 +171,9 @@ class JobStore:
         if state is not None:
             where.append("state = ?")
             args.append(state.value)
+        if finished_after is not None:
+            where.append("finished_at > ?")
+            args.append(finished_after)
         with self._lock:
             if before is not None:
                 row = self._db.execute(

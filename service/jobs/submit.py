@@ -95,8 +95,7 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
         options = parse_options(upload.options)
         source = await run_in_threadpool(probe_video, upload.video_path, upload.size)
         try:
-            size = (source.width, source.height)
-            check_options(options, resources(settings), size, source.length)
+            check_options(options, resources(settings), source)
         except OptionsError as error:
             raise HTTPException(422, str(error)) from None
         suffix = Path(upload.filename or "").suffix.lower()

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Protocol
 
-from api_schemas.jobs import OutputFormat
+from api_schemas.jobs import JobOptions, OutputFormat
 from api_schemas.tracks import FrameTracksMessage, VideoInfo
 from service.frames import TimedFrame
 
@@ -38,6 +38,7 @@ class StreamInfo:
     frame_step: int
     part_names: tuple[str, ...]
     mode: str
+    options: JobOptions = field(default_factory=JobOptions)
     job_id: str | None = None
     filename: str | None = None
     mcap_images: Literal["h264", "jpeg"] = "h264"

@@ -16,6 +16,7 @@ from array import array
 from pathlib import Path
 
 from api_schemas.tracks import FrameTracksMessage, Trajectories, TrajectoryPoint
+from service import __version__
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
 
@@ -57,7 +58,10 @@ class JsonWriter:
 
     def close(self, summary: RunSummary) -> None:
         head = Trajectories(
+            vtrack_version=__version__,
             job_id=self._info.job_id,
+            options=self._info.options,
+            warnings=summary.warnings,
             mode=self._info.mode,  # type: ignore[arg-type]
             video=summary.video,
             part_names=list(self._info.part_names),

@@ -35,6 +35,7 @@ from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
 from api_schemas.tracks import FrameTracksMessage
+from service import __version__
 from service.frames import TimedFrame
 from service.outputs import foxglove, h264
 from service.outputs.base import RunSummary, StreamInfo
@@ -133,7 +134,7 @@ class McapWriter:
         self._encoder: AccessUnitEncoder | None = None
         self._file = path.open("wb")
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library="visual-tracking")
+        self._writer.start(profile="", library=f"visual-tracking {__version__}")
         self._channels = {}
         image_schema = (
             ("foxglove.CompressedVideo", foxglove.COMPRESSED_VIDEO_SCHEMA)
@@ -194,6 +195,8 @@ class McapWriter:
             self._add_video(self._encoder.flush())
         # The images alone do not give the video's size: H.264 pads odd sides by a pixel.
         info = {
+            "vtrack_version": __version__,
+            "options": self._info.options.model_dump_json(),
             "mode": self._info.mode,
             "width": str(self._info.width),
             "height": str(self._info.height),

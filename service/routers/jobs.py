@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import re
 import threading
 import time
 from typing import Annotated
@@ -11,10 +12,11 @@ from urllib.parse import urlencode
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
 from fastapi.responses import StreamingResponse
+from pydantic import AwareDatetime, BeforeValidator
 
 from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFormat
 from api_schemas.tracks import Trajectories
-from service.deps import AuthDep, SettingsDep, StoreDep
+from service.deps import AuthDep, KnownQueryDep, SettingsDep, StoreDep
 from service.jobs.housekeeping import remove_job
 from service.jobs.store import JobRecord, JobStore
 from service.jobs.submit import submit
@@ -25,7 +27,7 @@ from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
 
 log = logging.getLogger(__name__)
 
-router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep])
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], dependencies=[AuthDep, KnownQueryDep])
 
 _RESULT_CONTENT = {
     "description": "The result file: `json` a Trajectories document, `mot` MOTChallenge text, "
@@ -101,6 +103,14 @@ async def create_job(
     )
 
 
+def _plus_restored(value: object) -> object:
+    """A time written into a URL by hand (``...T08:00:00+01:00``) comes with its ``+`` read as
+    a space, as query strings encode spaces: an offset after a space is taken as written."""
+    if isinstance(value, str) and re.search(r" \d{2}(:?\d{2})?$", value):
+        return value[: value.rindex(" ")] + "+" + value[value.rindex(" ") + 1 :]
+    return value
+
+
 @router.get("", summary="Jobs, newest first, a page at a time", responses=error_responses(404, 422))
 def list_jobs(
     store: StoreDep,
@@ -109,9 +119,18 @@ def list_jobs(
     before: Annotated[
         str | None, Query(description="Only jobs older than this one: the `next` link's cursor.")
     ] = None,
+    finished_after: Annotated[
+        Annotated[AwareDatetime, BeforeValidator(_plus_restored)] | None,
+        Query(
+            description="Only jobs that finished after this time (ISO 8601 with its time zone, "
+            "e.g. 2026-11-26T08:00:00Z): to take in new results, ask again from a little before "
+            "the previous ask and skip the ids you have."
+        ),
+    ] = None,
 ) -> JobList:
+    after = None if finished_after is None else finished_after.timestamp()
     try:
-        records = store.list(limit=limit + 1, state=state, before=before)
+        records = store.list(limit=limit + 1, state=state, before=before, finished_after=after)
     except KeyError:
         raise HTTPException(
             status.HTTP_404_NOT_FOUND,
@@ -122,6 +141,8 @@ def list_jobs(
     following = None
     if len(records) > limit:
         query = {"limit": limit, "before": page[-1].id} | ({"state": state.value} if state else {})
+        if finished_after is not None:
+            query["finished_after"] = finished_after.isoformat()
         following = f"{API_PREFIX}?{urlencode(query)}"
     return JobList(jobs=[job_status(r, store.queued_ahead(r)) for r in page], next=following)
 

@@ -634,6 +634,7 @@ class StreamWorker:
                 frame_step=1,
                 part_names=tuple(self._pipeline.part_names) if self._pipeline else (),
                 mode="people",
+                options=job_options(self.spec),
                 mcap_images=self.spec.record_images,
             )
             partial = self._recording_path.with_suffix(".mcap.partial")

@@ -105,6 +105,8 @@ def test_trajectories_reject_scores_outside_unit_interval():
         "occluded": False,
     }
     document = {
+        "vtrack_version": "0.1.0",
+        "options": {},
         "mode": "people",
         "video": {
             "width": 4,

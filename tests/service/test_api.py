@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import base64
+import importlib.metadata
 import io
 import json
 import re
 from concurrent.futures import ThreadPoolExecutor
+from datetime import datetime
 
 import av
 import cv2
@@ -42,10 +44,14 @@ def client(server):
         yield client
 
 
+LABELS = {"camera": "entrance-2", "site": "store-042", "recorded": "2026-11-26T08:00:00+01:00"}
+
+
 @pytest.fixture(scope="module")
 def finished_job(client, pets_cut):
     """One job with every output, followed to its end through the event stream."""
-    response = submit(client, pets_cut, {"formats": ["json", "mcap", "mot", "mp4"]})
+    options = {"formats": ["json", "mcap", "mot", "mp4"], "labels": LABELS}
+    response = submit(client, pets_cut, options)
     assert response.status_code == 202, response.text
     created = response.json()
     assert response.headers["location"] == created["status_url"]
@@ -100,6 +106,10 @@ def test_json_result_matches_the_schema(client, finished_job):
     document = response.json()
     jsonschema.validate(document, schema_for("Trajectories"))
     assert document["job_id"] == status["id"] and document["mode"] == "people"
+    # what a pipeline needs to join and trace the result, without the job (deleted by then)
+    assert document["vtrack_version"] == importlib.metadata.version("visual-tracking")
+    assert document["options"] == status["options"] and status["options"]["labels"] == LABELS
+    assert document["warnings"] == status["warnings"]
     assert document["video"]["frames_read"] == 24 and document["frames_processed"] == 24
     assert (document["video"]["width"], document["video"]["height"]) == (480, 360)
     assert document["tracks"], "nobody was tracked in 2.4 s of PETS09-S2L1"
@@ -197,6 +207,9 @@ def test_mcap_result_has_images_annotations_and_tracks_at_the_same_times(client,
                 {"x": box["x"] + box["w"], "y": box["y"] + box["h"]}
             )
     assert any(frame["tracks"] for _, _, frame in tracks)
+    metadata = next(make_reader(io.BytesIO(download.content)).iter_metadata()).metadata
+    assert metadata["vtrack_version"] == importlib.metadata.version("visual-tracking")
+    assert json.loads(metadata["options"]) == status["options"]
     assert any(p["type"] == 1 for _, _, a in annotations for p in a["points"])  # parts
 
 
@@ -335,6 +348,19 @@ def test_jobs_are_listed_a_page_at_a_time(client, pets_short):
     second = client.get(first["next"]).json()  # the filter carries over
     assert "state=succeeded" in first["next"] and second["jobs"][0]["state"] == "succeeded"
     assert second["jobs"][0]["id"] != first["jobs"][0]["id"]
+    # new results since a time: the jobs finished after it, a page at a time as well
+    finished = {j["id"]: datetime.fromisoformat(j["finished_at"]) for j in listed["jobs"]}
+    since = sorted(finished[job_id] for job_id in ids)[0]
+    expected = [job_id for job_id in everything if finished[job_id] > since]
+    # typed into the URL by hand, the offset's + is read as a space
+    url, paged = f"/v1/jobs?limit=1&finished_after={since.isoformat()}", []
+    while url is not None:
+        page = client.get(url).json()
+        paged += [job["id"] for job in page["jobs"]]
+        url = page["next"]
+    assert paged == expected and len(expected) >= 2
+    naive = client.get("/v1/jobs", params={"finished_after": "2026-11-26T08:00:00"})
+    assert naive.status_code == 422 and "timezone" in naive.text
     gone = client.get("/v1/jobs", params={"before": "no-such-job"})
     assert gone.status_code == 404 and "start again from the newest" in gone.json()["detail"]
 

@@ -182,6 +182,24 @@ def test_bad_options_list_each_failed_check_for_programs(client, pets_short):
     assert all(e["msg"].startswith("Input should be") for e in body["errors"])
 
 
+def test_a_query_parameter_a_route_does_not_take_is_refused(client):
+    # before: a misspelt filter listed every job, 200
+    response = client.get("/v1/jobs", params={"stat": "succeeded", "limit": 5})
+    assert response.status_code == 422
+    body = response.json()
+    assert body["detail"] == (
+        "invalid request: query.stat: not a query parameter of this route (it takes before, "
+        "limit, state)"
+    )
+    assert body["errors"] == [
+        {"loc": ["query", "stat"], "msg": body["detail"][29:], "type": "extra_forbidden"}
+    ]
+    missing = client.get("/v1/jobs/0123/result", params={"fromat": "mot"})
+    assert missing.status_code == 422 and "query.fromat" in missing.text
+    assert client.get("/v1/streams", params={"x": "1"}).status_code == 422
+    assert client.get("/v1/jobs", params={"state": "succeeded"}).status_code == 200
+
+
 def test_an_enlargement_beyond_8k_is_refused_with_the_largest_that_fits(client, tmp_path):
     # before: a 4K video at detector.upscale 4 was queued, and took about 25 s and 3.6 GB of
     # its worker's memory per frame

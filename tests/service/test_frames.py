@@ -71,6 +71,19 @@ def test_a_cut_matroska_is_called_truncated_by_its_duration(shared_data, tmp_pat
     assert any("of the 4.00 s its container announces" in w for w in result.warnings)
 
 
+def test_a_matroska_starting_late_is_measured_from_its_first_frame(shared_data, tmp_path):
+    # a segment of a longer recording, or a file cut with -copyts: its times start at 100 s,
+    # and FFmpeg's Matroska writer states the track's end (104 s), not its length.
+    # Before: "the video ended after 3.90 s of the 104.00 s its container announces", and
+    # 1040 frames expected
+    frames = list(islice(open_frames(shared_data / PETS_VIDEO), 40))
+    late = write_stamped(frames, range(100_000, 104_000, 100), tmp_path / "late.mkv")
+    source = open_frames(late)
+    assert source.length == pytest.approx(4.0) and source.frame_count == 40
+    result = analyze(late, JobOptions(formats=["json"]), tmp_path / "out")
+    assert result.warnings == [] and result.video.frames_read == 40
+
+
 def test_frames_skipped_at_the_end_are_counted_as_read(vfr_video, tmp_path):
     # 12 frames with step 5: frames 0, 5 and 10 are tracked, 11 is read and skipped
     result = analyze(vfr_video, JobOptions(formats=["json"], frame_step=5), tmp_path / "out")

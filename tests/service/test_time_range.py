@@ -91,6 +91,8 @@ def test_a_job_with_a_range_writes_the_part_with_the_video_times(pets_cut, tmp_p
     ("options", "message"),
     [
         ({"start": 2.4}, "start 2.4 s is not within the video, which lasts 2.40 s"),
+        # before: accepted, and the job found no frame to track
+        ({"start": 2.35}, r"start 2.35 s is after the video's last frame, at 2.30 s \(the video"),
         ({"start": 1.01, "end": 1.05}, "no frame of the video lies between start 1.01 s and end"),
     ],
 )
@@ -129,6 +131,11 @@ def test_analyze_takes_clock_times(pets_cut, tmp_path):
     ("args", "message"),
     [
         (["--start", "99"], "vtrack: start 99 s is not within the video, which lasts 2.40 s\n"),
+        (
+            ["--start", "2.35"],
+            "vtrack: start 2.35 s is after the video's last frame, at 2.30 s (the video lasts "
+            "2.40 s)\n",
+        ),
         (["--start", "2", "--end", "1:00:00"], None),  # an end past the video's is its end
         (["--start", "1:75"], "a time is seconds (90, 12.5) or [H:]M:S"),
         (["--start", "-3"], "a time is seconds"),
@@ -191,6 +198,9 @@ def test_the_api_runs_a_range_and_refuses_one_outside_the_video(pets_cut, make_s
         refused = submit(client, pets_cut, {"formats": ["json"], "start": 30})
         assert refused.status_code == 422
         assert "start 30 s is not within the video, which lasts 2.40 s" in refused.text
+        refused = submit(client, pets_cut, {"formats": ["json"], "start": 2.35})
+        assert refused.status_code == 422
+        assert "start 2.35 s is after the video's last frame, at 2.30 s" in refused.text
         backwards = submit(client, pets_cut, {"start": 2, "end": 1})
         assert backwards.status_code == 422
         assert "end (1 s) must come after start (2 s)" in backwards.text
