@@ -39,6 +39,18 @@ a person is a few pixels tall, out of reach of any detector (the default one nee
 largest enlargement), and a target a few pixels wide has nothing for a filter to learn."""
 
 
+MAX_PIXELS = 8192 * 8192
+"""Most pixels a frame may have, in uploads and streams alike: above 8K (7680x4320, the most the
+detector takes), and 200 MB as RGB. A few kilobytes of H.264 can state 16000x16000 frames,
+which would take gigabytes to decode."""
+
+_REFERENCING_FORMATS = frozenset(
+    {"concat", "hls", "dash", "imf", "sdp", "rtp", "rtsp", "webm_dash_manifest", "vapoursynth"}
+)
+"""FFmpeg demuxers whose files are lists or scripts that name other files or addresses: an
+upload of one (an ffconcat list named clip.mp4) would make the service read those instead."""
+
+
 def frame_size_problem(width: int, height: int) -> str | None:
     """Why frames of ``width`` x ``height`` cannot be tracked (:data:`MIN_SIDE`), or None."""
     if min(width, height) >= MIN_SIDE:
@@ -197,9 +209,8 @@ class FrameSource:
     def frames_until(self, end: float | None) -> int:
         """About how many frames :meth:`timed` reads to reach ``end`` seconds (all without
         one): a progress bar's total; 0 when the video's count is not known."""
-        if end is None or not self.frame_count:
-            return self.frame_count
-        return min(self.frame_count, math.ceil(end * self.timing_fps))
+        frames = math.inf if end is None else end * self.timing_fps  # an end of 1e308 s: inf
+        return self.frame_count if frames >= self.frame_count else math.ceil(frames)
 
     def start_problem(self, start: float) -> str | None:
         """Why no frame is at or after ``start`` seconds, for the user; ``None`` when one is
@@ -376,6 +387,8 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
         )
     if path.is_dir():
         return _open_folder(path, fps)
+    if reason := _refusal_before_decoding(path):
+        raise FrameSourceError(f"{path} is not a video this service takes: {reason}", reason)
     capture = cv2.VideoCapture(str(path))
     try:
         ok, first = capture.read() if capture.isOpened() else (False, None)
@@ -485,6 +498,30 @@ class _ContainerFacts:
     pixel_aspect: float = 1.0
     lead_frames: int = 0
     lead_seconds: float = 0.0
+
+
+def _refusal_before_decoding(path: Path) -> str | None:
+    """Why the file at ``path`` must not be decoded, from its headers alone (:data:`MAX_PIXELS`,
+    :data:`_REFERENCING_FORMATS`); ``None`` when nothing stands against it, or FFmpeg cannot
+    tell (OpenCV's decoder then has its say)."""
+    try:
+        with av.open(str(path)) as container:
+            demuxer = container.format.name
+            if set(demuxer.split(",")) & _REFERENCING_FORMATS:
+                return (
+                    f"it is an FFmpeg {demuxer} file, which names other files or addresses to "
+                    "read: send the video itself"
+                )
+            for video in container.streams.video:
+                width, height = video.codec_context.width, video.codec_context.height
+                if width * height > MAX_PIXELS:
+                    return (
+                        f"its frames of {width}x{height} pixels are more than this service "
+                        f"takes ({MAX_PIXELS / 1e6:.0f} megapixels, 8192x8192)"
+                    )
+    except (av.FFmpegError, ValueError):
+        return None
+    return None
 
 
 def _container_facts(path: Path) -> _ContainerFacts:

@@ -109,7 +109,11 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         return
     except (FrameSourceError, OptionsError, ValueError) as error:
         shutil.rmtree(scratch, ignore_errors=True)
-        _failed(store, job, f"the job could not run: {error}")
+        # the client is told of its upload by the name it sent, not where the service keeps it
+        name = repr(job.video_filename) if job.video_filename else "the upload"
+        _failed(
+            store, job, f"the job could not run: {str(error).replace(str(job.video_path), name)}"
+        )
         log.warning("job %s: failed: %s", job.id, error)
         return
     except Exception as error:

@@ -115,9 +115,10 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             video_filename=upload.filename,
             frames_total=source.frames_until(options.end) or None,
         )
-    except sqlite3.OperationalError as error:
+    except BaseException as error:  # whatever it was, the upload is no job's: it goes
         video_path.unlink(missing_ok=True)
-        problem = storage_problem(error)
+        is_storage = isinstance(error, sqlite3.OperationalError)
+        problem = storage_problem(error) if is_storage else None
         if problem is None:
             raise
         raise HTTPException(
@@ -126,7 +127,7 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             "video again",
         ) from None
     log.info(
-        "job %s queued: %s, %d bytes, %d frames announced",
+        "job %s queued: %r, %d bytes, %d frames announced",  # %r: a name may hold a newline
         job_id,
         upload.filename,
         upload.size,

@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from api_schemas.streams import MAX_TIMESTAMP, FrameAttachment, PixelFormat, UpstreamDetections
-from service.frames import frame_size_problem
+from service.frames import MAX_PIXELS, frame_size_problem
 from service.outputs.h264 import IDR, nal_unit_types
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
@@ -23,7 +23,6 @@ from tracking.detection.external import detections_from_arrays
 JPEG = "image/jpeg"
 RAW = "application/octet-stream"
 H264 = "video/h264"
-MAX_PIXELS = 8192 * 8192
 
 
 class PayloadError(ValueError):
@@ -59,6 +58,11 @@ def decode_frame(payload: bytes, encoding: str, attachment: FrameAttachment) -> 
     raw pixels laid out as the attachment's ``width``, ``height`` and ``format`` say.
     """
     if encoding.startswith("image/"):
+        size = image_size(payload)
+        if size is not None and size[0] * size[1] > MAX_PIXELS:
+            raise PayloadError(
+                f"{encoding} frame of {size[0]}x{size[1]} is larger than this service takes"
+            )
         buffer = np.frombuffer(payload, dtype=np.uint8)
         bgr = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
         if bgr is None:
@@ -140,6 +144,32 @@ class H264Frames:
                 "takes"
             )
         return picture.to_ndarray(format="rgb24")
+
+
+_JPEG_FRAME_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+"""Start-of-frame markers (baseline, progressive, lossless...; not DHT, JPG, DAC)."""
+
+
+def image_size(data: bytes) -> tuple[int, int] | None:
+    """``(width, height)`` a JPEG or PNG states in its header, read before decoding it (a few
+    kilobytes can state gigapixels); ``None`` for other data or a header cut short."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR" and len(data) >= 24:
+        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if data[:2] != b"\xff\xd8":
+        return None
+    at = 2
+    while at + 9 <= len(data):
+        if data[at] != 0xFF:
+            return None
+        marker = data[at + 1]
+        if marker == 0xFF:  # fill byte before a marker
+            at += 1
+            continue
+        if marker in _JPEG_FRAME_MARKERS:
+            height = int.from_bytes(data[at + 5 : at + 7], "big")
+            return int.from_bytes(data[at + 7 : at + 9], "big"), height
+        at += 2 + int.from_bytes(data[at + 2 : at + 4], "big")  # the segment's length
+    return None
 
 
 def parse_detections(payload: bytes) -> UpstreamDetections:

@@ -263,8 +263,8 @@ def watch_trackers(
     subscriber to stop."""
 
     def on_sample(sample: zenoh.Sample) -> None:
-        instance = str(sample.key_expr).rsplit("/", 1)[-1]
-        changed(instance, sample.kind == zenoh.SampleKind.PUT)
+        if (instance := tracker_instance(keys, sample.key_expr)) is not None:
+            changed(instance, sample.kind == zenoh.SampleKind.PUT)
 
     return session.liveliness().declare_subscriber(keys.trackers, on_sample, history=True)
 
@@ -273,9 +273,19 @@ def trackers_of(session: zenoh.Session, keys: StreamKeys, timeout: float = 1.0) 
     """Instances whose liveliness token says they track this camera (as this session knows)."""
     found = []
     for reply in session.liveliness().get(keys.trackers, timeout=timeout):
-        if reply.ok is not None:
-            found.append(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+        if reply.ok is not None and (instance := tracker_instance(keys, reply.ok.key_expr)):
+            found.append(instance)
     return sorted(found)
+
+
+def tracker_instance(keys: StreamKeys, key_expr: zenoh.KeyExpr) -> str | None:
+    """The instance a tracker's liveliness token names, ``None`` for a token that names no
+    single camera and instance: one declared on ``vtrack/trackers/*/x`` matches every camera's
+    query, and would put every stream of every service on standby."""
+    instance = str(key_expr).removeprefix(keys.trackers[:-1])
+    if instance == str(key_expr) or not instance or any(c in instance for c in "*$/"):
+        return None
+    return instance
 
 
 def member_session(options: ZenohOptions) -> zenoh.Session:

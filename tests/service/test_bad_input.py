@@ -182,6 +182,15 @@ def test_bad_options_list_each_failed_check_for_programs(client, pets_short):
     assert all(e["msg"].startswith("Input should be") for e in body["errors"])
 
 
+def test_an_end_beyond_any_video_means_its_end(client, pets_short):
+    # before: 500 (the frames to its end were infinitely many), and the upload stayed on disk
+    # with no job to own it until the service restarted
+    response = submit(client, pets_short, {"end": 1e308, "formats": ["json"]})
+    assert response.status_code == 202, response.text
+    status = client.get(response.json()["status_url"]).json()
+    assert status["progress"]["frames_total"] == 8
+
+
 def test_a_query_parameter_a_route_does_not_take_is_refused(client):
     # before: a misspelt filter listed every job, 200
     response = client.get("/v1/jobs", params={"stat": "succeeded", "limit": 5})
@@ -189,7 +198,7 @@ def test_a_query_parameter_a_route_does_not_take_is_refused(client):
     body = response.json()
     assert body["detail"] == (
         "invalid request: query.stat: not a query parameter of this route (it takes before, "
-        "limit, state)"
+        "finished_after, limit, state)"
     )
     assert body["errors"] == [
         {"loc": ["query", "stat"], "msg": body["detail"][29:], "type": "extra_forbidden"}

@@ -3,6 +3,7 @@ a variable-frame-rate video keep their real spacing in the results and in the mo
 
 from __future__ import annotations
 
+import shutil
 from itertools import islice
 from pathlib import Path
 
@@ -10,8 +11,9 @@ import av
 import pytest
 
 from api_schemas.jobs import JobOptions
+from service import frames
 from service.analysis import analyze
-from service.frames import DEFAULT_FPS, open_frames
+from service.frames import DEFAULT_FPS, FrameSourceError, open_frames
 from service.outputs.json_out import read_trajectories
 from tests.service.conftest import PETS_VIDEO, VFR_MS, mux_silence, write_stamped
 
@@ -82,6 +84,27 @@ def test_a_matroska_starting_late_is_measured_from_its_first_frame(shared_data, 
     assert source.length == pytest.approx(4.0) and source.frame_count == 40
     result = analyze(late, JobOptions(formats=["json"]), tmp_path / "out")
     assert result.warnings == [] and result.video.frames_read == 40
+
+
+def test_a_list_of_other_files_is_not_taken_for_a_video(shared_data, tmp_path):
+    # an ffconcat list named like a video: FFmpeg would read the files it names (in the
+    # service, other clients' uploads beside it) as if they were this one
+    shutil.copyfile(shared_data / PETS_VIDEO, tmp_path / "someone_elses.avi")
+    listing = tmp_path / "clip.mp4"
+    listing.write_text("ffconcat version 1.0\n" + "file someone_elses.avi\n" * 3)
+    with pytest.raises(FrameSourceError) as refused:
+        open_frames(listing)
+    assert refused.value.reason == (
+        "it is an FFmpeg concat file, which names other files or addresses to read: send the "
+        "video itself"
+    )
+
+
+def test_frames_over_the_pixel_limit_are_refused_before_decoding(shared_data, monkeypatch):
+    # a few kilobytes of H.264 can state 16000x16000 frames: gigabytes once decoded
+    monkeypatch.setattr(frames, "MAX_PIXELS", 480 * 360 - 1)
+    with pytest.raises(FrameSourceError, match="its frames of 480x360 pixels are more than"):
+        open_frames(shared_data / PETS_VIDEO)
 
 
 def test_frames_skipped_at_the_end_are_counted_as_read(vfr_video, tmp_path):

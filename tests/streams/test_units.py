@@ -158,6 +158,27 @@ def test_an_h264_frame_over_the_pixel_limit_is_refused(h264_units, monkeypatch):
         H264Frames().decode(h264_units[1][0])
 
 
+@pytest.mark.parametrize("encoding", [".jpg", ".png"])
+def test_an_image_stating_more_pixels_than_the_limit_is_refused_before_decoding(
+    first_frame, encoding
+):
+    # before: a 6 MB JPEG of 20000x20000 was decoded, its worker grew by 1.2 GB per frame
+    ok, data = cv2.imencode(encoding, first_frame)
+    assert ok
+    header = bytearray(data.tobytes())
+    big = (20000).to_bytes(2, "big")
+    if encoding == ".png":  # IHDR: width and height, 4 bytes each
+        header[16:24] = (20000).to_bytes(4, "big") * 2
+    else:  # the start-of-frame segment: height, then width
+        sof = next(i for i in range(2, len(header)) if header[i : i + 2] == b"\xff\xc0")
+        header[sof + 5 : sof + 9] = big + big
+    with pytest.raises(PayloadError, match="frame of 20000x20000 is larger than this service"):
+        decode_frame(bytes(header), "image/x", parse_attachment(frame_attachment(0, 0.0)))
+    # the real one still decodes
+    decoded = decode_frame(data.tobytes(), "image/x", parse_attachment(frame_attachment(0, 0.0)))
+    assert decoded.shape == (360, 480, 3)
+
+
 def test_decode_jpeg_of_a_real_frame(first_frame):
     payload = encode_jpeg(first_frame)
     assert payload[:2] == b"\xff\xd8"  # JPEG SOI marker
@@ -774,3 +795,24 @@ def test_track_id_reservations_only_go_up_and_outlive_the_stream(tmp_path):
         assert reopened.reserved_track_ids("hall") == 7
     finally:
         reopened.close()
+
+
+def test_a_liveliness_token_on_a_wildcard_is_no_tracker():
+    # before: one token on vtrack-test/trackers/*/0 answered every camera's query, and every
+    # service put its streams on standby and refused new ones (409)
+    options = ZenohOptions(listen=(f"tcp/127.0.0.1:{free_port()}",))
+    keys = StreamKeys("vtrack-test", "gate")
+    hub = open_session(options.hub_config())
+    try:
+        forged = hub.liveliness().declare_token("vtrack-test/trackers/*/0")
+        real = hub.liveliness().declare_token(keys.tracker_token("a1b2"))
+        seen: list[tuple[str, bool]] = []
+        watcher = tools.watch_trackers(hub, keys, lambda i, alive: seen.append((i, alive)))
+        assert tools.trackers_of(hub, keys) == ["a1b2"]
+        real.undeclare()
+        wait_until(lambda: ("a1b2", False) in seen, 5, "the token to go")
+        assert seen == [("a1b2", True), ("a1b2", False)]
+        watcher.undeclare()
+        forged.undeclare()
+    finally:
+        hub.close()
