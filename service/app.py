@@ -153,6 +153,46 @@ def _problem(item: dict) -> str:
     return f"{'.'.join(str(p) for p in loc)}: {item.get('msg')}"
 
 
+class _LimitedBodies:
+    """ASGI middleware: a request body other than a job's upload (which has its own limit,
+    ``VTRACK_MAX_UPLOAD_MB``, and is written to disk as it comes) is read here, up to
+    :data:`BODY_LIMIT`, before the route sees it; a longer one is answered 413."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        upload = scope.get("method") == "POST" and scope.get("path") == "/v1/jobs"
+        if scope["type"] != "http" or upload or scope.get("method") in ("GET", "HEAD"):
+            await self.app(scope, receive, send)
+            return
+        chunks, size = [], 0
+        while True:
+            message = await receive()
+            if message["type"] == "http.disconnect":
+                return
+            chunks.append(message.get("body", b""))
+            size += len(chunks[-1])
+            if size > BODY_LIMIT:
+                detail = f"the request body is over {BODY_LIMIT // 1024} KiB, more than it can be"
+                _log_refusal(Request(scope), 413, detail)
+                await JSONResponse({"detail": detail}, status_code=413)(scope, receive, send)
+                return
+            if not message.get("more_body", False):
+                break
+        body = b"".join(chunks)
+        replayed = False
+
+        async def replay() -> Message:
+            nonlocal replayed
+            if replayed:
+                return await receive()  # after the body: the client's disconnect, if it goes
+            replayed = True
+            return {"type": "http.request", "body": body, "more_body": False}
+
+        await self.app(scope, replay, send)
+
+
 class _InternalErrorsAsJson:
     """ASGI middleware: an exception no route expected answers 500 with JSON ``{"detail": ...}``
     like every other error, and is logged once, with its traceback and the request.
@@ -200,14 +240,22 @@ DOCS_ASSETS = "/docs-assets"
 """Where the API docs' JavaScript, CSS and icon are served: generic files, open without the
 token (the schema they render, ``/openapi.json``, is not)."""
 
-DOCUMENTATION_PATHS = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc", "/openapi.json"})
+OPEN_PATHS = frozenset({"/healthz", "/readyz"})
+"""What answers without the token: the probes of orchestrators and load balancers."""
+
+BODY_LIMIT = 64 * 1024
+"""Most bytes of a request body other than an upload's (a stream's settings are a few hundred)."""
 
 
-async def _documentation_needs_the_token(request: Request, call_next):
-    """With ``VTRACK_API_TOKEN`` set, the API documentation is behind the token too (FastAPI
-    serves it outside the routers, so a dependency cannot guard it)."""
+async def _token_before_anything_else(request: Request, call_next):
+    """With ``VTRACK_API_TOKEN`` set, every path but :data:`OPEN_PATHS` and the documentation's
+    generic files needs the token, checked before anything of the request is read: FastAPI
+    reads and parses a JSON body before a route's dependencies run, so the routers' token
+    dependency (kept for the OpenAPI security scheme) comes too late for a gigabyte of JSON.
+    FastAPI serves the documentation outside the routers: this guards it too."""
     settings: Settings | None = request.app.state.settings
-    if request.url.path in DOCUMENTATION_PATHS and settings is not None:
+    path = request.url.path
+    if settings is not None and not (path in OPEN_PATHS or path.startswith(DOCS_ASSETS + "/")):
         refusal = token_refusal(settings, request.headers.get("authorization"))
         if refusal is not None:
             _log_refusal(request, 401, refusal)
@@ -241,7 +289,8 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
-    app.middleware("http")(_documentation_needs_the_token)
+    app.add_middleware(_LimitedBodies)
+    app.middleware("http")(_token_before_anything_else)  # outside the limit: checked first
     app.add_middleware(_InternalErrorsAsJson)  # added last: outside the others, to catch theirs
     app.include_router(health.router)
     app.include_router(jobs.router)

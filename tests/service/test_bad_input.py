@@ -182,6 +182,26 @@ def test_bad_options_list_each_failed_check_for_programs(client, pets_short):
     assert all(e["msg"].startswith("Input should be") for e in body["errors"])
 
 
+def test_a_body_without_the_token_is_refused_before_it_is_read(server):
+    # before: FastAPI read (and parsed) a JSON body of any size before the token was checked:
+    # 2 GB of memory for one request of 1 GB without a token
+    with socket.create_connection(("127.0.0.1", server.port), timeout=10) as connection:
+        connection.sendall(
+            b"POST /v1/streams HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json"
+            b"\r\nContent-Length: 1000000000\r\n\r\n" + b'{"camera": "big", "x": "AAAA'
+        )
+        answer = connection.recv(4096).decode()
+    assert answer.startswith("HTTP/1.1 401"), answer
+
+
+def test_a_body_over_the_limit_is_refused_with_the_token(client):
+    response = client.post("/v1/streams", json={"camera": "big", "x": "A" * 100_000})
+    assert response.status_code == 413
+    assert response.json()["detail"] == ("the request body is over 64 KiB, more than it can be")
+    refused = client.post("/v1/streams", json={"camera": "big", "x": "A"})
+    assert refused.status_code == 422 and "x: Extra inputs" in refused.text  # read, as before
+
+
 def test_an_end_beyond_any_video_means_its_end(client, pets_short):
     # before: 500 (the frames to its end were infinitely many), and the upload stayed on disk
     # with no job to own it until the service restarted
