@@ -174,7 +174,10 @@ class _LimitedBodies:
             chunks.append(message.get("body", b""))
             size += len(chunks[-1])
             if size > BODY_LIMIT:
-                detail = f"the request body is over {BODY_LIMIT // 1024} KiB, more than it can be"
+                detail = (
+                    f"the request body is over {BODY_LIMIT // 1024} KiB, more than any request "
+                    "here but an upload needs"
+                )
                 _log_refusal(Request(scope), 413, detail)
                 await JSONResponse({"detail": detail}, status_code=413)(scope, receive, send)
                 return

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -17,6 +18,7 @@ from service.analysis import (
     job_detector,
     people_config,
 )
+from service.frames import FrameSource
 from tests.service.conftest import PETS_VIDEO
 from tracking.detection import DPM_TRACKING_CONFIG, box_iou
 from tracking.people import PeopleTrackerConfig
@@ -83,8 +85,9 @@ def test_tracker_options_reach_the_tracker_configuration():
 )
 def test_upscale_is_limited_to_an_8k_enlarged_frame(size, upscale, refused):
     options = JobOptions.model_validate({"detector": {"upscale": upscale}})
+    video = FrameSource(Path("video.mp4"), 100, 25.0, width=size[0], height=size[1])
     if refused:
         with pytest.raises(OptionsError, match="use at most 2,"):
-            check_options(options, PipelineResources(), size)
+            check_options(options, PipelineResources(), video)
     else:
-        check_options(options, PipelineResources(), size)
+        check_options(options, PipelineResources(), video)

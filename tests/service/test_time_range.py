@@ -209,6 +209,11 @@ def test_the_api_runs_a_range_and_refuses_one_outside_the_video(pets_cut, make_s
         job = created.json()["id"]
         queued = client.get(f"/v1/jobs/{job}").json()
         assert queued["options"]["start"] == 1.5 and queued["progress"]["frames_total"] == 20
+        # an end past any video is its end; before: 500 (infinitely many frames to it), and the
+        # upload stayed on disk with no job to own it until the service restarted
+        endless = submit(client, pets_cut, {"formats": ["json"], "start": 2.2, "end": 1e308})
+        assert endless.status_code == 202, endless.text
+        assert client.get(endless.json()["status_url"]).json()["progress"]["frames_total"] == 24
         status = wait_for_state(client, job, ("succeeded", "failed"))
         assert status["state"] == "succeeded", status
         document = client.get(status["links"]["results"]["json"]).json()
