@@ -8,11 +8,13 @@ requeued and the worker processes start in the lifespan, and stop with it.
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from types import FrameType
+from urllib.parse import urlsplit
 
 import uvicorn
 from fastapi import FastAPI, Request
@@ -35,7 +37,7 @@ from service.jobs.workers import WorkerPool
 from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
 from service.routers import health, jobs, metrics, streams
-from service.settings import Settings
+from service.settings import Settings, is_loopback
 from service.streams.manager import StreamManager
 from service.streams.store import StreamStore
 
@@ -250,6 +252,52 @@ BODY_LIMIT = 64 * 1024
 """Most bytes of a request body other than an upload's (a stream's settings are a few hundred)."""
 
 
+def site_refusal(settings: Settings, method: str, host: str, origin: str | None) -> str | None:
+    """Why a browser's request must not reach the API, or None. A web page of another site
+    may post a form to it (browsers send such a POST without asking), and one whose own name
+    its author points at 127.0.0.1 (DNS rebinding) may read the answers too: a service on
+    loopback answers only to IP addresses, ``localhost`` and ``VTRACK_ALLOWED_HOSTS``, and a
+    request that changes something from a page of another site (its ``Origin``) is refused.
+    Programs send no ``Origin``."""
+    name = urlsplit(f"//{host}").hostname or ""
+    if (
+        name
+        and is_loopback(settings.host)
+        and not (name in ("localhost", *settings.allowed_hosts) or name.endswith(".localhost"))
+    ):
+        try:
+            ipaddress.ip_address(name)
+        except ValueError:
+            return (
+                f"this service listens on {settings.host} and answers to its addresses and "
+                f"localhost, not to the name {name!r}: a proxy in front that passes that name "
+                "needs it in VTRACK_ALLOWED_HOSTS"
+            )
+    changes = method not in ("GET", "HEAD", "OPTIONS")
+    if changes and origin is not None and urlsplit(origin).netloc != host:
+        return (
+            f"a request from a web page of {origin} may not change anything here (cross-site): "
+            "send it from a program, or from this service's own pages"
+        )
+    return None
+
+
+async def _from_this_site_only(request: Request, call_next):
+    """:func:`site_refusal`, before anything else of the request."""
+    settings: Settings | None = request.app.state.settings
+    if settings is not None:
+        refusal = site_refusal(
+            settings,
+            request.method,
+            request.headers.get("host", ""),
+            request.headers.get("origin"),
+        )
+        if refusal is not None:
+            _log_refusal(request, 403, refusal)
+            return JSONResponse({"detail": refusal}, status_code=403)
+    return await call_next(request)
+
+
 async def _token_before_anything_else(request: Request, call_next):
     """With ``VTRACK_API_TOKEN`` set, every path but :data:`OPEN_PATHS` and the documentation's
     generic files needs the token, checked before anything of the request is read: FastAPI
@@ -289,11 +337,13 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     # Set by `vtrack serve` when a stop signal comes: open event streams end at once instead of
     # holding the stop for the graceful-shutdown timeout (their clients reconnect elsewhere).
     app.state.stopping = threading.Event()
+    app.state.event_streams = 0  # clients following job events now (VTRACK_MAX_EVENT_STREAMS)
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
     app.add_middleware(_LimitedBodies)
     app.middleware("http")(_token_before_anything_else)  # outside the limit: checked first
+    app.middleware("http")(_from_this_site_only)
     app.add_middleware(_InternalErrorsAsJson)  # added last: outside the others, to catch theirs
     app.include_router(health.router)
     app.include_router(jobs.router)

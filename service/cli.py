@@ -9,7 +9,6 @@ import copy
 import dataclasses
 import errno
 import fcntl
-import ipaddress
 import json
 import os
 import re
@@ -691,22 +690,14 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
-def _loopback(address: str) -> bool:
-    """Whether a listening address is reachable from this machine only."""
-    if address == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(address.strip("[]")).is_loopback
-    except ValueError:  # a wildcard is an address; a host name is whatever it resolves to
-        return False
-
-
 def _exposure_warnings(settings: Settings, where: str) -> list[str]:
     """What anyone on the network can do with a service listening beyond loopback: the whole
     API without a token, and the Zenoh side always (the token does not cover it; only Zenoh's
     own configuration can)."""
+    from service.settings import is_loopback
+
     warnings = []
-    if settings.api_token is None and not _loopback(settings.host):
+    if settings.api_token is None and not is_loopback(settings.host):
         warnings.append(
             f"no VTRACK_API_TOKEN, and the API listens on {where}: anyone who reaches it can "
             "upload, download and delete jobs and stream recordings; set VTRACK_API_TOKEN "
@@ -717,7 +708,7 @@ def _exposure_warnings(settings: Settings, where: str) -> list[str]:
 
         for endpoint in settings.zenoh_listen:
             address = endpoint_address(endpoint)
-            if address is not None and not _loopback(address):
+            if address is not None and not is_loopback(address):
                 warnings.append(
                     f"Zenoh listens on {endpoint} without access control: anyone who reaches "
                     "it can read every camera's frames and tracks and send frames of their "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import ipaddress
 import os
 import re
 import sys
@@ -39,6 +40,16 @@ _WITHOUT = {
 """What an optional setting means when unset, for the message about an empty one."""
 
 
+def is_loopback(address: str) -> bool:
+    """Whether a listening address is reachable from this machine only."""
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address.strip("[]")).is_loopback
+    except ValueError:  # a wildcard is an address; a host name is whatever it resolves to
+        return False
+
+
 class Settings(BaseSettings):
     """Everything the service reads from its environment; tests build one directly."""
 
@@ -58,6 +69,19 @@ class Settings(BaseSettings):
     )
     max_upload_bytes: int = Field(
         default=2 * 1024**3, ge=1, description="Largest accepted upload in bytes (413 above)."
+    )
+    upload_idle_seconds: float = Field(
+        default=60.0,
+        gt=0,
+        le=3600,
+        description="Seconds an upload may send nothing before it is cut (408, nothing kept).",
+    )
+    max_event_streams: int = Field(
+        default=100,
+        ge=1,
+        le=10_000,
+        description="Clients that may follow job events (/v1/jobs/{id}/events) at once (503 "
+        "beyond).",
     )
     job_timeout: float = Field(
         default=4 * 3600.0, gt=0, description="Seconds a job may run before it is failed."
@@ -79,6 +103,11 @@ class Settings(BaseSettings):
         ge=0.1,
         le=3600,
         description="Seconds between sweeps that remove finished jobs' uploads and expired jobs.",
+    )
+    allowed_hosts: list[str] = Field(
+        default_factory=list,
+        description="JSON list of host names a service listening on loopback answers to besides "
+        "its addresses and localhost (those a proxy in front passes on).",
     )
     api_token: SecretStr | None = Field(
         default=None,

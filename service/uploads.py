@@ -159,15 +159,19 @@ def too_large(max_bytes: int) -> str:
     )
 
 
-async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> ReceivedUpload:
+async def receive_upload(
+    request: Request, video_path: Path, max_bytes: int, idle_seconds: float
+) -> ReceivedUpload:
     """Stream the request's multipart body; the video part goes to ``video_path``.
 
     Raises
     ------
     HTTPException
-        413 above the size limit, 415 for a body that is not multipart, 422 for a missing
-        ``video`` part, an unexpected part or a malformed body, 507 when the data folder
-        cannot take the video (disk full, file-size limit).
+        408 when nothing of the body arrives for ``idle_seconds`` (a stalled client would
+        otherwise hold its connection and its partial file for ever), 413 above the size
+        limit, 415 for a body that is not multipart, 422 for a missing ``video`` part, an
+        unexpected part or a malformed body, 507 when the data folder cannot take the video
+        (disk full, file-size limit).
     """
     content_type = request.headers.get("content-type", "")
     kind, params = parse_options_header(content_type)
@@ -185,7 +189,19 @@ async def receive_upload(request: Request, video_path: Path, max_bytes: int) -> 
     parser = MultipartParser(params[b"boundary"], receiver.callbacks())
     received = 0
     try:
-        async for chunk in request.stream():
+        chunks = request.stream()
+        while True:
+            with anyio.move_on_after(idle_seconds) as waited:
+                chunk = await anext(chunks, None)
+            if waited.cancelled_caught:
+                raise UploadError(
+                    status.HTTP_408_REQUEST_TIMEOUT,
+                    f"nothing of the upload arrived for {idle_seconds:g} s "
+                    f"(VTRACK_UPLOAD_IDLE_SECONDS) after {received} bytes; nothing was kept: "
+                    "send it again",
+                )
+            if chunk is None:
+                break
             received += len(chunk)
             parser.write(chunk)
             await anyio.to_thread.run_sync(receiver.flush)

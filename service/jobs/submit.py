@@ -90,7 +90,9 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
     job_id = uuid.uuid4().hex
     settings.uploads_dir.mkdir(parents=True, exist_ok=True)
     receiving = settings.uploads_dir / f"{job_id}.receiving"
-    upload = await receive_upload(request, receiving, settings.max_upload_bytes)
+    upload = await receive_upload(
+        request, receiving, settings.max_upload_bytes, settings.upload_idle_seconds
+    )
     try:
         options = parse_options(upload.options)
         source = await run_in_threadpool(probe_video, upload.video_path, upload.size)

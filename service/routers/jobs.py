@@ -11,6 +11,7 @@ from typing import Annotated
 from urllib.parse import urlencode
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 from pydantic import AwareDatetime, BeforeValidator
 
@@ -221,28 +222,49 @@ def get_result(
     response_class=StreamingResponse,
     responses={**error_responses(404), 200: {"content": {"text/event-stream": {}}}},
 )
-async def job_events(job_id: str, request: Request, store: StoreDep) -> StreamingResponse:
+async def job_events(
+    job_id: str, request: Request, store: StoreDep, settings: SettingsDep
+) -> StreamingResponse:
     _job(store, job_id)
+    state = request.app.state
+    if state.event_streams >= settings.max_event_streams:
+        raise HTTPException(
+            status.HTTP_503_SERVICE_UNAVAILABLE,
+            f"{state.event_streams} clients follow job events already, the most this service "
+            "serves (VTRACK_MAX_EVENT_STREAMS): poll GET /v1/jobs/{id} instead, or try again "
+            "later",
+            headers={"Retry-After": "5"},
+        )
+
+    def progress() -> tuple[JobRecord | None, str]:
+        record = store.get(job_id)
+        if record is None:
+            return None, ""
+        return record, progress_event(record, store.queued_ahead(record)).model_dump_json()
 
     async def stream():
         last, last_sent = None, time.monotonic()
-        stopping: threading.Event = request.app.state.stopping
-        while not (stopping.is_set() or await request.is_disconnected()):
-            record = store.get(job_id)
-            if record is None:
-                yield f'event: end\ndata: {{"id": "{job_id}", "deleted": true}}\n\n'
-                return
-            data = progress_event(record, store.queued_ahead(record)).model_dump_json()
-            if record.state.finished:
-                yield f"event: end\ndata: {data}\n\n"
-                return
-            if data != last:
-                yield f"event: progress\ndata: {data}\n\n"
-                last, last_sent = data, time.monotonic()
-            elif time.monotonic() - last_sent > KEEPALIVE_SECONDS:
-                yield ": keep-alive\n\n"
-                last_sent = time.monotonic()
-            await asyncio.sleep(EVENT_POLL_SECONDS)
+        stopping: threading.Event = state.stopping
+        state.event_streams += 1  # here, not before: a response that never starts is no follower
+        try:
+            while not (stopping.is_set() or await request.is_disconnected()):
+                # the database off the event loop: hundreds of followers must not stall it
+                record, data = await run_in_threadpool(progress)
+                if record is None:
+                    yield f'event: end\ndata: {{"id": "{job_id}", "deleted": true}}\n\n'
+                    return
+                if record.state.finished:
+                    yield f"event: end\ndata: {data}\n\n"
+                    return
+                if data != last:
+                    yield f"event: progress\ndata: {data}\n\n"
+                    last, last_sent = data, time.monotonic()
+                elif time.monotonic() - last_sent > KEEPALIVE_SECONDS:
+                    yield ": keep-alive\n\n"
+                    last_sent = time.monotonic()
+                await asyncio.sleep(EVENT_POLL_SECONDS)
+        finally:
+            state.event_streams -= 1
 
     return StreamingResponse(
         stream(), media_type="text/event-stream", headers={"Cache-Control": "no-cache"}

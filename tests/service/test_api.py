@@ -24,6 +24,7 @@ from tests.service.conftest import (
     Server,
     schema_for,
     submit,
+    wait_for,
     wait_for_frames,
     wait_for_state,
 )
@@ -466,9 +467,15 @@ def test_docs_and_openapi_are_served(client):
     assert body["schema"]["required"] == ["video"]
 
 
+def _follows(client, job_id) -> bool:
+    """Whether following the job's events is accepted now (the stream is closed at once)."""
+    with client.stream("GET", f"/v1/jobs/{job_id}/events") as events:
+        return events.status_code == 200
+
+
 def test_a_queued_job_says_how_many_start_before_it(make_server, long_video, pets_short):
     # before: a queued job said nothing of its wait (a third upload to a busy service)
-    server = make_server(workers=1)
+    server = make_server(workers=1, max_event_streams=1)
     with server.client() as client:
         first = submit(client, long_video, FAST_OPTIONS).json()["id"]
         wait_for_frames(client, first, 1)
@@ -481,6 +488,15 @@ def test_a_queued_job_says_how_many_start_before_it(make_server, long_video, pet
         jobs = client.get("/v1/jobs").json()["jobs"]
         listed = {j["id"]: j["progress"]["queued_ahead"] for j in jobs}
         assert listed == {first: None, second: 0, third: 1}
+
+        # followers of job events are limited (before: 1200 of them stalled the service)
+        with client.stream("GET", f"/v1/jobs/{third}/events") as events:
+            lines = events.iter_lines()  # kept: a dropped iterator closes the response
+            assert next(lines) == "event: progress"
+            refused = client.get(f"/v1/jobs/{first}/events")
+            assert refused.status_code == 503 and refused.headers["retry-after"] == "5"
+            assert "1 clients follow job events already" in refused.json()["detail"]
+        wait_for(lambda: _follows(client, first), 10, "the place of the follower that left")
         assert client.delete(f"/v1/jobs/{second}").json()["state"] == "cancelled"
         assert ahead(third) == 0
         for job_id in (first, third):

@@ -194,6 +194,26 @@ def test_a_body_without_the_token_is_refused_before_it_is_read(server):
     assert answer.startswith("HTTP/1.1 401"), answer
 
 
+def test_web_pages_of_other_sites_are_refused(client, server, pets_short):
+    # before: a page in the operator's browser could post jobs to a service on loopback
+    # (a form needs no permission) and, through a name of its own pointed at 127.0.0.1 (DNS
+    # rebinding), list, download and delete them
+    rebound = client.get("/v1/jobs", headers={"Host": f"attacker.example:{server.port}"})
+    assert rebound.status_code == 403
+    assert "not to the name 'attacker.example': a proxy in front" in rebound.json()["detail"]
+    assert client.get("/v1/jobs", headers={"Host": f"localhost:{server.port}"}).status_code == 200
+    files = {"video": ("v.avi", pets_short.read_bytes(), "video/x-msvideo")}
+    forged = client.post("/v1/jobs", files=files, headers={"Origin": "http://evil.example"})
+    assert forged.status_code == 403
+    assert forged.json()["detail"].startswith(
+        "a request from a web page of http://evil.example may not change anything here"
+    )
+    # the service's own pages (the docs' "Try it out") and programs (no Origin) may
+    own = client.delete("/v1/jobs/nope", headers={"Origin": server.url})
+    assert own.status_code == 404
+    assert client.get("/healthz", headers={"Host": "attacker.example"}).status_code == 403
+
+
 def test_a_body_over_the_limit_is_refused_with_the_token(client):
     response = client.post("/v1/streams", json={"camera": "big", "x": "A" * 100_000})
     assert response.status_code == 413
@@ -327,6 +347,30 @@ def test_an_abandoned_upload_is_logged_in_one_line_and_nothing_is_kept(client, s
     assert not any((server.data_dir / "uploads").iterdir())
     assert "Traceback" not in server.log() and "ClientDisconnect" not in server.log()
     assert client.get("/healthz").status_code == 200
+
+
+def test_a_stalled_upload_is_cut_and_nothing_is_kept(tmp_path):
+    # before: a client that stopped sending held its connection and its partial file (300 MB
+    # each in the security walkthrough) for as long as it liked
+    server = Server(tmp_path / "data", workers=1, upload_idle_seconds=1.0).start()
+    boundary = "vtrack-test-boundary"
+    head = (
+        f'--{boundary}\r\nContent-Disposition: form-data; name="video"; filename="cut.avi"'
+        "\r\nContent-Type: video/x-msvideo\r\n\r\n"
+    ).encode() + bytes(100_000)
+    request = (
+        f"POST /v1/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {len(head) + 200_000}"
+        f"\r\nContent-Type: multipart/form-data; boundary={boundary}\r\n\r\n"
+    ).encode()
+    try:
+        with socket.create_connection(("127.0.0.1", server.port), timeout=20) as connection:
+            connection.sendall(request + head)
+            answer = connection.recv(4096).decode()
+        assert answer.startswith("HTTP/1.1 408"), answer
+        assert "nothing of the upload arrived for 1 s (VTRACK_UPLOAD_IDLE_SECONDS) after" in answer
+        assert not any((server.data_dir / "uploads").iterdir())
+    finally:
+        server.stop()
 
 
 def test_unknown_job(client):
