@@ -252,7 +252,7 @@ BODY_LIMIT = 64 * 1024
 """Most bytes of a request body other than an upload's (a stream's settings are a few hundred)."""
 
 
-def site_refusal(settings: Settings, method: str, host: str, origin: str | None) -> str | None:
+def _site_refusal(settings: Settings, method: str, host: str, origin: str | None) -> str | None:
     """Why a browser's request must not reach the API, or None. A web page of another site
     may post a form to it (browsers send such a POST without asking), and one whose own name
     its author points at 127.0.0.1 (DNS rebinding) may read the answers too: a service on
@@ -282,32 +282,27 @@ def site_refusal(settings: Settings, method: str, host: str, origin: str | None)
     return None
 
 
-async def _from_this_site_only(request: Request, call_next):
-    """:func:`site_refusal`, before anything else of the request."""
+async def _refusals_before_anything_else(request: Request, call_next):
+    """Before anything of the request is read: :func:`_site_refusal` (403), then, with
+    ``VTRACK_API_TOKEN`` set, the token on every path but :data:`OPEN_PATHS` and the
+    documentation's generic files (401). FastAPI reads and parses a JSON body before a route's
+    dependencies run, so the routers' token dependency (kept for the OpenAPI security scheme)
+    comes too late for a gigabyte of JSON; and FastAPI serves the documentation outside the
+    routers. One middleware: each of Starlette's re-raises an exception from the app, which
+    the log would show once per middleware."""
     settings: Settings | None = request.app.state.settings
-    if settings is not None:
-        refusal = site_refusal(
-            settings,
-            request.method,
-            request.headers.get("host", ""),
-            request.headers.get("origin"),
-        )
-        if refusal is not None:
-            _log_refusal(request, 403, refusal)
-            return JSONResponse({"detail": refusal}, status_code=403)
-    return await call_next(request)
-
-
-async def _token_before_anything_else(request: Request, call_next):
-    """With ``VTRACK_API_TOKEN`` set, every path but :data:`OPEN_PATHS` and the documentation's
-    generic files needs the token, checked before anything of the request is read: FastAPI
-    reads and parses a JSON body before a route's dependencies run, so the routers' token
-    dependency (kept for the OpenAPI security scheme) comes too late for a gigabyte of JSON.
-    FastAPI serves the documentation outside the routers: this guards it too."""
-    settings: Settings | None = request.app.state.settings
+    if settings is None:
+        return await call_next(request)
+    headers = request.headers
+    refusal = _site_refusal(
+        settings, request.method, headers.get("host", ""), headers.get("origin")
+    )
+    if refusal is not None:
+        _log_refusal(request, 403, refusal)
+        return JSONResponse({"detail": refusal}, status_code=403)
     path = request.url.path
-    if settings is not None and not (path in OPEN_PATHS or path.startswith(DOCS_ASSETS + "/")):
-        refusal = token_refusal(settings, request.headers.get("authorization"))
+    if not (path in OPEN_PATHS or path.startswith(DOCS_ASSETS + "/")):
+        refusal = token_refusal(settings, headers.get("authorization"))
         if refusal is not None:
             _log_refusal(request, 401, refusal)
             return JSONResponse(
@@ -342,8 +337,7 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
     app.add_middleware(_LimitedBodies)
-    app.middleware("http")(_token_before_anything_else)  # outside the limit: checked first
-    app.middleware("http")(_from_this_site_only)
+    app.middleware("http")(_refusals_before_anything_else)  # outside the limit: first
     app.add_middleware(_InternalErrorsAsJson)  # added last: outside the others, to catch theirs
     app.include_router(health.router)
     app.include_router(jobs.router)

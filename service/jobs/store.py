@@ -172,8 +172,10 @@ class JobStore:
             where.append("state = ?")
             args.append(state.value)
         if finished_after is not None:
-            where.append("finished_at > ?")
-            args.append(finished_after)
+            # to the microsecond, as finished_at is shown: a client that asks from a job's
+            # finished_at must not get that job again
+            where.append("round(finished_at, 6) > ?")
+            args.append(round(finished_after, 6))
         with self._lock:
             if before is not None:
                 row = self._db.execute(
