@@ -193,8 +193,8 @@ def _track(args: argparse.Namespace) -> int:
                 "give its rate with --fps",
                 file=sys.stderr,
             )
-        if problem := source.start_problem(start):
-            raise ValueError(problem.replace("start", "--start", 1))
+        if problem := source.start_problem(start, "--start"):
+            raise ValueError(problem)
         box = args.box or _truth_box(source, start)
     except ValueError as error:  # FrameSourceError and SequenceError are ValueErrors
         print(f"vtrack: {error}", file=sys.stderr)

@@ -212,9 +212,10 @@ class FrameSource:
         frames = math.inf if end is None else end * self.timing_fps  # an end of 1e308 s: inf
         return self.frame_count if frames >= self.frame_count else math.ceil(frames)
 
-    def start_problem(self, start: float) -> str | None:
-        """Why no frame is at or after ``start`` seconds, for the user; ``None`` when one is
-        (or may be: a video that states neither duration nor frame count).
+    def start_problem(self, start: float, option: str = "start") -> str | None:
+        """Why no frame is at or after ``start`` seconds, for the user, who gave it as
+        ``option``; ``None`` when one is (or may be: a video that states neither duration nor
+        frame count).
 
         A video's last frame shows one frame period before its end: a start between the two
         would be accepted and then find nothing to track.
@@ -225,16 +226,16 @@ class FrameSource:
             if self.image_range(start):
                 return None
             last = self._indices[-1] / self.timing_fps
-            return f"no frame is at or after start {start:g} s: the last is at {last:.2f} s"
+            return f"no frame is at or after {option} {start:g} s: the last is at {last:.2f} s"
         length = self.length
         if length is None:
             return None
         if start >= length:
-            return f"start {start:g} s is not within the video, which lasts {length:.2f} s"
+            return f"{option} {start:g} s is not within the video, which lasts {length:.2f} s"
         last = length - 1 / self.timing_fps
         if start > last + 1e-3:  # containers round their durations to the millisecond
             return (
-                f"start {start:g} s is after the video's last frame, at {last:.2f} s (the "
+                f"{option} {start:g} s is after the video's last frame, at {last:.2f} s (the "
                 f"video lasts {length:.2f} s)"
             )
         return None
@@ -387,7 +388,8 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
         )
     if path.is_dir():
         return _open_folder(path, fps)
-    if reason := _refusal_before_decoding(path):
+    facts = _container_facts(path)  # from the headers: before OpenCV decodes anything
+    if reason := facts.refusal:
         raise FrameSourceError(f"{path} is not a video this service takes: {reason}", reason)
     capture = cv2.VideoCapture(str(path))
     try:
@@ -405,7 +407,6 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
     if fps is not None and fps >= _NOT_A_FRAME_RATE:
         fps = None  # the time base stated as a rate: WebM recorded in browsers says 1000
     height, width = first.shape[:2]
-    facts = _container_facts(path)
     if facts.untimed:
         fps = facts.header_rate  # OpenCV reports FFmpeg's default 25 whatever the stream says
     if not facts.count_stated and facts.duration:  # OpenCV's estimate spans the container
@@ -489,6 +490,9 @@ class _ContainerFacts:
         The video's sample aspect ratio (1 where it states none).
     lead_frames, lead_seconds:
         As :class:`FrameSource`'s (:func:`_lead_before_keyframe`).
+    refusal:
+        Why the file must not be decoded at all (:func:`_refusal`); the other facts are then
+        the defaults.
     """
 
     count_stated: bool = True
@@ -498,35 +502,16 @@ class _ContainerFacts:
     pixel_aspect: float = 1.0
     lead_frames: int = 0
     lead_seconds: float = 0.0
-
-
-def _refusal_before_decoding(path: Path) -> str | None:
-    """Why the file at ``path`` must not be decoded, from its headers alone (:data:`MAX_PIXELS`,
-    :data:`_REFERENCING_FORMATS`); ``None`` when nothing stands against it, or FFmpeg cannot
-    tell (OpenCV's decoder then has its say)."""
-    try:
-        with av.open(str(path)) as container:
-            demuxer = container.format.name
-            if set(demuxer.split(",")) & _REFERENCING_FORMATS:
-                return (
-                    f"it is an FFmpeg {demuxer} file, which names other files or addresses to "
-                    "read: send the video itself"
-                )
-            for video in container.streams.video:
-                width, height = video.codec_context.width, video.codec_context.height
-                if width * height > MAX_PIXELS:
-                    return (
-                        f"its frames of {width}x{height} pixels are more than this service "
-                        f"takes ({MAX_PIXELS / 1e6:.0f} megapixels, 8192x8192)"
-                    )
-    except (av.FFmpegError, ValueError):
-        return None
-    return None
+    refusal: str | None = None
 
 
 def _container_facts(path: Path) -> _ContainerFacts:
+    """What the container's headers say; the defaults where FFmpeg cannot read it (OpenCV's
+    decoder then has its say)."""
     try:
         with av.open(str(path)) as container:
+            if refusal := _refusal(container):
+                return _ContainerFacts(refusal=refusal)
             video = container.streams.video[0]
             header_rate = video.codec_context.framerate
             sample_aspect = video.sample_aspect_ratio  # None, or 0/1, when not stated
@@ -540,6 +525,25 @@ def _container_facts(path: Path) -> _ContainerFacts:
             )
     except (av.FFmpegError, IndexError):  # OpenCV decodes it: keep its count as stated
         return _ContainerFacts()
+
+
+def _refusal(container: av.container.InputContainer) -> str | None:
+    """Why a file must not be decoded, from its headers alone (:data:`MAX_PIXELS`,
+    :data:`_REFERENCING_FORMATS`); ``None`` when nothing stands against it."""
+    demuxer = container.format.name
+    if set(demuxer.split(",")) & _REFERENCING_FORMATS:
+        return (
+            f"it is an FFmpeg {demuxer} file, which names other files or addresses to read: "
+            "send the video itself"
+        )
+    for video in container.streams.video:
+        width, height = video.codec_context.width, video.codec_context.height
+        if width * height > MAX_PIXELS:
+            return (
+                f"its frames of {width}x{height} pixels are more than this service takes "
+                f"({MAX_PIXELS / 1e6:.0f} megapixels, 8192x8192)"
+            )
+    return None
 
 
 _KEYFRAME_SEARCH = 1000

@@ -194,13 +194,17 @@ class JobStore:
         """Queued jobs that :meth:`claim` takes before ``record``; None unless it is queued."""
         if record.state != JobState.queued:
             return None
+        return self.queue_positions().get(record.id)
+
+    def queue_positions(self) -> dict[str, int]:
+        """Each queued job's place in the queue, 0 for the one :meth:`claim` takes next (one
+        query for a whole page of a listing)."""
         with self._lock:
-            (count,) = self._db.execute(
-                "SELECT count(*) FROM jobs WHERE state = ? AND (created_at < ? OR "
-                "(created_at = ? AND rowid < (SELECT rowid FROM jobs WHERE id = ?)))",
-                (JobState.queued.value, record.created_at, record.created_at, record.id),
-            ).fetchone()
-        return count
+            rows = self._db.execute(
+                "SELECT id FROM jobs WHERE state = ? ORDER BY created_at, rowid",
+                (JobState.queued.value,),
+            ).fetchall()
+        return {row[0]: place for place, row in enumerate(rows)}
 
     def running(self) -> list[JobRecord]:
         return self.list(limit=1_000_000, state=JobState.running)

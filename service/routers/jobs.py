@@ -145,7 +145,8 @@ def list_jobs(
         if finished_after is not None:
             query["finished_after"] = finished_after.isoformat()
         following = f"{API_PREFIX}?{urlencode(query)}"
-    return JobList(jobs=[job_status(r, store.queued_ahead(r)) for r in page], next=following)
+    places = store.queue_positions() if any(r.state == JobState.queued for r in page) else {}
+    return JobList(jobs=[job_status(r, places.get(r.id)) for r in page], next=following)
 
 
 @router.get("/{job_id}", summary="A job's state and progress", responses=error_responses(404))
