@@ -32,7 +32,7 @@ from service.frames import (
 )
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
-from tracking.correlation import PRESETS, CorrelationTracker
+from tracking.correlation import PRESETS
 from tracking.output_paths import output_file, output_folder, staged_output
 from tracking.types import Box, TrackerOutput, box_problem
 
@@ -210,6 +210,8 @@ def _track(args: argparse.Namespace) -> int:
     # a file named .json gets JSON lines unless --format says otherwise
     json_name = args.out is not None and args.out.suffix.lower() in (".json", ".jsonl")
     fmt = args.format or ("json" if json_name else "csv")
+    from tracking.correlation import CorrelationTracker
+
     try:
         if color_names := _color_names_file(args.w2c):
             config = dataclasses.replace(config, color_names_path=str(color_names))
@@ -499,7 +501,6 @@ def _analyze(args: argparse.Namespace) -> int:
 
     from api_schemas.common import error_message
     from api_schemas.jobs import JobOptions
-    from service.analysis import PipelineResources, analyze, check_options, publish
 
     _warn_unknown_variables()
     raw, given = _analyze_options(args)
@@ -528,6 +529,9 @@ def _analyze(args: argparse.Namespace) -> int:
     if problem := _detections_conflict(args, options):
         print(f"vtrack: {problem}", file=sys.stderr)
         return 2
+    # the trackers and detectors (most of the command's imports) once the options are good
+    from service.analysis import PipelineResources, analyze, check_options, publish
+
     try:
         # VTRACK_DPM_MODEL is read only for a run that detects with it; --dpm-model always
         needs_dpm = options.mode == "people" and options.detector.name == "dpm"
@@ -611,9 +615,6 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    import uvicorn
-
-    from service.app import StoppingServer, create_app
     from service.data_folder import DataFolderError, claim_data_folder
     from service.logs import uvicorn_log_config
     from service.settings import InvalidSettings, load_settings
@@ -678,6 +679,12 @@ def _serve(args: argparse.Namespace) -> int:
     )
     for warning in _exposure_warnings(settings, where):
         print(f"vtrack: warning: {warning}", file=sys.stderr, flush=True)
+    # the application (half of the command's imports) only once the settings are known good:
+    # a wrong one is then said at once
+    import uvicorn
+
+    from service.app import StoppingServer, create_app
+
     config = uvicorn.Config(
         create_app(settings, data_folder),
         host=settings.host,

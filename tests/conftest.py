@@ -116,6 +116,15 @@ class _CpuShare:
 _cpu_share: _CpuShare | None = None
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Modules with ``realtime`` tests last. pytest-xdist hands out modules in this order; a
+    realtime test in the middle of the run waits for the test running on the other worker
+    (the Dockerfile replay: over a minute) while neither core does anything else, and the
+    other worker then waits for it. Last, they wait only for each other."""
+    realtime = {item.path for item in items if item.get_closest_marker("realtime")}
+    items.sort(key=lambda item: item.path in realtime)  # stable: each module keeps its order
+
+
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
     """Around setup, call and teardown (module fixtures start and stop in them): under

@@ -1,6 +1,6 @@
 """Live streams through a service's life: streams from its settings across a restart, a
-worker that keeps failing. Lifecycle only, no rates measured: not marked realtime, these run
-beside other tests."""
+worker that keeps failing, a camera configured on two instances. Lifecycle only, no rates
+measured: not marked realtime, these run beside other tests."""
 
 from __future__ import annotations
 
@@ -96,3 +96,69 @@ def test_a_stream_whose_worker_keeps_failing_says_why_and_can_be_started_again(
     finally:
         session.close()
         server.stop()
+
+
+def test_a_camera_configured_on_two_instances_has_one_tracker_and_a_standby(tmp_path):
+    configured = json.dumps([{"camera": "gate"}])
+    first = Server(tmp_path / "first", workers=1, streams=configured).start()
+    servers = [first]
+    try:
+        with first.client() as client:
+            wait_for(lambda: status(client, "gate")["state"] == "waiting", 60, "gate to start")
+        connect = json.dumps(list(first.zenoh_listen))
+        servers.append(
+            Server(
+                tmp_path / "second", workers=1, streams=configured, zenoh_connect=connect
+            ).start()
+        )
+
+        def gate_everywhere() -> list[dict]:
+            statuses = []
+            for server in servers:
+                with server.client() as client:
+                    statuses.append(status(client, "gate"))
+            return statuses
+
+        # before: both tracked gate, their tracks interleaved on one key with clashing ids.
+        # The one that had it first keeps it.
+        _, standby = wait_for(
+            lambda: (
+                (found := gate_everywhere())
+                and [s["state"] for s in found] == ["waiting", "standby"]
+                and found
+            ),
+            60,
+            "the first instance to track gate and the second to stand by",
+        )
+        assert standby["worker_pid"] is None
+        assert standby["error"].startswith("camera gate is tracked by another instance")
+        # The first's worker dies three times quickly: its restart waits 4 s, in which the
+        # standby sees no token and takes over; once the first's new worker is back, the two
+        # track gate, and the second, the younger, stands by again.
+        with first.client() as client:
+            for starts in (2, 3, 4):
+                os.kill(status(client, "gate")["worker_pid"], signal.SIGKILL)
+                wait_for(
+                    lambda starts=starts: status(client, "gate")["worker_starts"] == starts,
+                    60,
+                    f"worker {starts} of the first instance",
+                )
+        wait_for(
+            lambda: (
+                [(s["state"], s["worker_starts"]) for s in gate_everywhere()]
+                == [("waiting", 4), ("standby", 1)]
+            ),
+            60,
+            "the second to have taken over and made way again",
+        )
+        first.stop()
+        with servers[1].client() as client:
+            took_over = wait_for(
+                lambda: (s := status(client, "gate"))["state"] == "waiting" and s,
+                60,
+                "the standby to take over",
+            )
+        assert took_over["error"] is None and took_over["worker_pid"] is not None
+    finally:
+        for server in servers:
+            server.stop()

@@ -134,7 +134,7 @@ class CorrelationConfig:
 
     def __post_init__(self) -> None:
         # imported here: the configuration stays cheap to import for those who only read it
-        from tracking.features.maps import feature_components
+        from tracking.features.registry import feature_components
 
         feature_components(self.feature)  # an unknown feature fails here, not in the tracker
         if self.learner not in ("mosse", "csk", "rcsk"):
@@ -171,7 +171,7 @@ class CorrelationConfig:
         """The components of :attr:`feature` that read colour (``("cn",)`` of ``"gray+cn"``):
         all but the intensity ones, ``gray`` and ``hog``, which see a greyscale video as they
         see a colour one."""
-        from tracking.features.maps import feature_components
+        from tracking.features.registry import feature_components
 
         return tuple(c for c in feature_components(self.feature) if c not in ("gray", "hog"))
 

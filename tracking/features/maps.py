@@ -15,9 +15,7 @@ import numpy as np
 from tracking.features.colornames import ColorNameTable
 from tracking.features.hog import NUM_FEATURES as HOG_DIM
 from tracking.features.hog import hog_feature_map
-from tracking.features.registry import FEATURE_NAMES, FeatureExtractor
-
-_CELL_FEATURES = ("hog",)
+from tracking.features.registry import CELL_FEATURES, FeatureExtractor, feature_components
 
 
 @lru_cache(maxsize=4)
@@ -27,15 +25,6 @@ def shared_color_names(w2c_path: str | None) -> ColorNameTable:
     The embedded model's table is computed once per process instead of once per tracker.
     """
     return ColorNameTable.from_config(w2c_path)
-
-
-def feature_components(spec: str) -> tuple[str, ...]:
-    """The components of a feature spec such as ``"gray+cn"`` (ValueError for an unknown one)."""
-    components = tuple(part.strip() for part in str(spec).split("+") if part.strip())
-    valid = (*FEATURE_NAMES, *_CELL_FEATURES)
-    if not components or any(c not in valid for c in components):
-        raise ValueError(f"unknown feature {spec!r}: components must be among {', '.join(valid)}")
-    return components
 
 
 class FeatureMap:
@@ -68,7 +57,7 @@ class FeatureMap:
         self._pixel = {
             name: FeatureExtractor(name, color_names=color_names)
             for name in components
-            if name not in _CELL_FEATURES
+            if name not in CELL_FEATURES
         }
         self._components = components
         self.dim = sum(HOG_DIM if c == "hog" else self._pixel[c].dim for c in components)

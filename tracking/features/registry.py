@@ -85,6 +85,19 @@ _SPECS: MappingProxyType[str, FeatureSpec] = MappingProxyType(
 FEATURE_NAMES: tuple[str, ...] = tuple(_SPECS)
 """Single feature names; combine them with ``+`` (e.g. ``"gray+cn"``)."""
 
+CELL_FEATURES: tuple[str, ...] = ("hog",)
+"""Features computed per cell of several pixels (:class:`~tracking.features.maps.FeatureMap`
+stacks them with the per-pixel ones above)."""
+
+
+def feature_components(spec: str) -> tuple[str, ...]:
+    """The components of a feature spec such as ``"gray+cn"`` (ValueError for an unknown one)."""
+    components = tuple(part.strip() for part in str(spec).split("+") if part.strip())
+    valid = (*FEATURE_NAMES, *CELL_FEATURES)
+    if not components or any(c not in valid for c in components):
+        raise ValueError(f"unknown feature {spec!r}: components must be among {', '.join(valid)}")
+    return components
+
 
 def _resolve(name: str) -> tuple[FeatureSpec, ...]:
     if not isinstance(name, str):
