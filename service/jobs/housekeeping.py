@@ -43,7 +43,7 @@ def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
     """Delete a finished job with its upload and results."""
     store.delete(record.id)
     record.video_path.unlink(missing_ok=True)
-    # a result folder outside this service's (a moved data folder) is not ours to remove
+    # never outside the data folder (the store reads job files as its own), whatever a row says
     if record.result_dir.resolve().is_relative_to(settings.results_dir.resolve()):
         shutil.rmtree(record.result_dir, ignore_errors=True)
 
@@ -83,7 +83,7 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
             if record is None:
                 shutil.rmtree(folder, ignore_errors=True)
                 strays += 1
-            elif record.result_dir.resolve() == folder.resolve():  # not a moved folder's job
+            else:
                 tidy(record)
     if uploads:
         log.info("housekeeping: the uploads of %d finished jobs removed", uploads)

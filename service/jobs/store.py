@@ -54,6 +54,29 @@ _ADDED_COLUMNS = {"stops": "INTEGER NOT NULL DEFAULT 0"}
 stop of the service ended."""
 
 
+_JOB_FILES = ("uploads", "results")
+"""The data folder's subfolders holding a job's files, one entry per job: its upload and its
+results folder."""
+
+
+def _portable(path: Path, folder: Path) -> str:
+    """How a job's file is stored: ``results/<id>`` for one in the data folder ``folder``, so
+    that a data folder moved or restored elsewhere keeps its jobs' files; other paths whole."""
+    if path.parent.name in _JOB_FILES and path.parent.parent == folder:
+        return f"{path.parent.name}/{path.name}"
+    return str(path)
+
+
+def _located(stored: str, folder: Path) -> Path:
+    """Where a job's file stored as ``stored`` is in the data folder ``folder``. Earlier
+    versions stored the whole path as the service then saw it (absolute, or relative to its
+    working folder): read by its last two parts, it is found wherever the folder is now."""
+    path = Path(stored)
+    if path.parent.name in _JOB_FILES:
+        return folder / path.parent.name / path.name
+    return path
+
+
 @dataclass(frozen=True, slots=True)
 class JobRecord:
     """One row of the jobs table."""
@@ -78,14 +101,15 @@ class JobRecord:
     worker_pid: int | None = None
 
     @classmethod
-    def from_row(cls, row: sqlite3.Row) -> JobRecord:
+    def from_row(cls, row: sqlite3.Row, folder: Path) -> JobRecord:
+        """The record of ``row`` in the database of the data folder ``folder``."""
         return cls(
             id=row["id"],
             state=JobState(row["state"]),
             options=json.loads(row["options"]),
             video_filename=row["video_filename"],
-            video_path=Path(row["video_path"]),
-            result_dir=Path(row["result_dir"]),
+            video_path=_located(row["video_path"], folder),
+            result_dir=_located(row["result_dir"], folder),
             created_at=row["created_at"],
             started_at=row["started_at"],
             finished_at=row["finished_at"],
@@ -107,6 +131,7 @@ class JobStore:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self.folder = self.path.parent  # the data folder, which job files are stored within
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.RLock()
         self._db = sqlite3.connect(
@@ -150,7 +175,7 @@ class JobStore:
     def get(self, job_id: str) -> JobRecord | None:
         with self._lock:
             row = self._db.execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
-        return JobRecord.from_row(row) if row else None
+        return JobRecord.from_row(row, self.folder) if row else None
 
     def list(
         self,
@@ -188,7 +213,7 @@ class JobStore:
             query = "SELECT * FROM jobs" + (" WHERE " + " AND ".join(where) if where else "")
             query += " ORDER BY created_at DESC, rowid DESC LIMIT ?"
             rows = self._db.execute(query, (*args, limit)).fetchall()
-        return [JobRecord.from_row(row) for row in rows]
+        return [JobRecord.from_row(row, self.folder) for row in rows]
 
     def queued_ahead(self, record: JobRecord) -> int | None:
         """Queued jobs that :meth:`claim` takes before ``record``; None unless it is queued."""
@@ -218,7 +243,7 @@ class JobStore:
                 f"SELECT * FROM jobs WHERE state IN ({marks}) AND finished_at < ?",
                 (*ended, cutoff),
             ).fetchall()
-        return [JobRecord.from_row(row) for row in rows]
+        return [JobRecord.from_row(row, self.folder) for row in rows]
 
     def counts_by_state(self) -> dict[JobState, int]:
         with self._lock:
@@ -262,8 +287,8 @@ class JobStore:
                     JobState.queued.value,
                     json.dumps(options),
                     video_filename,
-                    str(video_path),
-                    str(result_dir),
+                    _portable(video_path, self.folder),
+                    _portable(result_dir, self.folder),
                     time.time(),
                     frames_total,
                 ),

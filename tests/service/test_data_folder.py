@@ -216,3 +216,25 @@ def test_a_data_folder_the_service_creates_is_its_users_alone(tmp_path):
     existing.chmod(0o750)  # whatever the umask
     claim_data_folder(Settings(data_dir=existing)).release()
     assert stat.S_IMODE(existing.stat().st_mode) == 0o750  # the operator's choice
+
+
+def test_a_data_folder_moved_elsewhere_keeps_its_jobs_results(make_server, pets_short, tmp_path):
+    # An operator moves the data folder to a bigger disk, or restores a backup to another path.
+    first = make_server(tmp_path / "data", workers=1)
+    with first.client() as client:
+        job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        wait_for_state(client, job_id, ("succeeded",))
+        result = client.get(f"/v1/jobs/{job_id}/result?format=json")
+        assert result.status_code == 200
+    first.stop()
+    moved = tmp_path / "bigger disk" / "data"
+    moved.parent.mkdir()
+    shutil.move(first.data_dir, moved)
+    second = make_server(moved, workers=1)
+    with second.client() as client:
+        # before: 404, "the json result of job ... is gone" (its path named the old folder)
+        again = client.get(f"/v1/jobs/{job_id}/result?format=json")
+        assert again.status_code == 200, again.text
+        assert again.content == result.content
+        assert client.delete(f"/v1/jobs/{job_id}").status_code == 204
+    assert not (moved / "results" / job_id).exists()  # the moved folder's files are its own

@@ -151,3 +151,28 @@ def test_a_deleted_job_leaves_no_copy_of_its_file_name_on_disk(store):
     assert b"JaneDoe-a" not in on_disk
     assert b"JaneDoe-b" in on_disk  # the other job is intact
     assert store.get("b").video_filename == "JaneDoe-b.avi"
+
+
+def test_job_files_are_found_in_a_data_folder_moved_since_they_were_stored(tmp_path):
+    old, new = tmp_path / "old", tmp_path / "new"
+    store = JobStore(old / "jobs.sqlite3")
+    store.create("a", {}, old / "uploads" / "a.mp4", old / "results" / "a")
+    store.create("b", {}, old / "uploads" / "b.mp4", old / "results" / "b")
+    # "b" as earlier versions stored it: the whole path, as the service then saw it
+    with sqlite3.connect(store.path) as db:
+        db.execute(
+            "UPDATE jobs SET video_path = ?, result_dir = ? WHERE id = 'b'",
+            (str(old / "uploads" / "b.mp4"), str(old / "results" / "b")),
+        )
+        stored = db.execute("SELECT video_path, result_dir FROM jobs WHERE id = 'a'").fetchone()
+    store.close()
+    assert stored == ("uploads/a.mp4", "results/a")
+    old.rename(new)
+    store = JobStore(new / "jobs.sqlite3")
+    try:
+        for job_id in ("a", "b"):
+            record = store.get(job_id)
+            assert record.video_path == new / "uploads" / f"{job_id}.mp4"
+            assert record.result_dir == new / "results" / job_id
+    finally:
+        store.close()
