@@ -14,8 +14,10 @@ from tests.conftest import BENCHMARKS, REPO_ROOT
 
 
 @pytest.mark.slow
-@pytest.mark.realtime
 def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):
+    # Not marked realtime: it checks the report's shape and orderings that hold on a busy
+    # machine too (passed beside two busy processes, load 6.8); docs/benchmarks.md's figures
+    # come from the benchmark run on its own.
     command = [sys.executable, str(BENCHMARKS / "gateway.py"), "--json", "--frames", "12"]
     command += ["--repeats", "1", "--delay-frames", "20", "--capture-seconds", "4"]
     result = subprocess.run(
