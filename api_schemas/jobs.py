@@ -250,8 +250,8 @@ class JobOptions(BaseModel):
         max_length=20,
         description="Your own names for the video, copied into its results (the json's options, "
         "the mcap's metadata) and listed with the job, for joining them with your records: "
-        "the camera, the site, when the recording began... Up to 20; keys of 1-64 letters, "
-        "digits and _ . : -, values up to 256 characters.",
+        "the camera, the site, when the recording began... Up to 20; keys of 1-64 ASCII "
+        "letters, digits and _ . : -, values up to 256 characters of any text.",
         examples=[{"camera": "entrance-2", "site": "store-042"}],
     )
 

@@ -9,6 +9,11 @@ from collections.abc import Callable
 __all__ = ["number_type", "time_type"]
 
 
+def _comma(text: str) -> str:
+    """A hint for a decimal comma (``1,5``), as many locales write numbers."""
+    return " (decimals take a point: 1.5)" if "," in text else ""
+
+
 def number_type(
     convert: Callable[[str], float], low: float, high: float = math.inf, *, above: bool = False
 ):
@@ -22,7 +27,9 @@ def number_type(
                 raise ValueError
         except ValueError:
             kind = "a whole number" if convert is int else "a finite number"
-            raise argparse.ArgumentTypeError(f"expected {kind}, got {text!r}") from None
+            raise argparse.ArgumentTypeError(
+                f"expected {kind}, got {text!r}{_comma(text)}"
+            ) from None
         if not ((value > low if above else value >= low) and value <= high):
             bound = f"greater than {low:g}" if above else f"at least {low:g}"
             bound += f" and at most {high:g}" if high < math.inf else ""
@@ -45,6 +52,7 @@ def time_type(text: str) -> float:
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"a time is seconds (90, 12.5) or [H:]M:S (1:30, 1:02:03.5), got {text!r}"
+            + _comma(text)
         ) from None
     minutes = 0
     for number in fields[:-1]:

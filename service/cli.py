@@ -4,12 +4,15 @@
 from __future__ import annotations
 
 import argparse
+import codecs
 import contextlib
 import copy
 import dataclasses
 import errno
 import fcntl
+import io
 import json
+import math
 import os
 import re
 import shutil
@@ -823,7 +826,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     analyze.add_argument(
         "--upscale",
-        type=float,
+        type=number_type(float, -math.inf),  # the job options' bounds: their message
         help="enlarge frames before detecting; default by the frame height: embedded "
         "detector 2.0 at 360 px (finds people 40-55 px tall), 1.5 at 480-720, 1.0 at 1080, "
         "0.5 at 2160; DPM 1.0 up to 1080 px, 0.5 at 2160",
@@ -921,7 +924,29 @@ def _attach_box_values(argv: list[str]) -> list[str]:
     return attached
 
 
+def _names_as_they_are(error: UnicodeError) -> tuple[str | bytes, int]:
+    """Encoding errors of our output: the bytes of a file name that is not text in the locale
+    (Python holds them as surrogates) are written back as they are, so the name printed opens
+    the file; a character the terminal's encoding lacks (é on an ASCII terminal) as ``\\xe9``."""
+    if not isinstance(error, UnicodeEncodeError):
+        raise error
+    bad = error.object[error.start : error.end]
+    if all("\udc80" <= c <= "\udcff" for c in bad):
+        return bytes(ord(c) - 0xDC00 for c in bad), error.end
+    return codecs.backslashreplace_errors(error)
+
+
+def _print_any_name() -> None:
+    """Output whose encoding fails on a name, in a UTF-8 or an ASCII locale, no longer
+    ends a run that has done its work with a traceback."""
+    codecs.register_error("vtrack-names", _names_as_they_are)
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+            stream.reconfigure(errors="vtrack-names")
+
+
 def main(argv: list[str] | None = None) -> int:
+    _print_any_name()
     args = build_parser().parse_args(_attach_box_values(sys.argv[1:] if argv is None else argv))
     if args.command != "serve":  # the service has its own shutdown and log
         signal.signal(signal.SIGTERM, _terminate)

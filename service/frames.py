@@ -15,6 +15,8 @@ import av
 import cv2
 import numpy as np
 
+from service.ffmpeg_paths import FfmpegPath
+from tracking.image_files import read_bgr
 from tracking.seqinfo import (
     MotFormatError,
     read_seqinfo,
@@ -286,7 +288,8 @@ class FrameSource:
             read.frames, read.end_time = last + 1, last / fps
             read.reached_end = positions.stop < len(self._images)
             return
-        capture = cv2.VideoCapture(str(self.path))
+        name = _ffmpeg_path(self.path)
+        capture = cv2.VideoCapture(name.name)
         try:
             index, failed, first, clock = 0, 0, None, _PresentationClock(fps)
             while failed < FAILED_READS_AT_END:
@@ -314,6 +317,7 @@ class FrameSource:
                 index += 1
         finally:
             capture.release()
+            name.close()
 
 
 class _PresentationClock:
@@ -359,10 +363,19 @@ def capture_frames(capture: cv2.VideoCapture) -> Iterator[np.ndarray]:
 
 def read_image(path: Path) -> np.ndarray:
     """One image file as RGB uint8; a clear error if it cannot be decoded."""
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    bgr = read_bgr(path)
     if bgr is None:
         raise FrameSourceError(f"cannot decode image {path}")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def _ffmpeg_path(path: Path) -> FfmpegPath:
+    """:class:`FfmpegPath` of a file to read; a :class:`FrameSourceError` if it cannot be
+    opened."""
+    try:
+        return FfmpegPath(path)
+    except OSError as error:
+        raise FrameSourceError(f"cannot read {path}: {error.strerror}") from None
 
 
 def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
@@ -391,7 +404,8 @@ def open_frames(path: str | Path, fps: float | None = None) -> FrameSource:
     facts = _container_facts(path)  # from the headers: before OpenCV decodes anything
     if reason := facts.refusal:
         raise FrameSourceError(f"{path} is not a video this service takes: {reason}", reason)
-    capture = cv2.VideoCapture(str(path))
+    with _ffmpeg_path(path) as name:
+        capture = cv2.VideoCapture(name)
     try:
         ok, first = capture.read() if capture.isOpened() else (False, None)
         if not ok or first is None:
@@ -436,7 +450,7 @@ def _undecodable_reason(path: Path) -> str | None:
                 "when the phone or camera stopped before finishing the file"
             )
     try:
-        with av.open(str(path)) as container:
+        with _ffmpeg_path(path) as name, av.open(name) as container:
             if not container.streams.video:
                 kinds = ", ".join(sorted({stream.type for stream in container.streams}))
                 return f"it holds no video track (its tracks: {kinds or 'none'})"
@@ -509,7 +523,7 @@ def _container_facts(path: Path) -> _ContainerFacts:
     """What the container's headers say; the defaults where FFmpeg cannot read it (OpenCV's
     decoder then has its say)."""
     try:
-        with av.open(str(path)) as container:
+        with _ffmpeg_path(path) as name, av.open(name) as container:
             if refusal := _refusal(container):
                 return _ContainerFacts(refusal=refusal)
             video = container.streams.video[0]

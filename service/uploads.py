@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -33,6 +34,17 @@ _ENVELOPE_BYTES = MAX_OPTIONS_BYTES + 16 * 1024
 _DRAIN_BYTES = 64 * 1024 * 1024
 """After a too-large upload, read (and drop) at most this much more, so that the client
 sees the 413 answer rather than a reset connection."""
+
+
+_FORM_ESCAPES = {"%22": '"', "%0D": "\r", "%0A": "\n"}
+"""What browsers and curl write for the characters a form's file name cannot hold (HTML's
+multipart/form-data encoding), and only those: any other ``%`` is the name's own."""
+
+
+def _client_filename(raw: bytes) -> str:
+    """The client's file name, without folders, from a form part's ``filename``."""
+    name = Path(raw.decode("utf-8", "replace")).name
+    return re.sub("%22|%0D|%0A", lambda m: _FORM_ESCAPES[m.group().upper()], name, flags=re.I)
 
 
 class UploadError(Exception):
@@ -120,7 +132,7 @@ class _Receiver:
                     "file name nor a content type): send the file itself, e.g. with curl "
                     f"-F {VIDEO_PART}=@clip.mp4 (the @ makes curl send the file's bytes)",
                 )
-            self.filename = Path(raw.decode("utf-8", "replace")).name if raw else None
+            self.filename = _client_filename(raw) if raw else None
             self._file = self.video_path.open("wb")
         else:
             self.options = bytearray()

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from tracking.output_paths import output_file, output_folder
+from tracking.output_paths import output_file, output_folder, staged_output
 
 
 def test_a_missing_folder_is_created_with_its_parents_and_left_empty(tmp_path):
@@ -59,3 +59,12 @@ def test_a_file_in_a_missing_folder_or_a_folder_as_file_is_reported(tmp_path):
     assert not (tmp_path / "typo").exists()  # a mistyped folder is not created
     with pytest.raises(IsADirectoryError, match="is a folder: give a file name"):
         output_file(tmp_path)
+
+
+def test_a_file_named_as_long_as_its_folder_allows_is_staged_beside_it(tmp_path):
+    name = "b" * 246 + ".csv"  # 250 bytes: legal; ".<name>.partial" would not be
+    target, partial = staged_output(tmp_path / name)
+    assert target == tmp_path / name and partial.parent == tmp_path
+    partial.write_text("rows")  # before: File name too long
+    partial.replace(target)
+    assert target.read_text() == "rows"

@@ -7,6 +7,7 @@ and the ``OSError`` these raise says what is wrong in words a user can act on.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 from pathlib import Path
@@ -82,4 +83,16 @@ def staged_output(path: str | os.PathLike[str]) -> tuple[Path, Path | None]:
     target = Path(path).resolve()
     if target.exists() and not target.is_file():
         return target, None
-    return target, target.with_name(f".{target.name}.partial")
+    partial = f".{target.name}.partial"
+    if len(os.fsencode(partial)) > _longest_name(target.parent):
+        # a target of a name as long as its file system allows: a shorter one of its own
+        partial = f".{hashlib.sha256(os.fsencode(target.name)).hexdigest()[:16]}.partial"
+    return target, target.with_name(partial)
+
+
+def _longest_name(folder: Path) -> int:
+    """The longest file name, in bytes, ``folder`` takes (255 where it cannot be asked)."""
+    try:
+        return os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255

@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from api_schemas.tracks import FrameTracksMessage
+from service.ffmpeg_paths import FfmpegPath
 from service.frames import TimedFrame
 from service.outputs import h264
 from service.outputs.base import RunSummary, StreamInfo
@@ -99,7 +100,14 @@ class H264Encoder:
         import av
 
         self._frames = FrameStamper("bgr24")
-        self._container = av.open(str(path), "w", format="mp4", options={"movflags": "+faststart"})
+        self._path = FfmpegPath(path, writing=True)
+        try:
+            self._container = av.open(
+                self._path.name, "w", format="mp4", options={"movflags": "+faststart"}
+            )
+        except BaseException:
+            self._path.close()
+            raise
         try:
             stream = self._container.add_stream(
                 "libx264", rate=Fraction(fps).limit_denominator(1001), options=dict(H264_OPTIONS)
@@ -110,6 +118,7 @@ class H264Encoder:
                 stream.codec_context.sample_aspect_ratio = aspect
         except BaseException:
             self._container.close()
+            self._path.close()
             raise
         self._stream = stream
 
@@ -122,6 +131,7 @@ class H264Encoder:
             self._container.mux(self._stream.encode(None))
         finally:
             self._container.close()
+            self._path.close()
 
 
 class Mp4vEncoder:
@@ -129,7 +139,8 @@ class Mp4vEncoder:
 
     def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
         fourcc = cv2.VideoWriter_fourcc(*"mp4v")
-        self._writer = cv2.VideoWriter(str(path), fourcc, fps, (width, height))
+        with FfmpegPath(path, writing=True) as name:
+            self._writer = cv2.VideoWriter(name, fourcc, fps, (width, height))
         if not self._writer.isOpened():
             raise RuntimeError(f"OpenCV cannot write an mp4v video to {path}")
 

@@ -151,6 +151,9 @@ def test_analyze_follows_parts_with_part_trackers_on_request(pets_short, tmp_pat
         (["--format", "json,avi"], "comma-separated list"),  # unknown format
         (["--frame-step", "0"], "--frame-step: Input should be greater than or equal to 1"),
         (["--upscale", "-1"], "--upscale: Input should be greater than 0"),
+        # a decimal comma; before: "invalid float value: '1,5'"
+        (["--upscale", "1,5"], "got '1,5' (decimals take a point: 1.5)"),
+        (["--start", "1,5"], "got '1,5' (decimals take a point: 1.5)"),
         (["--box", "1,1,-5,3"], "--box: width and height must be at least 1 pixel"),
         (["--box", "1,1,0.5,3"], "--box: width and height must be at least 1 pixel"),
         # first box outside the frame; before: "first_box: box Box(x=900.0, ...) lies ..."

@@ -36,6 +36,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.image_files import read_bgr
 from tracking.seqinfo import MotFormatError, read_seqinfo
 
 __all__ = [
@@ -188,7 +189,7 @@ class MotSequence:
 
     def read_frame(self, index: int) -> np.ndarray:
         """Frame ``index`` (0-based) as RGB uint8 ``(H, W, 3)``."""
-        image = cv2.imread(str(self.frames[index]), cv2.IMREAD_COLOR)
+        image = read_bgr(self.frames[index])
         if image is None:
             raise MotFormatError(f"cannot decode {self.frames[index]}")
         return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)

@@ -17,6 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.image_files import read_bgr
 from tracking.types import Box
 
 GROUND_TRUTH_FILE = "groundtruth_rect.txt"
@@ -169,7 +170,7 @@ def read_frame(path: str | Path) -> np.ndarray:
     SequenceError
         If the file is missing or is not an image OpenCV can decode.
     """
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    image = read_bgr(path)
     if image is None:
         raise SequenceError(f"cannot read image {path} (missing or not a decodable image)")
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
