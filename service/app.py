@@ -38,6 +38,7 @@ from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
 from service.routers import health, jobs, metrics, streams
 from service.settings import Settings, is_loopback
+from service.storage import storage_problem
 from service.streams.manager import StreamManager
 from service.streams.store import StreamStore
 
@@ -98,7 +99,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.store = store
     app.state.pool = pool
     app.state.streams = streams
-    app.state.registry = make_registry(store, pool, streams)
+    app.state.registry = make_registry(store, pool, streams, settings.data_dir)
     log.info("data in %s; worker processes: %d", settings.data_dir.resolve(), settings.workers)
     housekeeper = Housekeeper(settings, store)
     housekeeper.start()
@@ -200,7 +201,9 @@ class _LimitedBodies:
 
 class _InternalErrorsAsJson:
     """ASGI middleware: an exception no route expected answers 500 with JSON ``{"detail": ...}``
-    like every other error, and is logged once, with its traceback and the request.
+    like every other error, and is logged once, with its traceback and the request; one of the
+    data folder (full, or not writable: :func:`~service.storage.storage_problem`) answers 507
+    saying so, as an upload it refuses is answered, logged as a warning in one line.
 
     Not an exception handler for ``Exception``: Starlette's error middleware, which runs those,
     raises the exception on after the handler's answer, and uvicorn then logs it a second time
@@ -226,6 +229,12 @@ class _InternalErrorsAsJson:
         except Exception as error:
             if started:  # too late for an answer: the server logs it and drops the connection
                 raise
+            if problem := storage_problem(error):  # the data folder's, not the request's
+                detail = f"{problem.problem}: {problem.remedy}"
+                log.warning("%s %s refused (507): %s", scope["method"], scope["path"], detail)
+                response = JSONResponse({"detail": detail}, status_code=507)
+                await response(scope, receive, send)
+                return
             log.exception("internal error answering %s %s", scope["method"], scope["path"])
             detail = (
                 f"internal error ({type(error).__name__}) while answering {scope['method']} "

@@ -7,6 +7,8 @@ metric families when ``/metrics`` is scraped.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from prometheus_client import CollectorRegistry
 from prometheus_client.core import (
     CounterMetricFamily,
@@ -19,14 +21,18 @@ from api_schemas.jobs import JobState
 from api_schemas.streams import StreamState
 from service.jobs.store import DURATION_BUCKETS, JobStore
 from service.jobs.workers import WorkerPool
+from service.storage import free_bytes
 from service.streams.manager import StreamManager
 
 
 class ServiceCollector(Collector):
-    def __init__(self, store: JobStore, pool: WorkerPool, streams: StreamManager) -> None:
+    def __init__(
+        self, store: JobStore, pool: WorkerPool, streams: StreamManager, data_dir: Path
+    ) -> None:
         self._store = store
         self._pool = pool
         self._streams = streams
+        self._data_dir = data_dir
 
     def collect(self):
         jobs = GaugeMetricFamily(
@@ -63,6 +69,11 @@ class ServiceCollector(Collector):
             "vtrack_workers_replaced",
             "Worker processes replaced after they died or overran (since start).",
             value=self._pool.replaced,
+        )
+        yield GaugeMetricFamily(
+            "vtrack_data_free_bytes",
+            "Bytes the service may still write on its data folder's disk.",
+            value=free_bytes(self._data_dir),
         )
         yield from self._stream_metrics()
 
@@ -101,7 +112,9 @@ class ServiceCollector(Collector):
         yield latency
 
 
-def make_registry(store: JobStore, pool: WorkerPool, streams: StreamManager) -> CollectorRegistry:
+def make_registry(
+    store: JobStore, pool: WorkerPool, streams: StreamManager, data_dir: Path
+) -> CollectorRegistry:
     registry = CollectorRegistry(auto_describe=False)
-    registry.register(ServiceCollector(store, pool, streams))
+    registry.register(ServiceCollector(store, pool, streams, data_dir))
     return registry

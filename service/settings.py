@@ -98,6 +98,12 @@ class Settings(BaseSettings):
         description="Finished jobs (succeeded, failed, cancelled) are deleted with their results "
         "this many hours after they finished; unset: kept until DELETE /v1/jobs/{id}.",
     )
+    min_free_mb: float = Field(
+        default=64,
+        ge=0,
+        description="Free space, in MB, the data folder's disk must have for /readyz to say "
+        "ready: below it the service is full (an upload would not fit).",
+    )
     housekeeping_interval: float = Field(
         default=60.0,
         ge=0.1,

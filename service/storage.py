@@ -55,3 +55,10 @@ def storage_problem(error: BaseException) -> StorageProblem | None:
             writable_remedy(),
         )
     return None
+
+
+def free_bytes(folder: os.PathLike[str] | str) -> int:
+    """Bytes the service may still write on ``folder``'s file system (as an unprivileged
+    user: the blocks kept for root do not count)."""
+    stats = os.statvfs(folder)
+    return stats.f_bavail * stats.f_frsize

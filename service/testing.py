@@ -120,8 +120,9 @@ class Server:
         kwargs.setdefault("timeout", 30.0)
         return httpx.Client(base_url=self.url, headers=headers, **kwargs)
 
-    def start(self, timeout: float = 60.0) -> Server:
-        """Start the service and wait until ``/readyz`` answers 200."""
+    def start(self, timeout: float = 60.0, ready: bool = True) -> Server:
+        """Start the service and wait until ``/readyz`` answers 200 (``ready``) or, for a
+        service expected not to be ready, until ``/healthz`` answers."""
         env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
         env.update({f"VTRACK_{k.upper()}": str(v) for k, v in self.settings.items()})
         command = [*self.prefix, sys.executable, "-m", "service.cli", "serve"]
@@ -138,7 +139,8 @@ class Server:
                 stderr=subprocess.STDOUT,
                 preexec_fn=self._limit_file_size if self.file_size_limit else None,
             )
-        wait_for(self._ready, timeout, f"the server on port {self.port} to be ready", 0.1)
+        check = self._ready if ready else self._answers
+        wait_for(check, timeout, f"the server on port {self.port} to answer", 0.1)
         return self
 
     def _limit_file_size(self) -> None:
@@ -147,9 +149,12 @@ class Server:
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     def _ready(self) -> bool:
+        return self._answers("/readyz")
+
+    def _answers(self, path: str = "/healthz") -> bool:
         if self.process is not None and self.process.poll() is not None:
             raise RuntimeError(f"the server exited early:\n{self.log_tail()}")
-        response = try_get(f"{self.url}/readyz")
+        response = try_get(f"{self.url}{path}")
         return response is not None and response.status_code == 200
 
     def log(self) -> str:

@@ -40,24 +40,36 @@ class Swept:
 
 
 def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
-    """Delete a finished job with its upload and results."""
-    store.delete(record.id)
+    """Delete a finished job with its upload and results.
+
+    The files go first: on a full disk they make the room the database needs to delete the
+    row, and a deletion cut in between leaves a job whose results are gone (deleted again
+    by the next request), never results that no job owns. Raises ``OSError`` when a file
+    cannot be removed (a folder made read-only), the job then kept.
+    """
     record.video_path.unlink(missing_ok=True)
     # never outside the data folder (the store reads job files as its own), whatever a row says
-    if record.result_dir.resolve().is_relative_to(settings.results_dir.resolve()):
-        shutil.rmtree(record.result_dir, ignore_errors=True)
+    inside = record.result_dir.resolve().is_relative_to(settings.results_dir.resolve())
+    if inside and record.result_dir.exists():
+        shutil.rmtree(record.result_dir)
+    store.delete(record.id)
 
 
 def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swept:
     """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
-    and result folders that no job owns (only safe before uploads are accepted) and the
-    partial results of attempts that are over. Each deleted job is logged by id."""
+    that no job owns (only safe before uploads are accepted) and the partial results of
+    attempts that are over. Each deleted job is logged by id; result folders that no job owns
+    are named in a warning and kept."""
     jobs = recordings = 0
     if settings.retention_hours is not None:
         now = time.time()
         recordings = _expire_recordings(settings, now - settings.retention_hours * 3600)
         for record in store.finished_before(now - settings.retention_hours * 3600):
-            remove_job(settings, store, record)
+            try:
+                remove_job(settings, store, record)
+            except OSError as error:  # the others go on; this one is tried again next time
+                log.warning("housekeeping: job %s could not be deleted: %s", record.id, error)
+                continue
             jobs += 1
             log.info(
                 "housekeeping: job %s (%s %.1f h ago) deleted with its files "
@@ -75,20 +87,30 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
                 path.unlink(missing_ok=True)
                 uploads += record is not None
                 strays += record is None
+    unknown: list[str] = []
     if orphans and settings.results_dir.is_dir():
         for folder in settings.results_dir.iterdir():
             if not folder.is_dir():
                 continue
             record = store.get(folder.name)
             if record is None:
-                shutil.rmtree(folder, ignore_errors=True)
-                strays += 1
+                unknown.append(folder.name)
             else:
                 tidy(record)
     if uploads:
         log.info("housekeeping: the uploads of %d finished jobs removed", uploads)
     if strays:
-        log.info("housekeeping: %d uploads or result folders that no job owns removed", strays)
+        log.info("housekeeping: %d uploads that no job owns removed", strays)
+    if unknown:
+        # Results are never deleted on a guess: the database may be an older copy (restored
+        # without its -wal file, or from a backup) that has not seen these jobs.
+        log.warning(
+            "housekeeping: %d result folders belong to no job in the database (restored from "
+            "an older copy?), left in %s: %s",
+            len(unknown),
+            settings.results_dir,
+            ", ".join(sorted(unknown)[:10]) + (", ..." if len(unknown) > 10 else ""),
+        )
     return Swept(uploads + strays, jobs, recordings)
 
 

@@ -9,7 +9,7 @@ from fastapi.responses import JSONResponse
 
 from service.deps import PoolDep, SettingsDep, StoreDep, StreamsDep
 from service.settings import Settings
-from service.storage import writable_remedy
+from service.storage import FREE_SPACE, free_bytes, writable_remedy
 
 router = APIRouter(tags=["health"])
 
@@ -30,7 +30,7 @@ def healthz() -> dict[str, str]:
     responses={
         503: {
             "description": "Not ready: no worker process is ready (yet), or the data folder "
-            "cannot be written (``detail`` says which and what to do)."
+            "cannot be written or its disk is full (``detail`` says which and what to do)."
         }
     },
 )
@@ -39,11 +39,13 @@ def readyz(
 ) -> JSONResponse:
     counts = store.counts_by_state()
     unwritable = _unwritable(settings)
-    ready = pool.ready() and unwritable is None
+    full = _full(settings)
+    workers_ready = pool.ready()
+    ready = workers_ready > 0 and unwritable is None and full is None
     body = {
         "status": "ready" if ready else "starting",
         "workers": pool.size,
-        "workers_ready": ready,
+        "workers_ready": workers_ready,  # a count, as workers is (was true once one was)
         "jobs": {state.value: n for state, n in counts.items()},
         "streams": streams.counts(),
         "zenoh": streams.unavailable or "ok",
@@ -51,6 +53,9 @@ def readyz(
     if unwritable is not None:
         body["status"] = "unwritable"
         body["detail"] = unwritable
+    elif full is not None:
+        body["status"] = "full"
+        body["detail"] = full
     elif not ready:
         body["detail"] = "no worker process is ready yet; try again in a few seconds"
     return JSONResponse(body, status_code=200 if ready else 503)
@@ -64,3 +69,15 @@ def _unwritable(settings: Settings) -> str | None:
         if not os.access(folder, os.W_OK):
             return f"the data folder cannot be written ({folder}): {writable_remedy()}"
     return None
+
+
+def _full(settings: Settings) -> str | None:
+    """Why the data folder's disk can take no upload (less free space than
+    ``VTRACK_MIN_FREE_MB``), or None."""
+    free = free_bytes(settings.data_dir) / 1e6
+    if free >= settings.min_free_mb:
+        return None
+    return (
+        f"the data folder's disk has {free:.0f} MB free, under VTRACK_MIN_FREE_MB "
+        f"({settings.min_free_mb:g}): {FREE_SPACE}"
+    )

@@ -166,6 +166,7 @@ class StreamManager:
         if self._hub is not None:
             self._hub.close()
             self._hub = None
+        self._store.close()
 
     # -- requests --------------------------------------------------------------------------
 

@@ -7,6 +7,7 @@ import importlib.metadata
 import io
 import json
 import re
+import shutil
 from concurrent.futures import ThreadPoolExecutor
 from datetime import datetime
 
@@ -405,7 +406,7 @@ def test_truncated_video_is_accepted_and_tracked_as_far_as_it_decodes(
     assert f"job {status['id']}: warning: the video ended after {read} of the 24" in server.log()
 
 
-def test_metrics_count_jobs_by_state_and_frames(client, finished_job):
+def test_metrics_count_jobs_by_state_and_frames(server, client, finished_job):
     text = client.get("/metrics").text
     values = {}
     for line in text.splitlines():
@@ -416,6 +417,8 @@ def test_metrics_count_jobs_by_state_and_frames(client, finished_job):
     assert values["vtrack_frames_processed_total"] >= 24
     assert values["vtrack_job_processing_seconds_count"] >= 1
     assert values["vtrack_workers_alive"] == 2
+    # the disk's free space, as statvfs gives it to an unprivileged user, for alerts
+    assert 0 < values["vtrack_data_free_bytes"] < shutil.disk_usage(server.data_dir).total
 
 
 @pytest.mark.parametrize("page", ["/docs", "/redoc"])

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 import shutil
 import stat
 import subprocess
@@ -21,7 +22,7 @@ from service.data_folder import LOCK_NAME, DataFolderInUse, claim_data_folder
 from service.jobs.store import JobStore
 from service.settings import Settings
 from service.streams.store import StreamStore
-from service.testing import Server, free_port
+from service.testing import Server, free_port, wait_for
 from tests.service.conftest import FAST_OPTIONS, submit, wait_for_frames, wait_for_state
 
 pytestmark = pytest.mark.slow
@@ -156,6 +157,29 @@ def test_a_folder_made_read_only_under_a_running_service_is_named_not_an_interna
     assert "Traceback" not in server.log()
 
 
+def test_a_job_whose_results_cannot_be_removed_is_kept_and_the_reason_given(
+    make_server, pets_short
+):
+    # before: 204, the job's row deleted and its results left behind (no job owned them)
+    server = make_server(workers=1, prefix=_as_an_unprivileged_user())
+    with server.client() as client:
+        job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
+        wait_for_state(client, job_id, ("succeeded",))
+        results = server.data_dir / "results"
+        results.chmod(0o555)
+        try:
+            refused = client.delete(f"/v1/jobs/{job_id}")
+            assert refused.status_code == 507, refused.text
+            detail = refused.json()["detail"]
+            assert detail.startswith(f"the data folder cannot be written ({results / job_id}")
+            assert client.get(f"/v1/jobs/{job_id}").json()["state"] == "succeeded"  # kept
+        finally:
+            results.chmod(0o755)
+        assert client.delete(f"/v1/jobs/{job_id}").status_code == 204
+    assert not (results / job_id).exists()
+    assert "Traceback" not in server.log()
+
+
 def test_a_second_service_on_the_same_data_folder_refuses_to_start(make_server, long_video):
     # Before: it started, logged "jobs interrupted by the last stop: 1 queued again" (false),
     # and took the first one's running job, which began again from frame 0.
@@ -218,7 +242,7 @@ def test_a_data_folder_the_service_creates_is_its_users_alone(tmp_path):
     assert stat.S_IMODE(existing.stat().st_mode) == 0o750  # the operator's choice
 
 
-def test_a_data_folder_moved_elsewhere_keeps_its_jobs_results(make_server, pets_short, tmp_path):
+def test_a_data_folder_restored_elsewhere_keeps_its_jobs_results(make_server, pets_short, tmp_path):
     # An operator moves the data folder to a bigger disk, or restores a backup to another path.
     first = make_server(tmp_path / "data", workers=1)
     with first.client() as client:
@@ -228,8 +252,13 @@ def test_a_data_folder_moved_elsewhere_keeps_its_jobs_results(make_server, pets_
         assert result.status_code == 200
     first.stop()
     moved = tmp_path / "bigger disk" / "data"
-    moved.parent.mkdir()
-    shutil.move(first.data_dir, moved)
+    moved.mkdir(parents=True)
+    # A backup restored elsewhere: the database file and the jobs' folders, without its -wal
+    # file. Before, a clean stop left the latest jobs in the -wal file only: the job was
+    # unknown (404), and the start's housekeeping deleted its results as no job's.
+    shutil.copy2(first.data_dir / "jobs.sqlite3", moved)
+    for folder in ("uploads", "results"):
+        shutil.copytree(first.data_dir / folder, moved / folder)
     second = make_server(moved, workers=1)
     with second.client() as client:
         # before: 404, "the json result of job ... is gone" (its path named the old folder)
@@ -238,3 +267,21 @@ def test_a_data_folder_moved_elsewhere_keeps_its_jobs_results(make_server, pets_
         assert again.content == result.content
         assert client.delete(f"/v1/jobs/{job_id}").status_code == 204
     assert not (moved / "results" / job_id).exists()  # the moved folder's files are its own
+
+
+def test_a_disk_with_less_free_space_than_the_setting_is_not_ready(tmp_path):
+    # before: /readyz said ready on a full disk, while every upload was refused (507)
+    server = Server(tmp_path / "data", workers=1, min_free_mb=10**12).start(ready=False)
+    try:
+        with server.client() as client:
+            wait_for(lambda: client.get("/readyz").json()["workers_ready"] == 1, 60, "a worker")
+            ready = client.get("/readyz")
+            assert ready.status_code == 503 and ready.json()["status"] == "full"
+            detail = ready.json()["detail"]
+            assert re.fullmatch(
+                r"the data folder's disk has \d+ MB free, under VTRACK_MIN_FREE_MB \(1e\+12\): "
+                r"the service's operator must free space in its data folder \(VTRACK_DATA_DIR\)",
+                detail,
+            ), detail
+    finally:
+        server.stop()

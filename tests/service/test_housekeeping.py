@@ -51,7 +51,7 @@ def test_jobs_past_the_retention_are_deleted_with_their_results(make_server, pet
     )
 
 
-def test_at_start_files_no_job_owns_are_removed(make_server, pets_short):
+def test_at_start_uploads_no_job_owns_are_removed_and_unknown_results_kept(make_server, pets_short):
     first = make_server(workers=1)
     with first.client() as client:
         job_id = submit(client, pets_short, FAST_OPTIONS).json()["id"]
@@ -60,11 +60,18 @@ def test_at_start_files_no_job_owns_are_removed(make_server, pets_short):
     uploads = first.data_dir / "uploads"
     (uploads / "0123abcd.receiving").write_bytes(b"half an upload, cut by a crash")
     results = first.data_dir / "results"
-    (results / "0123abcd").mkdir()  # a deletion cut between the job and its files
+    # Results of a job the database does not know: it was restored from an older copy. Before,
+    # they were deleted as a deletion cut short (which now removes the files first).
+    (results / "0123abcd").mkdir()
     (results / "0123abcd" / "trajectories.json").write_text("{}")
     second = make_server(data_dir=first.data_dir, workers=1)
-    assert not _files(uploads) and _files(results) == [job_id]  # swept before it answers
-    assert "housekeeping: 2 uploads or result folders that no job owns removed" in second.log()
+    assert not _files(uploads) and _files(results) == sorted(["0123abcd", job_id])
+    log = second.log()
+    assert "housekeeping: 1 uploads that no job owns removed" in log
+    assert (
+        "WARNING service.jobs.housekeeping: housekeeping: 1 result folders belong to no job" in log
+    )
+    assert f"left in {results}: 0123abcd" in log
     with second.client() as client:
         assert client.get(f"/v1/jobs/{job_id}/result").json()["frames_processed"] == 8
 
