@@ -579,7 +579,22 @@ def test_a_recording_that_cannot_be_written_pauses_and_tracking_goes_on(tmp_path
     try:
         with server.client() as client:
             start_stream(client, session, camera, record=True, record_segment=60.0)
-            publish_frames(session, keys, iter(pets_frames), 10.0, block=True)
+            camera_thread = threading.Thread(
+                target=publish_frames,
+                args=(session, keys, iter(pets_frames), 10.0),
+                kwargs={"block": True},
+            )
+            camera_thread.start()
+            at_pause = wait_for(
+                lambda: (
+                    (s := status(client, camera))
+                    and any("recording paused" in e for e in s["errors"])
+                    and s
+                ),
+                60,
+                "the recording to pause",
+            )
+            camera_thread.join()
             final = wait_for(
                 lambda: (s := status(client, camera))["counters"]["frames_in"] == 60 and s,
                 60,
@@ -588,7 +603,8 @@ def test_a_recording_that_cannot_be_written_pauses_and_tracking_goes_on(tmp_path
             paused = [e for e in final["errors"] if "recording paused" in e]
             assert paused and "largest file" in paused[0] and "tracking goes on" in paused[0]
             assert final["state"] == "running" and final["worker_starts"] == 1
-            assert final["counters"]["frames_processed"] >= 40  # well past the recording's end
+            # tracking went on past the recording's end (how far depends on the machine's speed)
+            assert final["counters"]["frames_processed"] > at_pause["counters"]["frames_processed"]
             assert final["tracks"] is not None
     finally:
         session.close()
