@@ -8,7 +8,6 @@ requeued and the worker processes start in the lifespan, and stop with it.
 
 from __future__ import annotations
 
-import ipaddress
 import logging
 import threading
 from collections.abc import AsyncIterator
@@ -37,7 +36,7 @@ from service.jobs.workers import WorkerPool
 from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
 from service.routers import health, jobs, metrics, streams
-from service.settings import Settings, is_loopback
+from service.settings import Settings, ip_address, is_loopback
 from service.storage import storage_problem
 from service.streams.manager import StreamManager
 from service.streams.store import StreamStore
@@ -273,15 +272,13 @@ def _site_refusal(settings: Settings, method: str, host: str, origin: str | None
         name
         and is_loopback(settings.host)
         and not (name in ("localhost", *settings.allowed_hosts) or name.endswith(".localhost"))
+        and ip_address(name) is None
     ):
-        try:
-            ipaddress.ip_address(name)
-        except ValueError:
-            return (
-                f"this service listens on {settings.host} and answers to its addresses and "
-                f"localhost, not to the name {name!r}: a proxy in front that passes that name "
-                "needs it in VTRACK_ALLOWED_HOSTS"
-            )
+        return (
+            f"this service listens on {settings.host} and answers to its addresses and "
+            f"localhost, not to the name {name!r}: a proxy in front that passes that name "
+            "needs it in VTRACK_ALLOWED_HOSTS"
+        )
     changes = method not in ("GET", "HEAD", "OPTIONS")
     if changes and origin is not None and urlsplit(origin).netloc != host:
         return (

@@ -932,7 +932,7 @@ def _names_as_they_are(error: UnicodeError) -> tuple[str | bytes, int]:
         raise error
     bad = error.object[error.start : error.end]
     if all("\udc80" <= c <= "\udcff" for c in bad):
-        return bytes(ord(c) - 0xDC00 for c in bad), error.end
+        return codecs.lookup_error("surrogateescape")(error)
     return codecs.backslashreplace_errors(error)
 
 

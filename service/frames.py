@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from service.ffmpeg_paths import FfmpegPath
-from tracking.image_files import read_bgr
+from tracking.image_files import read_rgb
 from tracking.seqinfo import (
     MotFormatError,
     read_seqinfo,
@@ -363,10 +363,10 @@ def capture_frames(capture: cv2.VideoCapture) -> Iterator[np.ndarray]:
 
 def read_image(path: Path) -> np.ndarray:
     """One image file as RGB uint8; a clear error if it cannot be decoded."""
-    bgr = read_bgr(path)
-    if bgr is None:
+    rgb = read_rgb(path)
+    if rgb is None:
         raise FrameSourceError(f"cannot decode image {path}")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    return rgb
 
 
 def _ffmpeg_path(path: Path) -> FfmpegPath:

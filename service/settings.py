@@ -40,14 +40,19 @@ _WITHOUT = {
 """What an optional setting means when unset, for the message about an empty one."""
 
 
-def is_loopback(address: str) -> bool:
-    """Whether a listening address is reachable from this machine only."""
-    if address == "localhost":
-        return True
+def ip_address(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
+    """``text`` as an IP address (an IPv6 one in brackets or not); None for a name."""
     try:
-        return ipaddress.ip_address(address.strip("[]")).is_loopback
-    except ValueError:  # a wildcard is an address; a host name is whatever it resolves to
-        return False
+        return ipaddress.ip_address(text.strip("[]"))
+    except ValueError:
+        return None
+
+
+def is_loopback(address: str) -> bool:
+    """Whether a listening address is reachable from this machine only (a wildcard is an
+    address; a host name is whatever it resolves to)."""
+    ip = ip_address(address)
+    return address == "localhost" or (ip is not None and ip.is_loopback)
 
 
 class Settings(BaseSettings):

@@ -44,7 +44,7 @@ multipart/form-data encoding), and only those: any other ``%`` is the name's own
 def _client_filename(raw: bytes) -> str:
     """The client's file name, without folders, from a form part's ``filename``."""
     name = Path(raw.decode("utf-8", "replace")).name
-    return re.sub("%22|%0D|%0A", lambda m: _FORM_ESCAPES[m.group().upper()], name, flags=re.I)
+    return re.sub("|".join(_FORM_ESCAPES), lambda m: _FORM_ESCAPES[m[0].upper()], name, flags=re.I)
 
 
 class UploadError(Exception):

@@ -224,11 +224,19 @@ class JobStore:
         """Queued jobs that :meth:`claim` takes before ``record``; None unless it is queued."""
         if record.state != JobState.queued:
             return None
-        return self.queue_positions().get(record.id)
+        # a count on the (state, created_at) index: every event follower asks this four times
+        # a second, and reading the whole queue each time grew with the queue
+        with self._lock:
+            (count,) = self._db.execute(
+                "SELECT count(*) FROM jobs WHERE state = ? AND (created_at < ? OR "
+                "(created_at = ? AND rowid < (SELECT rowid FROM jobs WHERE id = ?)))",
+                (JobState.queued.value, record.created_at, record.created_at, record.id),
+            ).fetchone()
+        return count
 
     def queue_positions(self) -> dict[str, int]:
-        """Each queued job's place in the queue, 0 for the one :meth:`claim` takes next (one
-        query for a whole page of a listing)."""
+        """Each queued job's place in the queue, 0 for the one :meth:`claim` takes next, in
+        the order :meth:`queued_ahead` counts (one query for a whole page of a listing)."""
         with self._lock:
             rows = self._db.execute(
                 "SELECT id FROM jobs WHERE state = ? ORDER BY created_at, rowid",

@@ -33,10 +33,9 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from tracking.image_files import read_bgr
+from tracking.image_files import read_rgb
 from tracking.seqinfo import MotFormatError, read_seqinfo
 
 __all__ = [
@@ -189,7 +188,7 @@ class MotSequence:
 
     def read_frame(self, index: int) -> np.ndarray:
         """Frame ``index`` (0-based) as RGB uint8 ``(H, W, 3)``."""
-        image = read_bgr(self.frames[index])
+        image = read_rgb(self.frames[index])
         if image is None:
             raise MotFormatError(f"cannot decode {self.frames[index]}")
-        return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+        return image

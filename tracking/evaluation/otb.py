@@ -14,10 +14,9 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from tracking.image_files import read_bgr
+from tracking.image_files import read_rgb
 from tracking.types import Box
 
 GROUND_TRUTH_FILE = "groundtruth_rect.txt"
@@ -170,7 +169,7 @@ def read_frame(path: str | Path) -> np.ndarray:
     SequenceError
         If the file is missing or is not an image OpenCV can decode.
     """
-    image = read_bgr(path)
+    image = read_rgb(path)
     if image is None:
         raise SequenceError(f"cannot read image {path} (missing or not a decodable image)")
-    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    return image
