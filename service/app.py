@@ -79,7 +79,11 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         resources=resources(settings),
         log_level=settings.log_level,
     )
-    pool = WorkerPool(store, config, settings.workers, settings.job_timeout)
+    # no worker is replaced once a stop signal came: the group's signal ends those still starting
+    stopping = app.state.stopping
+    pool = WorkerPool(
+        store, config, settings.workers, settings.job_timeout, stop_requested=stopping
+    )
     pool.start()
     streams = StreamManager(
         StreamStore(settings.database_path),
@@ -89,6 +93,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         config.resources,
         frame_limit=settings.stream_frame_limit,
         log_level=settings.log_level,
+        stop_requested=stopping,
     )
     if settings.zenoh_enabled:
         streams.start(settings.streams)

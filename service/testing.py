@@ -78,6 +78,9 @@ class Server:
     prefix:
         Command words before the service's (``setpriv`` options that take root's power to
         write through file modes, say).
+    own_group:
+        Start the service in a process group of its own, which :meth:`signal_group` signals
+        as a service manager or a terminal's Ctrl-C does.
     **settings:
         Service settings by name, passed as ``VTRACK_<NAME>`` (``api_token="..."``,
         ``zenoh_listen='["tcp/..."]'``...). ``zenoh_listen`` defaults to a free loopback port.
@@ -90,10 +93,12 @@ class Server:
         log_level: str = "info",
         file_size_limit: int | None = None,
         prefix: tuple[str, ...] = (),
+        own_group: bool = False,
         **settings: object,
     ) -> None:
         self.data_dir = data_dir
         self.prefix = prefix
+        self.own_group = own_group
         self.file_size_limit = file_size_limit
         self.workers = workers
         self.log_level = log_level
@@ -138,6 +143,7 @@ class Server:
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 preexec_fn=self._limit_file_size if self.file_size_limit else None,
+                start_new_session=self.own_group,
             )
         check = self._ready if ready else self._answers
         wait_for(check, timeout, f"the server on port {self.port} to answer", 0.1)
@@ -175,6 +181,12 @@ class Server:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait(timeout=10)
+
+    def signal_group(self, sig: int) -> None:
+        """Send ``sig`` to every process of the service (started with ``own_group``)."""
+        if not self.own_group or self.process is None:
+            raise RuntimeError("signal_group needs a server started with own_group=True")
+        os.killpg(self.process.pid, sig)
 
     def kill(self) -> None:
         """The service dies (SIGKILL): no shutdown code runs."""

@@ -1,15 +1,28 @@
 """What the service's worker processes (job workers, stream workers) and their supervisors share:
-the stop signals a worker leaves to the service, a lock-free shared flag, single-threaded BLAS
-for spawned processes, and how a process ended, in words."""
+the stop signals a worker leaves to the service (and how a supervisor tells a worker that a stop
+signal ended while it started), a lock-free shared flag, single-threaded BLAS for spawned
+processes, and how a process ended, in words."""
 
 from __future__ import annotations
 
 import ctypes
 import os
 import signal
+import threading
+import time
 from typing import Any
 
-__all__ = ["describe_exit", "ignore_stop_signals", "shared_flag", "single_threaded_blas"]
+__all__ = [
+    "StopSignalDeaths",
+    "describe_exit",
+    "ignore_stop_signals",
+    "shared_flag",
+    "single_threaded_blas",
+]
+
+STOP_SIGNAL_GRACE = 3.0
+"""Seconds a supervisor holds back the replacement of a worker that a stop signal ended: long
+enough for the service's own handler to run and say that the service stops."""
 
 
 def ignore_stop_signals() -> None:
@@ -23,6 +36,38 @@ def ignore_stop_signals() -> None:
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
+class StopSignalDeaths:
+    """Whether a supervisor should replace a dead worker, given how the service is stopping.
+
+    A worker ignores SIGINT and SIGTERM only once it runs (:func:`ignore_stop_signals`); one
+    still starting (importing, for a second or two) dies of the stop signal that a service
+    manager or Ctrl-C sends to the whole process group. Replacing it would start processes
+    while the service stops, with a warning of a death that was none. So: no replacement once
+    ``stop_requested`` is set (by the service's signal handler), and a worker ended by SIGINT
+    or SIGTERM is replaced only after :data:`STOP_SIGNAL_GRACE` seconds without a stop (a
+    signal sent to that worker alone), as the group's signal may reach the worker first.
+    """
+
+    def __init__(
+        self, stop_requested: threading.Event | None = None, grace: float = STOP_SIGNAL_GRACE
+    ) -> None:
+        self._stop_requested = stop_requested if stop_requested is not None else threading.Event()
+        self._grace = grace
+        self._first_seen: dict[int, float] = {}  # pid -> when seen dead of a stop signal
+
+    def replace_now(self, pid: int | None, exitcode: int | None) -> bool:
+        """Whether the dead worker ``pid`` that ended with ``exitcode`` is to be replaced now."""
+        if self._stop_requested.is_set():
+            return False
+        if exitcode not in (-signal.SIGINT, -signal.SIGTERM) or pid is None:
+            return True
+        now = time.monotonic()
+        if now - self._first_seen.setdefault(pid, now) < self._grace:
+            return False
+        del self._first_seen[pid]
+        return True
 
 
 def describe_exit(exitcode: int | None) -> str:

@@ -11,7 +11,8 @@ Either way the failed job's partial results are removed once its worker is gone 
 before: a worker still alive could write on).
 
 On a clean stop, idle workers leave at a flag, busy ones are killed, and the jobs they were
-running go back to the queue.
+running go back to the queue. A worker that the stop signal ended while it started is not
+replaced (:class:`~service.worker_processes.StopSignalDeaths`).
 """
 
 from __future__ import annotations
@@ -27,7 +28,12 @@ from typing import Any
 from service.jobs.result_folders import discard
 from service.jobs.runner import WorkerConfig, worker_main
 from service.jobs.store import JobRecord, JobStore
-from service.worker_processes import describe_exit, shared_flag, single_threaded_blas
+from service.worker_processes import (
+    StopSignalDeaths,
+    describe_exit,
+    shared_flag,
+    single_threaded_blas,
+)
 
 log = logging.getLogger(__name__)
 
@@ -39,7 +45,11 @@ class _Slot:
 
 
 class WorkerPool:
-    """``workers`` processes started with the "spawn" method, supervised."""
+    """``workers`` processes started with the "spawn" method, supervised.
+
+    ``stop_requested`` is set by the service's stop-signal handler, before :meth:`stop` runs
+    (the service first waits for its open requests): from then on no worker is replaced.
+    """
 
     def __init__(
         self,
@@ -48,6 +58,7 @@ class WorkerPool:
         workers: int,
         job_timeout: float,
         check_interval: float = 0.25,
+        stop_requested: threading.Event | None = None,
     ) -> None:
         self._store = store
         self._config = config
@@ -57,6 +68,7 @@ class WorkerPool:
         self._ctx = multiprocessing.get_context("spawn")
         self._stop_workers = shared_flag(self._ctx)
         self._stopping = threading.Event()
+        self._deaths = StopSignalDeaths(stop_requested)
         self._slots: list[_Slot] = []
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
@@ -87,6 +99,10 @@ class WorkerPool:
         for slot in slots:
             if slot.process.is_alive() and slot.process.pid in busy:
                 slot.process.kill()  # workers ignore SIGTERM (ignore_stop_signals)
+        for slot in slots:
+            if not slot.process.is_alive() and slot.process.pid not in busy:
+                how = describe_exit(slot.process.exitcode)
+                log.info("worker %d had ended (%s) and was not replaced", slot.process.pid, how)
         deadline = time.monotonic() + grace
         for slot in slots:
             slot.process.join(max(deadline - time.monotonic(), 0.1))
@@ -147,6 +163,8 @@ class WorkerPool:
         with self._lock:
             for index, slot in enumerate(self._slots):
                 if slot.process.is_alive() or self._stopping.is_set():
+                    continue
+                if not self._deaths.replace_now(slot.process.pid, slot.process.exitcode):
                     continue
                 pid, how = slot.process.pid, describe_exit(slot.process.exitcode)
                 for job in self._store.running():

@@ -38,7 +38,12 @@ from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
 from service.streams.tools import trackers_of
 from service.streams.worker import StreamContext, job_options, stream_main
-from service.worker_processes import describe_exit, shared_flag, single_threaded_blas
+from service.worker_processes import (
+    StopSignalDeaths,
+    describe_exit,
+    shared_flag,
+    single_threaded_blas,
+)
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +101,7 @@ class StreamManager:
         frame_limit: int = 32 * 1024**2,
         log_level: str = "info",
         check_interval: float = 0.1,
+        stop_requested: threading.Event | None = None,
     ) -> None:
         self._store = store
         self._zenoh = zenoh
@@ -112,6 +118,8 @@ class StreamManager:
         self._streams: dict[str, _Stream] = {}
         self._lock = threading.RLock()
         self._stopping = threading.Event()
+        # set by the service's stop-signal handler: a worker ended meanwhile is no death
+        self._deaths = StopSignalDeaths(stop_requested)
         self._threads: list[threading.Thread] = []
         self._hub = None
         self.unavailable: str | None = None
@@ -353,6 +361,9 @@ class StreamManager:
         running = [stream for stream in streams if stream.process is not None]
         for stream in running:
             stream.stop.value = True
+            if not stream.process.is_alive():
+                how = describe_exit(stream.process.exitcode)
+                log.info("stream %s: worker had ended (%s)", stream.record.id, how)
         deadline = time.monotonic() + STOP_GRACE
         while time.monotonic() < deadline:
             alive = [stream for stream in running if stream.process.is_alive()]
@@ -455,6 +466,8 @@ class StreamManager:
                 stream.quick_deaths = 0
                 stream.error = stream.death = None
             return
+        if not self._deaths.replace_now(stream.process.pid, stream.process.exitcode):
+            return  # the service stops, or may: shutdown() ends the stream
         how = describe_exit(stream.process.exitcode)
         lived = time.monotonic() - stream.started_at
         self._drain(stream)  # what it said since the look above: why it failed, say

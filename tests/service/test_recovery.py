@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
+import socket
 import time
 
 import pytest
@@ -12,6 +14,7 @@ import pytest
 from service.jobs.store import JobStore
 from tests.service.conftest import (
     FAST_OPTIONS,
+    Server,
     submit,
     wait_for,
     wait_for_frames,
@@ -138,6 +141,35 @@ def test_the_service_stops_after_an_idle_worker_was_killed(make_server):
     server.process.wait(timeout=30)  # it hung for ever in the stop signal to the workers
     assert "worker processes stopped" in server.log()
     assert "Application shutdown complete" in server.log()
+
+
+def test_a_stop_signal_while_the_workers_start_replaces_none_of_them(tmp_path):
+    # systemctl stop or Ctrl-C just after a start: the job and stream workers, still importing,
+    # do not ignore SIGTERM yet and die of the group's signal. While the service waited for an
+    # upload in progress, its supervisor took them for crashes and started new ones.
+    server = Server(tmp_path / "data", workers=2, own_group=True,
+                    streams=json.dumps([{"camera": "gate"}]))  # fmt: skip
+    server.start(ready=False)  # answering: the workers were spawned a moment ago
+    try:
+        with socket.create_connection(("127.0.0.1", server.port), timeout=20) as upload:
+            upload.sendall(
+                b"POST /v1/jobs HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                b"Content-Type: multipart/form-data; boundary=b\r\nContent-Length: 100000\r\n\r\n"
+                b'--b\r\nContent-Disposition: form-data; name="video"; filename="a.avi"\r\n\r\n'
+            )
+            time.sleep(0.2)  # the service reads the upload
+            server.signal_group(signal.SIGTERM)
+            # the stop waits for the upload: longer than a worker's death is held back
+            time.sleep(5)
+        assert server.process.wait(timeout=30) == -signal.SIGTERM
+    finally:
+        server.stop()
+    log = server.log()
+    assert "killed by SIGTERM) and was not replaced" in log
+    assert "stream gate: worker had ended (killed by SIGTERM)" in log
+    assert "replaced" not in log.replace("was not replaced", "")
+    assert "died" not in log and "restart" not in log
+    assert "Application shutdown complete" in log
 
 
 def test_every_log_line_of_the_service_carries_its_time(make_server, pets_short):
