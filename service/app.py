@@ -82,7 +82,12 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     # no worker is replaced once a stop signal came: the group's signal ends those still starting
     stopping = app.state.stopping
     pool = WorkerPool(
-        store, config, settings.workers, settings.job_timeout, stop_requested=stopping
+        store,
+        config,
+        settings.workers,
+        settings.job_timeout,
+        settings.job_stall_timeout,
+        stop_requested=stopping,
     )
     pool.start()
     streams = StreamManager(

@@ -7,6 +7,7 @@ metric families when ``/metrics`` is scraped.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from prometheus_client import CollectorRegistry
@@ -41,6 +42,20 @@ class ServiceCollector(Collector):
         for state, count in self._store.counts_by_state().items():
             jobs.add_metric([state.value], count)
         yield jobs
+        queued_since, progressed_at = self._store.waits()
+        now = time.time()
+        # 0 when no job waits: a series that vanishes breaks alerts on it
+        yield GaugeMetricFamily(
+            "vtrack_oldest_queued_job_seconds",
+            "How long the oldest queued job has waited for a worker (0: none queued).",
+            value=max(now - queued_since, 0.0) if queued_since is not None else 0.0,
+        )
+        yield GaugeMetricFamily(
+            "vtrack_running_job_stall_seconds",
+            "The longest time a running job has gone without reading a frame (0: none "
+            "running); VTRACK_JOB_STALL_TIMEOUT fails the job beyond its value.",
+            value=max(now - progressed_at, 0.0) if progressed_at is not None else 0.0,
+        )
         counters = self._store.counters()
         yield CounterMetricFamily(
             "vtrack_frames_processed",

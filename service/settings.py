@@ -91,6 +91,12 @@ class Settings(BaseSettings):
     job_timeout: float = Field(
         default=4 * 3600.0, gt=0, description="Seconds a job may run before it is failed."
     )
+    job_stall_timeout: float = Field(
+        default=600.0,
+        gt=0,
+        description="Seconds a running job may go without reading a frame before it is "
+        "failed and its worker replaced (a decoder that hangs, a stopped process).",
+    )
     max_attempts: int = Field(
         default=3,
         ge=1,

@@ -49,9 +49,9 @@ CREATE TABLE IF NOT EXISTS jobs (
 CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs (state, created_at);
 CREATE TABLE IF NOT EXISTS counters (name TEXT PRIMARY KEY, value REAL NOT NULL);
 """
-_ADDED_COLUMNS = {"stops": "INTEGER NOT NULL DEFAULT 0"}
+_ADDED_COLUMNS = {"stops": "INTEGER NOT NULL DEFAULT 0", "progressed_at": "REAL"}
 """Columns of ``jobs`` newer than the first release, with their definitions: starts a clean
-stop of the service ended."""
+stop of the service ended; when the running attempt last read a frame (or started)."""
 
 
 _JOB_FILES = ("uploads", "results")
@@ -99,6 +99,7 @@ class JobRecord:
     attempts: int = 0
     cancel_requested: bool = False
     worker_pid: int | None = None
+    progressed_at: float | None = None
 
     @classmethod
     def from_row(cls, row: sqlite3.Row, folder: Path) -> JobRecord:
@@ -122,6 +123,7 @@ class JobRecord:
             attempts=row["attempts"],
             cancel_requested=bool(row["cancel_requested"]),
             worker_pid=row["worker_pid"],
+            progressed_at=row["progressed_at"],
         )
 
 
@@ -264,6 +266,18 @@ class JobStore:
         counts = dict.fromkeys(JobState, 0)
         counts.update({JobState(state): n for state, n in rows})
         return counts
+
+    def waits(self) -> tuple[float | None, float | None]:
+        """When the oldest queued job was created, and the earliest time a running job last
+        read a frame (or started): what waits longest, for the metrics. ``None``: no such job."""
+        with self._lock:
+            row = self._db.execute(
+                "SELECT MIN(CASE WHEN state = ? THEN created_at END),"
+                " MIN(CASE WHEN state = ? THEN COALESCE(progressed_at, started_at) END)"
+                " FROM jobs WHERE state IN (?, ?)",
+                (JobState.queued.value, JobState.running.value) * 2,
+            ).fetchone()
+        return row[0], row[1]
 
     def counters(self) -> dict[str, float]:
         with self._lock:
@@ -419,10 +433,12 @@ class JobStore:
             ).fetchone()
             if row is None:
                 return None
+            now = time.time()
             db.execute(
-                "UPDATE jobs SET state = ?, started_at = ?, attempts = attempts + 1,"
-                " worker_pid = ?, frames_done = 0, fps = NULL WHERE id = ?",
-                (JobState.running.value, time.time(), worker_pid, row[0]),
+                "UPDATE jobs SET state = ?, started_at = ?, progressed_at = ?,"
+                " attempts = attempts + 1, worker_pid = ?, frames_done = 0, fps = NULL"
+                " WHERE id = ?",
+                (JobState.running.value, now, now, worker_pid, row[0]),
             )
         return self.get(row[0])
 
@@ -430,13 +446,16 @@ class JobStore:
         self, job: JobRecord, worker_pid: int, frames_done: int, fps: float | None, new_frames: int
     ) -> bool:
         """Record progress; ``False`` when the job is no longer this attempt's or is to stop
-        (cancelled, failed from outside, requeued)."""
+        (cancelled, failed from outside, requeued). A report with more frames read than the
+        last one moves ``progressed_at`` (the supervisor's stall limit reads it)."""
         with self._transaction() as db:
             cursor = db.execute(
-                "UPDATE jobs SET frames_done = ?, fps = ? WHERE id = ? AND attempts = ?"
+                "UPDATE jobs SET progressed_at = CASE WHEN frames_done = ? THEN progressed_at"
+                " ELSE ? END, frames_done = ?, fps = ? WHERE id = ? AND attempts = ?"
                 " AND worker_pid = ? AND state = ? AND cancel_requested = 0",
-                (frames_done, fps, job.id, job.attempts, worker_pid, JobState.running.value),
-            )
+                (frames_done, time.time(), frames_done, fps, job.id, job.attempts, worker_pid,
+                 JobState.running.value),
+            )  # fmt: skip
             if cursor.rowcount and new_frames:
                 self._add_counter("frames_processed", new_frames)
         return cursor.rowcount > 0

@@ -4,8 +4,9 @@ The supervisor (a thread of the service process) checks every ``check_interval``
 
 - a worker process that died (a crash, the OOM killer, a ``kill -9``) fails the job it was
   running with the reason, and is replaced by a new process;
-- a job that has run longer than ``job_timeout`` is failed with the reason, and its worker is
-  killed (and so replaced).
+- a job that has run longer than ``job_timeout``, or read no frame for ``stall_timeout``
+  seconds (a decoder that hangs, a worker stopped with SIGSTOP), is failed with the reason,
+  and its worker is killed (and so replaced).
 
 Either way the failed job's partial results are removed once its worker is gone (never
 before: a worker still alive could write on).
@@ -57,6 +58,7 @@ class WorkerPool:
         config: WorkerConfig,
         workers: int,
         job_timeout: float,
+        stall_timeout: float = 600.0,
         check_interval: float = 0.25,
         stop_requested: threading.Event | None = None,
     ) -> None:
@@ -64,6 +66,7 @@ class WorkerPool:
         self._config = config
         self._size = workers
         self._job_timeout = job_timeout
+        self._stall_timeout = stall_timeout
         self._check_interval = check_interval
         self._ctx = multiprocessing.get_context("spawn")
         self._stop_workers = shared_flag(self._ctx)
@@ -191,14 +194,20 @@ class WorkerPool:
             slot = ours.get(job.worker_pid or -1)
             if slot is None or job.started_at is None:
                 continue
-            if now - job.started_at <= self._job_timeout:
+            if now - job.started_at > self._job_timeout:
+                reason = (
+                    f"the job exceeded the time limit of {self._job_timeout:g} s "
+                    "(VTRACK_JOB_TIMEOUT) and was stopped"
+                )
+            elif now - (job.progressed_at or job.started_at) > self._stall_timeout:
+                reason = (
+                    f"the job read no frame for {self._stall_timeout:g} s "
+                    "(VTRACK_JOB_STALL_TIMEOUT): its worker was stopped (a video that hangs "
+                    "the decoder, or a worker process stopped from outside)"
+                )
+            else:
                 continue
-            if self._store.fail_running(
-                job.id,
-                f"the job exceeded the time limit of {self._job_timeout:g} s "
-                "(VTRACK_JOB_TIMEOUT) and was stopped",
-                job.worker_pid,
-            ):
-                log.error("job %s failed: over the time limit; killing its worker", job.id)
+            if self._store.fail_running(job.id, reason, job.worker_pid):
+                log.error("job %s failed: %s; killing its worker", job.id, reason)
                 self._timed_out[slot.process.pid] = job
                 slot.process.kill()

@@ -74,11 +74,13 @@ def test_clean_stops_do_not_use_up_a_jobs_attempts(store):
 
 
 def test_a_database_of_an_earlier_release_gets_the_new_columns(tmp_path):
-    """A data folder from before the ``stops`` column keeps its jobs and works."""
+    """A data folder from before the ``stops`` and ``progressed_at`` columns keeps its jobs
+    and works."""
     path = tmp_path / "jobs.sqlite3"
     JobStore(path).close()
     with sqlite3.connect(path) as db:
         db.execute("ALTER TABLE jobs DROP COLUMN stops")
+        db.execute("ALTER TABLE jobs DROP COLUMN progressed_at")
         db.execute(
             "INSERT INTO jobs (id, state, options, video_path, result_dir, created_at, attempts)"
             " VALUES ('old', 'running', '{}', 'v', 'r', 1.0, 1)"
@@ -87,10 +89,26 @@ def test_a_database_of_an_earlier_release_gets_the_new_columns(tmp_path):
     try:
         assert store.requeue_orphans(max_attempts=3) == (["old"], [])
         assert store.requeue_running("old", 5) is False  # not running: nothing to do
-        store.claim(5)
+        job = store.claim(5)
+        assert job.progressed_at == job.started_at
         assert store.requeue_running("old", 5)
     finally:
         store.close()
+
+
+def test_progress_moves_only_with_frames_read(store):
+    _job(store, "a")
+    job = store.claim(7)
+    assert store.waits() == (None, job.started_at)
+    assert store.report_progress(job, 7, 5, 10.0, 5)
+    moved = store.get("a").progressed_at
+    assert moved > job.started_at
+    assert store.report_progress(job, 7, 5, 9.0, 0)  # the same frame: no progress
+    assert store.get("a").progressed_at == moved
+    assert store.report_progress(job, 7, 6, 9.0, 1)
+    assert store.get("a").progressed_at > moved
+    _job(store, "b")
+    assert store.waits()[0] == store.get("b").created_at
 
 
 def test_cancel_queued_at_once_running_through_the_worker(store):
