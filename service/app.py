@@ -29,6 +29,7 @@ from service import __version__
 from service.data_folder import DataFolder, claim_data_folder
 from service.deps import token_refusal
 from service.jobs.housekeeping import Housekeeper, sweep
+from service.jobs.probing import VideoProber
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
 from service.jobs.submit import InvalidOptions, resources
@@ -105,6 +106,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     else:
         streams.unavailable = "live streams are off (VTRACK_ZENOH_ENABLED=false)"
     app.state.settings = settings
+    app.state.prober = VideoProber(log_level=settings.log_level)
     app.state.store = store
     app.state.pool = pool
     app.state.streams = streams
@@ -118,8 +120,9 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         housekeeper.stop()
         streams.shutdown()
         pool.stop()
+        app.state.prober.close()
         store.close()
-        for name in ("pool", "store", "registry", "streams"):
+        for name in ("pool", "prober", "store", "registry", "streams"):
             delattr(app.state, name)
         if claimed_here is not None:  # only once the workers are gone
             claimed_here.release()

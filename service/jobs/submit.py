@@ -14,7 +14,8 @@ from starlette.concurrency import run_in_threadpool
 from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
 from service.analysis import OptionsError, PipelineResources, check_options
-from service.frames import FrameSource, FrameSourceError, open_frames
+from service.frames import FrameSource, FrameSourceError
+from service.jobs.probing import VideoProber
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
 from service.storage import storage_problem
@@ -68,14 +69,15 @@ def parse_options(raw: bytes | None) -> JobOptions:
         raise InvalidOptions(error) from None
 
 
-def probe_video(path: Path, size: int) -> FrameSource:
+def probe_video(prober: VideoProber, path: Path, size: int) -> FrameSource:
+    """The upload's :class:`FrameSource`, probed in a helper process; 415 for no video."""
     if size == 0:
         raise HTTPException(
             status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
             "the 'video' part is empty: send a video file (MP4, AVI, MKV...)",
         )
     try:
-        return open_frames(path)
+        return prober.probe(path)
     except FrameSourceError as error:
         reason = error.reason or "no frame could be read from it"
         raise HTTPException(
@@ -95,7 +97,8 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
     )
     try:
         options = parse_options(upload.options)
-        source = await run_in_threadpool(probe_video, upload.video_path, upload.size)
+        prober = request.app.state.prober
+        source = await run_in_threadpool(probe_video, prober, upload.video_path, upload.size)
         try:
             check_options(options, resources(settings), source)
         except OptionsError as error:
