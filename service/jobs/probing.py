@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import signal
 import threading
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -23,9 +24,13 @@ from typing import Any
 from service.frames import FrameSource, FrameSourceError, open_frames
 from service.worker_processes import describe_exit, ignore_stop_signals
 
-__all__ = ["VideoProber"]
+__all__ = ["ProbeInterrupted", "VideoProber"]
 
 log = logging.getLogger(__name__)
+
+
+class ProbeInterrupted(RuntimeError):
+    """A stop signal ended the helper during the probe (the service is stopping)."""
 
 
 def _serve(requests: Connection, log_level: str) -> None:
@@ -73,8 +78,13 @@ class _Helper:
             kind, value = self._requests.recv()
         except (EOFError, OSError):
             self.process.join(5.0)
-            how = describe_exit(self.process.exitcode)
+            exitcode = self.process.exitcode
+            how = describe_exit(exitcode)
             self.close()
+            if exitcode in (-signal.SIGINT, -signal.SIGTERM):
+                # a stop signal to the service's process group, before the helper (starting)
+                # ignored it: the file is not to blame
+                raise ProbeInterrupted(f"the probe of {path} was interrupted ({how})") from None
             log.warning("the probe of %s crashed its helper process (%s)", path, how)
             raise FrameSourceError(
                 f"{path}: the video decoder crashed on it ({how})",
@@ -102,7 +112,8 @@ class VideoProber:
     """:func:`~service.frames.open_frames` of uploads, in up to ``processes`` helper processes.
 
     ``probe`` blocks (call it from a thread); it raises :class:`FrameSourceError` for a file
-    that is no video, that crashed its helper, or that took more than ``timeout`` seconds.
+    that is no video, that crashed its helper, or that took more than ``timeout`` seconds, and
+    :class:`ProbeInterrupted` when a stop signal ended the helper.
     """
 
     def __init__(self, processes: int = 2, timeout: float = 60.0, log_level: str = "info"):

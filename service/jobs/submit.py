@@ -15,7 +15,7 @@ from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
 from service.analysis import OptionsError, PipelineResources, check_options
 from service.frames import FrameSource, FrameSourceError
-from service.jobs.probing import VideoProber
+from service.jobs.probing import ProbeInterrupted, VideoProber
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
 from service.storage import storage_problem
@@ -78,6 +78,11 @@ def probe_video(prober: VideoProber, path: Path, size: int) -> FrameSource:
         )
     try:
         return prober.probe(path)
+    except ProbeInterrupted:
+        raise HTTPException(
+            status.HTTP_503_SERVICE_UNAVAILABLE,
+            "the service is stopping: send the video again once it is back",
+        ) from None
     except FrameSourceError as error:
         reason = error.reason or "no frame could be read from it"
         raise HTTPException(

@@ -88,7 +88,7 @@ def _job(store: JobStore, job_id: str) -> JobRecord:
     description="multipart/form-data: the video as the `video` file part, and optionally the "
     "job options (JobOptions, JSON) as the `options` part. The upload streams to disk; the "
     "answer says where to poll.",
-    responses=error_responses(413, 415, 422, 507),
+    responses=error_responses(413, 415, 422, 503, 507),
     openapi_extra=_UPLOAD_BODY,
 )
 async def create_job(

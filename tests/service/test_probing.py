@@ -13,7 +13,7 @@ import time
 import pytest
 
 from service.frames import FrameSourceError, open_frames
-from service.jobs.probing import VideoProber
+from service.jobs.probing import ProbeInterrupted, VideoProber
 
 
 @pytest.fixture
@@ -102,3 +102,26 @@ def test_probes_at_once_use_at_most_the_helpers_allowed(pets_short, tmp_path):
     finally:
         prober.close()
     assert not _helpers()
+
+
+def test_a_stop_signal_to_a_starting_helper_is_not_the_files_fault(prober, pets_short, tmp_path):
+    # Ctrl-C or systemctl stop signal the service's whole process group; a helper still
+    # starting (importing) does not ignore them yet
+    outcome = []
+
+    def probe():
+        try:
+            prober.probe(pets_short)
+        except Exception as error:
+            outcome.append(error)
+
+    thread = threading.Thread(target=probe)
+    thread.start()
+    while not _helpers():
+        time.sleep(0.002)
+    (helper,) = _helpers()
+    os.kill(helper, signal.SIGTERM)
+    thread.join(30)
+    (error,) = outcome
+    assert isinstance(error, ProbeInterrupted) and "killed by SIGTERM" in str(error)
+    assert prober.probe(pets_short).frame_count == 8
