@@ -3,9 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, model_validator
+
+
+def rounded(digits: int) -> PlainSerializer:
+    """Write a float to JSON with ``digits`` decimals (Python values keep every bit).
+
+    A full float takes 17 digits; results carry tens of coordinates per person and frame, so
+    trajectories of an hour of video ran to hundreds of MB, mostly digits beyond what a
+    tracker can tell.
+    """
+    return PlainSerializer(lambda value: round(value, digits), return_type=float, when_used="json")
+
+
+Pixels = Annotated[float, rounded(2)]
+"""Pixel coordinates, written to a hundredth of a pixel."""
 
 
 class BoxModel(BaseModel):
@@ -18,10 +32,10 @@ class BoxModel(BaseModel):
     # NaN and infinities would be written as null, which no reader of the JSON can take back
     model_config = ConfigDict(extra="forbid", title="Box", allow_inf_nan=False)
 
-    x: float = Field(description="Left edge in pixels, 0-based.")
-    y: float = Field(description="Top edge in pixels, 0-based.")
-    w: float = Field(gt=0, description="Width in pixels.")
-    h: float = Field(gt=0, description="Height in pixels.")
+    x: Pixels = Field(description="Left edge in pixels, 0-based (0.01 px in results).")
+    y: Pixels = Field(description="Top edge in pixels, 0-based (0.01 px in results).")
+    w: Pixels = Field(gt=0, description="Width in pixels (0.01 px in results).")
+    h: Pixels = Field(gt=0, description="Height in pixels (0.01 px in results).")
 
 
 class FirstBox(BoxModel):

@@ -6,11 +6,11 @@ these models when it writes results or publishes messages.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from api_schemas.common import BoxModel
+from api_schemas.common import BoxModel, Pixels, rounded
 from api_schemas.jobs import JobOptions
 
 INTERPOLATED = (
@@ -20,6 +20,9 @@ INTERPOLATED = (
 )
 
 
+Score = Annotated[float, rounded(4)]
+Seconds = Annotated[float, rounded(6)]
+
 SCORE = (
     "Confidence in the box. People: the probability that the box holds a person, a running "
     "average of the calibrated detector scores of the detections the track matched. A single "
@@ -27,7 +30,7 @@ SCORE = (
     "matches the learned appearance; it falls when the target is covered or lost, though not "
     "reliably once the filter has drifted onto another object). Its scale depends on the "
     "preset and the target (0.3-1 on the frame the filter was learned from): compare it "
-    "between the frames of one track, not between presets."
+    "between the frames of one track, not between presets. Written to 4 decimals."
 )
 OCCLUDED = (
     "True while the tracker judges the object covered by a nearer one. The occluder can be a "
@@ -46,8 +49,8 @@ class PartState(BaseModel):
         "image's: a left_ part lies on the left of the image (the person's own right when they "
         "face the camera), since a part model cannot tell which way a person faces."
     )
-    x: float = Field(description="Centre of the part, pixels.")
-    y: float = Field(description="Centre of the part, pixels.")
+    x: Pixels = Field(description="Centre of the part, pixels (0.01 px).")
+    y: Pixels = Field(description="Centre of the part, pixels (0.01 px).")
     box: BoxModel | None = Field(
         default=None, description="The part's box, when the model has one."
     )
@@ -79,7 +82,7 @@ class TrackState(BaseModel):
         "of its worker); a single target is 1.",
     )
     box: BoxModel
-    score: float = Field(ge=0, le=1, description=SCORE)
+    score: Score = Field(ge=0, le=1, description=SCORE)
     occluded: bool = Field(description=OCCLUDED)
     parts: list[PartState] = Field(default_factory=list)
     interpolated: bool = Field(default=False, description=INTERPOLATED)
@@ -91,7 +94,9 @@ class FrameTracksMessage(BaseModel):
     model_config = ConfigDict(extra="forbid", title="FrameTracks", allow_inf_nan=False)
 
     frame_index: int = Field(ge=0, description="0-based index of the frame in its video.")
-    timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")
+    timestamp: Seconds = Field(
+        ge=0, description="Capture time in seconds (video position), to the microsecond."
+    )
     tracks: list[TrackState]
 
 
@@ -101,9 +106,11 @@ class TrajectoryPoint(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     frame_index: int = Field(ge=0, description="0-based index of the frame in the video.")
-    timestamp: float = Field(ge=0, description="Capture time in seconds (video position).")
+    timestamp: Seconds = Field(
+        ge=0, description="Capture time in seconds (video position), to the microsecond."
+    )
     box: BoxModel
-    score: float = Field(ge=0, le=1, description=SCORE)
+    score: Score = Field(ge=0, le=1, description=SCORE)
     occluded: bool = Field(description=OCCLUDED)
     parts: list[PartState] = Field(default_factory=list)
     interpolated: bool = Field(default=False, description=INTERPOLATED)

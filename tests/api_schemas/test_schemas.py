@@ -13,7 +13,7 @@ from pydantic import ValidationError
 from api_schemas import JobOptions, Trajectories
 from api_schemas.common import BoxModel
 from api_schemas.export import SCHEMA_PATH, build_schema, render
-from api_schemas.tracks import PartState
+from api_schemas.tracks import PartState, TrajectoryPoint
 from tests.conftest import REPO_ROOT
 
 BOX = {"x": 1, "y": 1, "w": 5, "h": 5}
@@ -132,3 +132,23 @@ def test_coordinates_must_be_finite(value):
         BoxModel(x=value, y=0, w=1, h=1)
     with pytest.raises(ValidationError, match="finite number"):
         PartState(name="head", x=value, y=0, visible=True)
+
+
+def test_results_are_written_to_the_precision_a_tracker_has():
+    # 17 digits per float made an hour's trajectories hundreds of MB
+    point = TrajectoryPoint(
+        frame_index=3,
+        timestamp=0.30000000000000004,
+        box=BoxModel(x=311.2019680793346, y=101.25390787006302, w=18.36181, h=0.01),
+        score=0.9998441028312726,
+        occluded=False,
+        parts=[PartState(name="head", x=320.3828734479729, y=-3.825811, visible=True)],
+    )
+    written = json.loads(point.model_dump_json())
+    assert written["timestamp"] == 0.3
+    assert written["box"] == {"x": 311.2, "y": 101.25, "w": 18.36, "h": 0.01}
+    assert written["score"] == 0.9998
+    assert (written["parts"][0]["x"], written["parts"][0]["y"]) == (320.38, -3.83)
+    assert point.model_dump(mode="json")["box"]["x"] == 311.2  # both JSON dumps
+    assert point.box.x == 311.2019680793346  # the model keeps the value
+    assert TrajectoryPoint.model_validate(written).box.h == 0.01  # and reads its JSON back

@@ -422,7 +422,8 @@ def test_analyze_fills_short_gaps_in_the_trajectories_only(pets_45, tmp_path):
                     w = (point["timestamp"] - first["timestamp"]) / span
                     for key in "xywh":
                         expected = first["box"][key] + w * (last["box"][key] - first["box"][key])
-                        assert point["box"][key] == pytest.approx(expected, abs=1e-6)
+                        # each of the three written to 0.01 px
+                        assert point["box"][key] == pytest.approx(expected, abs=0.0101)
     assert gaps >= 2
 
     # the mot rows are the json's points; the mcap shows the frames as tracked
