@@ -16,10 +16,15 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from api_schemas.jobs import JobOptions, JobState
+from api_schemas.jobs import JobOptions, JobState, OutputFormat
 from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
 from service.frames import FrameSourceError
-from service.jobs.result_folders import attempt_folder, discard, remove_attempts
+from service.jobs.result_folders import (
+    attempt_folder,
+    discard,
+    remove_attempts,
+    write_gzip_copy,
+)
 from service.jobs.store import JobRecord, JobStore
 from service.storage import storage_problem
 from service.worker_processes import ignore_stop_signals
@@ -143,6 +148,8 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
         _stopped(store, job, scratch)
         return
     files = publish(result, job.result_dir)
+    if OutputFormat.json in files:
+        write_gzip_copy(files[OutputFormat.json])
     remove_attempts(job.result_dir)
     store.finish(
         job,

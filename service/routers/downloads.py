@@ -15,7 +15,7 @@ from fastapi.responses import FileResponse
 from starlette.datastructures import Headers
 from starlette.types import Message, Receive, Scope, Send
 
-__all__ = ["NOT_MODIFIED", "RANGE_ERRORS", "Download"]
+__all__ = ["NOT_MODIFIED", "RANGE_ERRORS", "Download", "accepts_gzip"]
 
 RANGE_ERRORS = {
     400: "A Range header that cannot be served.",
@@ -26,6 +26,27 @@ NOT_MODIFIED = {
     304: {"description": "If-None-Match named the file's ETag: the client has this copy."}
 }
 """The OpenAPI ``responses`` entry of a download's ``304``."""
+
+
+def accepts_gzip(accept_encoding: str | None) -> bool:
+    """Whether an ``Accept-Encoding`` header takes gzip (RFC 9110 12.5.3): listed, or ``*``,
+    with a weight above 0 (``gzip;q=0`` refuses it)."""
+    weights = {}
+    for item in (accept_encoding or "").split(","):
+        coding, *params = (part.strip().lower() for part in item.split(";"))
+        weight = 1.0
+        for param in params:
+            name, _, value = param.partition("=")
+            if name.strip() == "q":
+                try:
+                    weight = float(value)
+                except ValueError:
+                    weight = 0.0
+        weights[coding] = weight
+    for coding in ("gzip", "x-gzip", "*"):
+        if coding in weights:
+            return weights[coding] > 0
+    return False
 
 
 def _matches(if_none_match: str, etag: str) -> bool:
@@ -49,7 +70,8 @@ class Download(FileResponse):
             and scope["method"] in ("GET", "HEAD")
             and _matches(if_none_match, self.headers["etag"])
         ):
-            kept = [(k, self.headers.get(k)) for k in ("etag", "last-modified", "cache-control")]
+            names = ("etag", "last-modified", "cache-control", "vary")
+            kept = [(k, self.headers.get(k)) for k in names]
             await send({
                 "type": "http.response.start",
                 "status": 304,

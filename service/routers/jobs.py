@@ -19,12 +19,13 @@ from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFor
 from api_schemas.tracks import Trajectories
 from service.deps import AuthDep, KnownQueryDep, SettingsDep, StoreDep
 from service.jobs.housekeeping import remove_job
+from service.jobs.result_folders import gzip_copy
 from service.jobs.store import JobRecord, JobStore
 from service.jobs.submit import submit
 from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
 from service.outputs.base import MEDIA_TYPES
 from service.routers import BINARY_CONTENT, error_responses
-from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
+from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download, accepts_gzip
 
 log = logging.getLogger(__name__)
 
@@ -172,6 +173,7 @@ def get_job(job_id: str, store: StoreDep) -> JobStatus:
     },
 )  # fmt: skip
 def get_result(
+    request: Request,
     job_id: str,
     store: StoreDep,
     format: Annotated[OutputFormat, Query(description="Which result.")] = OutputFormat.json,
@@ -207,11 +209,19 @@ def get_result(
     # The video opens in a browser tab (inline) rather than as a download; Download answers
     # Range requests, which players need to seek (Safari to play at all).
     disposition = "inline" if format == OutputFormat.mp4 else "attachment"
+    headers = {}
+    if format == OutputFormat.json:
+        # the JSON compresses about 7 to 1; the worker wrote the compressed copy once
+        headers["Vary"] = "Accept-Encoding"
+        packed = gzip_copy(path)
+        if accepts_gzip(request.headers.get("accept-encoding")) and packed.is_file():
+            path, headers["Content-Encoding"] = packed, "gzip"
     return Download(
         path,
         media_type=MEDIA_TYPES[format],
         filename=download,
         content_disposition_type=disposition,
+        headers=headers,
     )
 
 

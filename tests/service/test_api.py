@@ -124,6 +124,26 @@ def test_json_result_matches_the_schema(client, finished_job):
             assert [p["name"] for p in point["parts"]] == document["part_names"]
 
 
+def test_the_json_result_comes_compressed_to_clients_that_take_gzip(client, finished_job):
+    # an hour of video is hundreds of MB of JSON, which compresses about 7 to 1
+    url = finished_job[2]["links"]["results"]["json"]
+    plain = client.get(url, headers={"Accept-Encoding": "identity"})
+    packed = client.get(url, headers={"Accept-Encoding": "br;q=1.0, gzip;q=0.8"})
+    assert plain.status_code == packed.status_code == 200
+    assert "content-encoding" not in plain.headers
+    assert packed.headers["content-encoding"] == "gzip"
+    assert plain.headers["vary"] == packed.headers["vary"] == "Accept-Encoding"
+    assert packed.json() == plain.json()  # httpx undoes the gzip, as browsers do
+    assert int(packed.headers["content-length"]) * 4 < int(plain.headers["content-length"])
+    assert packed.headers["etag"] != plain.headers["etag"]  # two representations
+    refused = client.get(url, headers={"Accept-Encoding": "gzip;q=0, *"})
+    assert "content-encoding" not in refused.headers
+    again = client.get(
+        url, headers={"Accept-Encoding": "gzip", "If-None-Match": packed.headers["etag"]}
+    )
+    assert again.status_code == 304 and again.headers["vary"] == "Accept-Encoding"
+
+
 def test_mot_result_lists_the_json_boxes_in_mot_pixels(client, finished_job):
     _, _, status = finished_job
     text = _download(client, status, "mot").text
