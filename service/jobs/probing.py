@@ -66,10 +66,11 @@ class _Helper:
         theirs.close()
 
     def probe(self, path: Path, timeout: float) -> FrameSource:
-        self._requests.send(str(path))
         try:
+            self._requests.send(str(path))
             if not self._requests.poll(timeout):
                 self.close()
+                log.warning("the probe of %s took more than %g s: helper killed", path, timeout)
                 raise FrameSourceError(
                     f"{path}: reading its first frame took more than {timeout:g} s",
                     f"the video decoder did not read its first frame in {timeout:g} s "
