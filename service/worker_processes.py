@@ -15,6 +15,7 @@ from typing import Any
 __all__ = [
     "StopSignalDeaths",
     "describe_exit",
+    "ended_by_stop_signal",
     "ignore_stop_signals",
     "shared_flag",
     "single_threaded_blas",
@@ -36,6 +37,12 @@ def ignore_stop_signals() -> None:
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
+def ended_by_stop_signal(exitcode: int | None) -> bool:
+    """Whether a process ended by SIGINT or SIGTERM: a worker or helper still starting, which
+    does not ignore them yet (:func:`ignore_stop_signals`), dies of the group's stop signal."""
+    return exitcode in (-signal.SIGINT, -signal.SIGTERM)
 
 
 class StopSignalDeaths:
@@ -61,7 +68,7 @@ class StopSignalDeaths:
         """Whether the dead worker ``pid`` that ended with ``exitcode`` is to be replaced now."""
         if self._stop_requested.is_set():
             return False
-        if exitcode not in (-signal.SIGINT, -signal.SIGTERM) or pid is None:
+        if not ended_by_stop_signal(exitcode) or pid is None:
             return True
         now = time.monotonic()
         if now - self._first_seen.setdefault(pid, now) < self._grace:

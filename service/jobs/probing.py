@@ -15,14 +15,13 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
-import signal
 import threading
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
 from service.frames import FrameSource, FrameSourceError, open_frames
-from service.worker_processes import describe_exit, ignore_stop_signals
+from service.worker_processes import describe_exit, ended_by_stop_signal, ignore_stop_signals
 
 __all__ = ["ProbeInterrupted", "VideoProber"]
 
@@ -82,7 +81,7 @@ class _Helper:
             exitcode = self.process.exitcode
             how = describe_exit(exitcode)
             self.close()
-            if exitcode in (-signal.SIGINT, -signal.SIGTERM):
+            if ended_by_stop_signal(exitcode):
                 # a stop signal to the service's process group, before the helper (starting)
                 # ignored it: the file is not to blame
                 raise ProbeInterrupted(f"the probe of {path} was interrupted ({how})") from None

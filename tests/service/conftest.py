@@ -150,6 +150,15 @@ def submit(
     return client.post("/v1/jobs", files=files, data=data)
 
 
+def metrics(client: httpx.Client) -> dict[str, float]:
+    """The service's ``/metrics``: each sample's name (with its labels) and value."""
+    lines = client.get("/metrics").text.splitlines()
+    return {
+        name: float(value)
+        for name, value in (line.rsplit(" ", 1) for line in lines if line and line[0] != "#")
+    }
+
+
 def wait_for_state(
     client: httpx.Client, job_id: str, states: tuple[str, ...], timeout: float = 120.0
 ) -> dict:

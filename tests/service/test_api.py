@@ -23,6 +23,7 @@ from service.outputs.h264 import nal_unit_types
 from tests.service.conftest import (
     FAST_OPTIONS,
     Server,
+    metrics,
     schema_for,
     submit,
     wait_for,
@@ -428,12 +429,7 @@ def test_truncated_video_is_accepted_and_tracked_as_far_as_it_decodes(
 
 
 def test_metrics_count_jobs_by_state_and_frames(server, client, finished_job):
-    text = client.get("/metrics").text
-    values = {}
-    for line in text.splitlines():
-        if line and not line.startswith("#"):
-            name, value = line.rsplit(" ", 1)
-            values[name] = float(value)
+    values = metrics(client)
     assert values['vtrack_jobs{state="succeeded"}'] >= 1
     assert values["vtrack_frames_processed_total"] >= 24
     assert values["vtrack_job_processing_seconds_count"] >= 1
@@ -482,9 +478,9 @@ def test_openapi_describes_results_and_only_the_errors_a_route_gives(client):
 
 def test_metrics_list_every_stream_state_even_at_zero(client):
     # was: only the states some stream was in, so a series vanished when its count fell to 0
-    metrics = client.get("/metrics").text
+    text = client.get("/metrics").text
     for state in StreamState:
-        assert re.search(rf'^vtrack_streams{{state="{state.value}"}} \d', metrics, re.M), state
+        assert re.search(rf'^vtrack_streams{{state="{state.value}"}} \d', text, re.M), state
 
 
 def test_docs_and_openapi_are_served(client):

@@ -15,6 +15,7 @@ from service.jobs.store import JobStore
 from tests.service.conftest import (
     FAST_OPTIONS,
     Server,
+    metrics,
     submit,
     wait_for,
     wait_for_frames,
@@ -88,14 +89,6 @@ def test_a_stop_signal_to_the_whole_group_requeues_the_running_job(make_server, 
         assert status["attempts"] == 2
 
 
-def _metrics(client) -> dict[str, float]:
-    lines = client.get("/metrics").text.splitlines()
-    return {
-        name: float(value)
-        for name, value in (line.rsplit(" ", 1) for line in lines if line and line[0] != "#")
-    }
-
-
 def test_a_stalled_job_is_failed_and_its_worker_replaced(make_server, long_video, pets_short):
     # A worker that stops reading frames (a decoder that hangs; here SIGSTOP) held its job and
     # its place for the whole time limit (4 h), with nothing in the metrics to alert on.
@@ -107,19 +100,19 @@ def test_a_stalled_job_is_failed_and_its_worker_replaced(make_server, long_video
         worker = _worker_pid(server.data_dir, stalled)
         os.kill(worker, signal.SIGSTOP)
         time.sleep(1.5)
-        metrics = _metrics(client)
-        assert 1.0 <= metrics["vtrack_running_job_stall_seconds"] < 3.5
-        assert metrics["vtrack_oldest_queued_job_seconds"] >= 1.0
+        figures = metrics(client)
+        assert 1.0 <= figures["vtrack_running_job_stall_seconds"] < 3.5
+        assert figures["vtrack_oldest_queued_job_seconds"] >= 1.0
         status = wait_for_state(client, stalled, ("succeeded", "failed"), timeout=30)
         assert status["state"] == "failed"
         assert "read no frame for 3 s (VTRACK_JOB_STALL_TIMEOUT)" in status["error"]
         wait_for(lambda: not _alive(worker), 10, "the stopped worker to be killed")
         status = wait_for_state(client, waiting, ("succeeded", "failed"))
         assert status["state"] == "succeeded", status  # on the worker that replaced it
-        metrics = _metrics(client)
-        assert metrics["vtrack_running_job_stall_seconds"] == 0
-        assert metrics["vtrack_oldest_queued_job_seconds"] == 0
-        assert metrics["vtrack_workers_replaced_total"] == 1
+        figures = metrics(client)
+        assert figures["vtrack_running_job_stall_seconds"] == 0
+        assert figures["vtrack_oldest_queued_job_seconds"] == 0
+        assert figures["vtrack_workers_replaced_total"] == 1
 
 
 def test_a_killed_worker_fails_its_job_and_the_next_job_succeeds(make_server, pets_cut, pets_short):
