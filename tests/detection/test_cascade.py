@@ -16,6 +16,7 @@ from tracking.detection.dpm import kernels as dpm_kernels
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
     cascade_level,
+    cascade_level_roots,
     load_cascade,
     pca_projection,
     select_thresholds,
@@ -31,7 +32,7 @@ from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.dpm.kernels import kernel_filters
 from tracking.detection.dpm.model import load_dpm_model
 from tracking.detection.dpm.pyramid import level_features, pyramid_levels
-from tracking.detection.dpm.scoring import score_level
+from tracking.detection.dpm.scoring import LevelRoots, score_level
 from tracking.detection.metrics import match_frame
 from tracking.evaluation.otb import load_otb_sequence, read_frame
 from tracking.types import Box
@@ -89,6 +90,43 @@ def test_without_pruning_the_cascade_equals_exact_scoring(exact, inria_model, pe
         np.testing.assert_array_equal(got.placements[where], reference.placements[where])
         compared += int(above.sum())
     assert compared > 20
+
+
+def test_level_roots_are_the_dense_scores_roots(inria_model, pets_frame):
+    # Detection keeps only the roots the cascade finds (cascade_level_roots); they must be
+    # the roots above the threshold of the dense LevelScores, with the same components,
+    # scores and placements of every symbol.
+    detector = DpmDetector(inria_model, DpmConfig(threshold=-1.2))
+    thresholds, projection = detector._cascade
+    crop = pets_frame[100:460, 120:520]
+    compared = 0
+    for root, needed in detector.search_levels(crop.shape)[::3]:
+        features = level_features(crop, needed, detector.pad)
+        projected = {k: projection.project(v) for k, v in features.items()}
+        args = (inria_model, features, projected, projection, root, detector.pad, thresholds)
+        dense, _ = cascade_level(*args, detector.threshold)
+        roots = cascade_level_roots(*args, detector.threshold)
+        expected = dense.roots(detector.threshold)
+        order = np.lexsort((roots.cols, roots.rows))
+        for name in ("rows", "cols", "scores", "components", "placements"):
+            np.testing.assert_array_equal(getattr(roots, name)[order], getattr(expected, name))
+        compared += roots.rows.size
+    assert compared > 20
+
+
+def test_level_roots_keep_the_best_component_ties_to_the_first():
+    level = pyramid_levels((200, 300), 8, 10, extra_octave=True)[10]
+    placements = np.arange(4 * 2 * 2).reshape(4, 2, 2)
+    roots = LevelRoots.of_mixture(
+        level, (0, 0),
+        rows=np.array([3, 3, 5, 5]), cols=np.array([1, 1, 2, 2]),
+        scores=np.array([0.5, 0.7, 0.2, 0.2]), components=np.array([0, 1, 1, 0]),
+        placements=placements,
+    )  # fmt: skip
+    assert roots.rows.tolist() == [3, 5] and roots.cols.tolist() == [1, 2]
+    assert roots.scores.tolist() == [0.7, 0.2]
+    assert roots.components.tolist() == [1, 0]  # the better; on a tie, the first component
+    np.testing.assert_array_equal(roots.placements, placements[[1, 3]])
 
 
 def test_cascade_caches_each_part_response_once_in_aligned_blocks(

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracking.detection.dpm.model import DpmModel
-from tracking.detection.dpm.scoring import LevelScores
+from tracking.detection.dpm.scoring import LevelRoots, LevelScores
 from tracking.detection.nms import NmsCriterion, nms
 from tracking.detection.regions import clip_boxes
 from tracking.types import Box
@@ -72,7 +72,7 @@ def _empty(n_symbols: int) -> Candidates:
 
 def root_windows(
     model: DpmModel,
-    ls: LevelScores,
+    ls: LevelRoots | LevelScores,
     ys: np.ndarray,
     xs: np.ndarray,
     components: np.ndarray,
@@ -96,7 +96,7 @@ def root_windows(
 
 def candidates(
     model: DpmModel,
-    scored: list[tuple[LevelScores, tuple[int, int]]],
+    scored: list[tuple[LevelRoots, tuple[int, int]]],
     pad: tuple[int, int],
     threshold: float,
     region: Box | None = None,
@@ -109,7 +109,7 @@ def candidates(
     model:
         The model the scores come from.
     scored:
-        ``(scores of a level, (x, y) corner of the image the level was computed on)``.
+        ``(roots of a level, (x, y) corner of the image the level was computed on)``.
     pad:
         ``(pad_y, pad_x)`` of the feature maps.
     threshold:
@@ -123,10 +123,11 @@ def candidates(
     n_symbols = max(len(c.symbols) for c in model.components)
     out = []
     for ls, (ox, oy) in scored:
-        ys, xs = np.nonzero(ls.scores > threshold)
-        if ys.size == 0:
+        above = np.flatnonzero(ls.scores > threshold)
+        if above.size == 0:
             continue
-        comp = ls.component[ys, xs]
+        ys, xs, comp = ls.rows[above], ls.cols[above], ls.components[above]
+        scores, placements = ls.scores[above], ls.placements[above]
         boxes = root_windows(model, ls, ys, xs, comp, pad, (ox, oy))
         cell = ls.level.cell
         if region is not None:
@@ -138,6 +139,7 @@ def candidates(
                 & (cy <= region.y + region.h)
             )
             ys, xs, comp, boxes = ys[inside], xs[inside], comp[inside], boxes[inside]
+            scores, placements = scores[inside], placements[inside]
         filters = np.full((ys.size, n_symbols, 4), np.nan)
         for ci, component in enumerate(model.components):
             sel = np.flatnonzero(comp == ci)
@@ -145,13 +147,13 @@ def candidates(
                 continue
             symbols = component.symbols
             # every symbol at once: (n, S, 2) placements (col, row), each symbol's cell size
-            place = ls.placements[ci, : len(symbols)][:, ys[sel], xs[sel]].transpose(1, 0, 2)
+            place = placements[sel, : len(symbols)]
             c = np.array([cell / 2 ** sym.anchor[2] for sym in symbols])[:, None]  # (S, 1)
             sizes = np.array([sym.size[::-1] for sym in symbols]) * c  # (S, 2) w, h in pixels
             corners = (place - (pad_x, pad_y)) * c + (ox, oy)
             filters[sel, : len(symbols), :2] = corners
             filters[sel, : len(symbols), 2:] = sizes
-        out.append(Candidates(boxes, filters, ls.scores[ys, xs], comp))
+        out.append(Candidates(boxes, filters, scores, comp))
     if not out:
         return _empty(n_symbols)
     merged = Candidates(*(np.concatenate(arrays) for arrays in zip(*(

@@ -45,12 +45,13 @@ from tracking.detection.dpm.kernels import (
 )
 from tracking.detection.dpm.model import DpmComponent, DpmModel
 from tracking.detection.dpm.pyramid import PyramidLevel
-from tracking.detection.dpm.scoring import LevelScores, root_grid, root_rectangle
+from tracking.detection.dpm.scoring import LevelRoots, LevelScores, root_grid, root_rectangle
 
 __all__ = [
     "CascadeThresholds",
     "PcaProjection",
     "cascade_level",
+    "cascade_level_roots",
     "cascade_path",
     "load_cascade",
     "pca_projection",
@@ -265,81 +266,30 @@ def cascade_level(
         ``(stages, margins)`` partial scores of those roots (filled when ``positions`` is given
         with a projection, for fitting; empty otherwise). ``None`` when the rectangle is empty.
     """
-    root_features = features[level.index]
-    rectangle = root_rectangle(model, root_features.shape, rows, cols)
-    if rectangle is None:
+    setup = _level_setup(model, features, projected, projection, level, pad, rows, cols, filters)
+    if setup is None:
         return None
-    (r0, r1), (c0, c1) = rectangle
-    ny, nx = r1 - r0, c1 - c0
-    approximate = projection is not None and projected is not None
-    if filters is None:
-        filters = kernel_filters(model, pad, projection if approximate else None)
-    elif approximate:
-        # the compiled cascade reads the projected parts without bounds checks
-        for kernel in filters:
-            n_parts, rows, width = kernel.parts.shape
-            expected = (n_parts, rows, width // root_features.shape[2] * projection.basis.shape[1])
-            if n_parts and kernel.approx_parts.shape != expected:
-                raise ValueError(
-                    "filters without the projected parts: make them with "
-                    "kernel_filters(model, pad, projection) for the cascade"
-                )
+    (r0, c0), (ny, nx), filters, approx_roots = setup
     components = model.components
     n_symbols = max(len(c.symbols) for c in components)
     component_scores = np.full((len(components), ny, nx), -np.inf)
     placements = np.full((len(components), n_symbols, ny, nx, 2), -1, dtype=np.int32)
-    if approximate:
-        full = _approx_root_responses(
-            projected[level.index], projection.roots, root_grid(model, root_features.shape)
-        )
-        approx_roots = [r[r0:r1, c0:c1] for r in full]
     records = []
-    origin = np.array([r0, c0], dtype=np.int64)
-    flat_root = flat(root_features)
-    for ci, (component, kernel) in enumerate(zip(components, filters, strict=True)):
-        offset = np.float32(_component_offset(component, level))
-        part_level = level.index - level.interval * kernel.part_levels
-        part_grid = features[part_level].shape[:2]  # cells (the flat maps hold W C columns)
-        part_maps = flat(features[part_level])
-        anchors = kernel.part_anchors + kernel.steps[:, None] * origin
-        if approximate:
-            start = approx_roots[ci] + offset
-        else:  # the root's constant terms where it fits, -inf elsewhere
-            start = np.full((ny, nx), -np.inf, dtype=np.float32)
-            h, w = component.root.size
-            start[: max(root_features.shape[0] - h + 1 - r0, 0),
-                  : max(root_features.shape[1] - w + 1 - c0, 0)] = offset  # fmt: skip
-        if positions is not None:
-            chosen = np.full_like(start, -np.inf)
-            at = positions[:, 0] - r0, positions[:, 1] - c0
-            chosen[at] = start[at]
-            start = chosen
+    for ci, component in enumerate(components):
         n_parts = len(component.parts)
-        root_at = kernel.root_anchor + origin
-        if approximate:
-            n_stages = 2 + 2 * n_parts
-            found, found_cols, scores, place, stages, margins = call_kernel(
-                cascade_roots, start, approx_roots[ci], flat_root, kernel.root, root_at,
-                flat(projected[part_level]), part_maps, kernel.approx_parts, kernel.parts,
-                projection.basis.shape[1], root_features.shape[2], anchors, kernel.steps,
-                kernel.deformations, window,
-                np.asarray(thresholds.stage[:n_stages], dtype=np.float64),
-                np.asarray(thresholds.deformation[:n_stages], dtype=np.float64),
-                float(threshold),
-                # np.zeros maps zero pages that memory touches only where a response is computed
-                np.empty((2, n_parts, *part_grid), dtype=np.float32),
-                np.zeros((2, n_parts, *part_grid), dtype=np.bool_),
-                positions is not None,
+        if approx_roots is not None:
+            found, found_cols, scores, place, stages, margins = _cascade_component(
+                model, features, projected, projection, level, thresholds, threshold,
+                window, positions, (r0, c0), ci, filters[ci], approx_roots[ci],
             )  # fmt: skip
             component_scores[ci, found, found_cols] = scores
             for p in range(n_parts):
                 placements[ci, 1 + p, found, found_cols] = place[:, p]
             records.append((stages, margins))
         else:
-            scores, place = call_kernel(
-                exact_component, start, flat_root, kernel.root, root_at, part_maps, kernel.parts,
-                root_features.shape[2], anchors, kernel.steps, kernel.deformations, window,
-                float(threshold),
+            scores, place = _exact_component(
+                model, features, level, threshold, window, positions, (r0, c0), (ny, nx), ci,
+                filters[ci],
             )  # fmt: skip
             component_scores[ci] = scores
             found, found_cols = np.nonzero(scores > -np.inf)
@@ -349,3 +299,198 @@ def cascade_level(
         placements[ci, 0, found, found_cols, 0] = found_cols + root_col
         placements[ci, 0, found, found_cols, 1] = found + root_row
     return LevelScores.of_mixture(level, (r0, c0), component_scores, placements), records
+
+
+def cascade_level_roots(
+    model: DpmModel,
+    features: dict[int, np.ndarray],
+    projected: dict[int, np.ndarray] | None,
+    projection: PcaProjection | None,
+    level: PyramidLevel,
+    pad: tuple[int, int],
+    thresholds: CascadeThresholds,
+    threshold: float,
+    window: int = 4,
+    rows: tuple[int, int] | None = None,
+    cols: tuple[int, int] | None = None,
+    filters: tuple[KernelFilters, ...] | None = None,
+) -> LevelRoots | None:
+    """The roots of ``level`` above ``threshold`` that :func:`cascade_level` scores, alone.
+
+    Arguments as :func:`cascade_level`'s. With the cascade, the roots it finds are kept as they
+    come out of the kernel, with no grid of every position and placement of the level (most
+    of a frame's scoring time outside the kernels went into filling and reducing those);
+    without it, the exact scores are scored densely and their roots above ``threshold`` kept.
+    Either way the same roots, scores and placements as ``cascade_level(...)[0].roots(
+    threshold)``.
+    """
+    if projection is None or projected is None:
+        result = cascade_level(
+            model, features, projected, projection, level, pad, thresholds, threshold,
+            window, rows=rows, cols=cols, filters=filters,
+        )  # fmt: skip
+        return None if result is None else result[0].roots(threshold)
+    setup = _level_setup(model, features, projected, projection, level, pad, rows, cols, filters)
+    if setup is None:
+        return None
+    origin, _, filters, approx_roots = setup
+    n_symbols = max(len(c.symbols) for c in model.components)
+    found_rows, found_cols, found_scores, found_components, found_places = [], [], [], [], []
+    for ci, component in enumerate(model.components):
+        found, columns, scores, place, _, _ = _cascade_component(
+            model, features, projected, projection, level, thresholds, threshold, window,
+            None, origin, ci, filters[ci], approx_roots[ci],
+        )  # fmt: skip
+        if found.size == 0:
+            continue
+        placements = np.full((found.size, n_symbols, 2), -1, dtype=np.int64)
+        placements[:, 0, 0] = columns + origin[1] + component.root.anchor[0]
+        placements[:, 0, 1] = found + origin[0] + component.root.anchor[1]
+        placements[:, 1 : 1 + len(component.parts)] = place
+        found_rows.append(found)
+        found_cols.append(columns)
+        found_scores.append(scores)
+        found_components.append(np.full(found.size, ci))
+        found_places.append(placements)
+    if not found_rows:
+        empty = np.zeros(0, dtype=np.int64)
+        return LevelRoots(
+            level, origin, empty, empty, np.zeros(0), empty,
+            np.zeros((0, n_symbols, 2), dtype=np.int64),
+        )  # fmt: skip
+    return LevelRoots.of_mixture(
+        level, origin, *(np.concatenate(a) for a in (
+            found_rows, found_cols, found_scores, found_components, found_places
+        )),
+    )  # fmt: skip
+
+
+def _level_setup(
+    model: DpmModel,
+    features: dict[int, np.ndarray],
+    projected: dict[int, np.ndarray] | None,
+    projection: PcaProjection | None,
+    level: PyramidLevel,
+    pad: tuple[int, int],
+    rows: tuple[int, int] | None,
+    cols: tuple[int, int] | None,
+    filters: tuple[KernelFilters, ...] | None,
+) -> tuple[tuple[int, int], tuple[int, int], tuple[KernelFilters, ...], list | None] | None:
+    """What scoring a level's rectangle needs: its origin and shape, the kernel filters and,
+    with the cascade, each component's approximate root responses on it; ``None`` when the
+    rectangle is empty."""
+    root_features = features[level.index]
+    rectangle = root_rectangle(model, root_features.shape, rows, cols)
+    if rectangle is None:
+        return None
+    (r0, r1), (c0, c1) = rectangle
+    approximate = projection is not None and projected is not None
+    if filters is None:
+        filters = kernel_filters(model, pad, projection if approximate else None)
+    elif approximate:
+        # the compiled cascade reads the projected parts without bounds checks
+        for kernel in filters:
+            n_parts, part_rows, width = kernel.parts.shape
+            expected = (
+                n_parts, part_rows, width // root_features.shape[2] * projection.basis.shape[1]
+            )  # fmt: skip
+            if n_parts and kernel.approx_parts.shape != expected:
+                raise ValueError(
+                    "filters without the projected parts: make them with "
+                    "kernel_filters(model, pad, projection) for the cascade"
+                )
+    approx_roots = None
+    if approximate:
+        full = _approx_root_responses(
+            projected[level.index], projection.roots, root_grid(model, root_features.shape)
+        )
+        approx_roots = [r[r0:r1, c0:c1] for r in full]
+    return (r0, c0), (r1 - r0, c1 - c0), filters, approx_roots
+
+
+def _chosen(start: np.ndarray, positions: np.ndarray | None, origin: tuple[int, int]) -> np.ndarray:
+    """``start`` kept at the root ``positions`` (padded-map indices) only, ``-inf`` elsewhere."""
+    if positions is None:
+        return start
+    chosen = np.full_like(start, -np.inf)
+    at = positions[:, 0] - origin[0], positions[:, 1] - origin[1]
+    chosen[at] = start[at]
+    return chosen
+
+
+def _cascade_component(
+    model: DpmModel,
+    features: dict[int, np.ndarray],
+    projected: dict[int, np.ndarray],
+    projection: PcaProjection,
+    level: PyramidLevel,
+    thresholds: CascadeThresholds,
+    threshold: float,
+    window: int,
+    positions: np.ndarray | None,
+    origin: tuple[int, int],
+    ci: int,
+    kernel: KernelFilters,
+    approx_root: np.ndarray,
+) -> tuple[np.ndarray, ...]:
+    """One component's roots through the compiled cascade: ``(rows, cols, scores,
+    placements (N, P, 2) (col, row), stages, margins)`` as :func:`.kernels.cascade_roots`."""
+    component = model.components[ci]
+    root_features = features[level.index]
+    origin_array = np.array(origin, dtype=np.int64)
+    start = _chosen(
+        approx_root + np.float32(_component_offset(component, level)), positions, origin
+    )
+    part_level = level.index - level.interval * kernel.part_levels
+    part_grid = features[part_level].shape[:2]  # cells (the flat maps hold W C columns)
+    n_parts = len(component.parts)
+    n_stages = 2 + 2 * n_parts
+    return call_kernel(
+        cascade_roots, start, approx_root, flat(root_features), kernel.root,
+        kernel.root_anchor + origin_array, flat(projected[part_level]),
+        flat(features[part_level]), kernel.approx_parts, kernel.parts,
+        projection.basis.shape[1], root_features.shape[2],
+        kernel.part_anchors + kernel.steps[:, None] * origin_array, kernel.steps,
+        kernel.deformations, window,
+        np.asarray(thresholds.stage[:n_stages], dtype=np.float64),
+        np.asarray(thresholds.deformation[:n_stages], dtype=np.float64),
+        float(threshold),
+        # np.zeros maps zero pages that memory touches only where a response is computed
+        np.empty((2, n_parts, *part_grid), dtype=np.float32),
+        np.zeros((2, n_parts, *part_grid), dtype=np.bool_),
+        positions is not None,
+    )  # fmt: skip
+
+
+def _exact_component(
+    model: DpmModel,
+    features: dict[int, np.ndarray],
+    level: PyramidLevel,
+    threshold: float,
+    window: int,
+    positions: np.ndarray | None,
+    origin: tuple[int, int],
+    shape: tuple[int, int],
+    ci: int,
+    kernel: KernelFilters,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One component's exact dense scores and placements on the rectangle
+    (:func:`.kernels.exact_component`)."""
+    component = model.components[ci]
+    root_features = features[level.index]
+    origin_array = np.array(origin, dtype=np.int64)
+    # the root's constant terms where it fits, -inf elsewhere
+    start = np.full(shape, -np.inf, dtype=np.float32)
+    h, w = component.root.size
+    start[: max(root_features.shape[0] - h + 1 - origin[0], 0),
+          : max(root_features.shape[1] - w + 1 - origin[1], 0)] = np.float32(
+        _component_offset(component, level)
+    )  # fmt: skip
+    start = _chosen(start, positions, origin)
+    part_level = level.index - level.interval * kernel.part_levels
+    return call_kernel(
+        exact_component, start, flat(root_features), kernel.root,
+        kernel.root_anchor + origin_array, flat(features[part_level]), kernel.parts,
+        root_features.shape[2], kernel.part_anchors + kernel.steps[:, None] * origin_array,
+        kernel.steps, kernel.deformations, window, float(threshold),
+    )  # fmt: skip

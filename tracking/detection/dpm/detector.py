@@ -38,6 +38,7 @@ from tracking.detection.dpm.cascade import (
     CascadeThresholds,
     PcaProjection,
     cascade_level,
+    cascade_level_roots,
     cascade_path,
     load_cascade,
     pca_projection,
@@ -54,7 +55,7 @@ from tracking.detection.dpm.pyramid import (
     level_features,
     pyramid_levels,
 )
-from tracking.detection.dpm.scoring import LevelScores, root_grid, score_level
+from tracking.detection.dpm.scoring import LevelRoots, LevelScores, root_grid, score_level
 from tracking.detection.regions import checked_heights, checked_region, clip_region
 from tracking.types import Box, validate_frame
 
@@ -248,9 +249,10 @@ class DpmDetector:
     ) -> list[tuple]:
         """Score the plans; ``shared``: one image for all plans, features computed once.
 
-        ``cascade`` (with cascade thresholds): score with the star cascade, except a region's
-        level with fewer than ``_CASCADE_MIN_ROOTS`` root positions; otherwise every root
-        exactly (dense scores need them all).
+        ``cascade``: for detection, each plan's roots above the threshold (:class:`LevelRoots`),
+        with the star cascade when the detector has one, except a region's level with fewer
+        than ``_CASCADE_MIN_ROOTS`` root positions; otherwise every root's exact score
+        (:class:`LevelScores`: dense scores need them all).
         With ``shared``, one job per halving chain of root levels (:func:`level_chains`)
         computes the chain's features and scores its levels: a root level's part level is in
         the same chain (one octave finer: the same image, or the one it was halved from), so
@@ -264,24 +266,34 @@ class DpmDetector:
             features: dict[int, np.ndarray],
             projected: dict[int, np.ndarray],
             pruned: bool,
-        ) -> LevelScores | None:
+        ) -> LevelScores | LevelRoots | None:
             if self.config.deformation_window is None or self._filters is None:
-                return score_level(
+                scores = score_level(
                     self.model, features, plan.root, self.pad, plan.rows, plan.cols,
                     self.config.deformation_window,
                 )  # fmt: skip
-            if pruned:
-                thresholds, threshold = cascade_setup[0], self.threshold
-            else:  # every root exactly, densely in the compiled kernel
-                thresholds, threshold = self._exact, -math.inf
+                if scores is None or not cascade:
+                    return scores
+                return scores.roots(self.threshold)
+            if cascade:  # the roots above the threshold, pruned or scored exactly
+                return cascade_level_roots(
+                    self.model, features, projected if pruned else None,
+                    projection if pruned else None, plan.root, self.pad,
+                    cascade_setup[0] if pruned else self._exact, self.threshold,
+                    self.config.deformation_window, rows=plan.rows, cols=plan.cols,
+                    filters=self._filters,
+                )  # fmt: skip
+            # every root exactly, densely in the compiled kernel
             result = cascade_level(
-                self.model, features, projected, projection if pruned else None, plan.root,
-                self.pad, thresholds, threshold, self.config.deformation_window,
-                rows=plan.rows, cols=plan.cols, filters=self._filters,
+                self.model, features, None, None, plan.root, self.pad, self._exact, -math.inf,
+                self.config.deformation_window, rows=plan.rows, cols=plan.cols,
+                filters=self._filters,
             )  # fmt: skip
             return None if result is None else result[0]
 
-        def score_all(group: list[_Plan], image: np.ndarray) -> list[LevelScores | None]:
+        def score_all(
+            group: list[_Plan], image: np.ndarray
+        ) -> list[LevelScores | LevelRoots | None]:
             levels = {level.index: level for plan in group for level in plan.levels}
             features = level_features(image, list(levels.values()), self.pad)
             pruned = projection is not None and (

@@ -34,7 +34,7 @@ from tracking.detection.dpm.model import DpmModel, FilterSymbol
 from tracking.detection.dpm.pyramid import PyramidLevel
 from tracking.detection.dpm.responses import filter_responses
 
-__all__ = ["LevelScores", "root_grid", "root_rectangle", "score_level"]
+__all__ = ["LevelRoots", "LevelScores", "root_grid", "root_rectangle", "score_level"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,6 +79,69 @@ class LevelScores:
         best = component_scores.argmax(axis=0)
         scores = np.take_along_axis(component_scores, best[None], axis=0)[0]
         return cls(level, origin, scores, best, component_scores, placements)
+
+    def roots(self, threshold: float) -> LevelRoots:
+        """The positions scoring above ``threshold``, with their component and placements."""
+        rows, cols = np.nonzero(self.scores > threshold)
+        components = self.component[rows, cols]
+        placements = self.placements[components, :, rows, cols]  # (N, S, 2)
+        return LevelRoots(
+            self.level, self.origin, rows, cols, self.scores[rows, cols], components, placements
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class LevelRoots:
+    """The roots of one pyramid level that scored above a threshold: what detection keeps.
+
+    The star cascade finds a few hundred roots among a level's tens of thousands of positions;
+    this holds just those (dense :class:`LevelScores` filled a frame's levels with tens of MB
+    of placements of roots that were pruned).
+
+    Attributes
+    ----------
+    level, origin:
+        As :class:`LevelScores`'s.
+    rows, cols:
+        ``(N,)`` grid elements of the roots (``origin`` plus these is the padded-map index).
+    scores:
+        ``(N,)`` float64 mixture scores (the best component's).
+    components:
+        ``(N,)`` index of the best component.
+    placements:
+        ``(N, S, 2)`` int ``(col, row)`` of each symbol of the root's component, as
+        :attr:`LevelScores.placements`; ``-1`` for symbols it does not have.
+    """
+
+    level: PyramidLevel
+    origin: tuple[int, int]
+    rows: np.ndarray
+    cols: np.ndarray
+    scores: np.ndarray
+    components: np.ndarray
+    placements: np.ndarray
+
+    @classmethod
+    def of_mixture(
+        cls,
+        level: PyramidLevel,
+        origin: tuple[int, int],
+        rows: np.ndarray,
+        cols: np.ndarray,
+        scores: np.ndarray,
+        components: np.ndarray,
+        placements: np.ndarray,
+    ) -> LevelRoots:
+        """Roots found by each component, the best component kept where several found the
+        same position (ties to the first component, as :meth:`LevelScores.of_mixture`)."""
+        if rows.size:
+            key = rows.astype(np.int64) * (int(cols.max()) + 1) + cols
+            order = np.lexsort((components, -scores, key))
+            _, first = np.unique(key[order], return_index=True)
+            keep = order[first]
+            rows, cols, scores = rows[keep], cols[keep], scores[keep]
+            components, placements = components[keep], placements[keep]
+        return cls(level, origin, rows, cols, scores, components, placements)
 
 
 def root_rectangle(
