@@ -341,8 +341,6 @@ def cascade_level_roots(
             model, features, projected, projection, level, thresholds, threshold, window,
             None, origin, ci, filters[ci], approx_roots[ci],
         )  # fmt: skip
-        if found.size == 0:
-            continue
         placements = np.full((found.size, n_symbols, 2), -1, dtype=np.int64)
         placements[:, 0, 0] = columns + origin[1] + component.root.anchor[0]
         placements[:, 0, 1] = found + origin[0] + component.root.anchor[1]
@@ -352,12 +350,6 @@ def cascade_level_roots(
         found_scores.append(scores)
         found_components.append(np.full(found.size, ci))
         found_places.append(placements)
-    if not found_rows:
-        empty = np.zeros(0, dtype=np.int64)
-        return LevelRoots(
-            level, origin, empty, empty, np.zeros(0), empty,
-            np.zeros((0, n_symbols, 2), dtype=np.int64),
-        )  # fmt: skip
     return LevelRoots.of_mixture(
         level, origin, *(np.concatenate(a) for a in (
             found_rows, found_cols, found_scores, found_components, found_places
