@@ -295,9 +295,9 @@ def cascade_level(
             found, found_cols = np.nonzero(scores > -np.inf)
             placements[ci, 1 : 1 + n_parts] = place
             records.append((np.zeros((0, 2 + 2 * n_parts)), np.zeros((0, 2 + 2 * n_parts))))
-        root_row, root_col = r0 + component.root.anchor[1], c0 + component.root.anchor[0]
-        placements[ci, 0, found, found_cols, 0] = found_cols + root_col
-        placements[ci, 0, found, found_cols, 1] = found + root_row
+        placements[ci, 0, found, found_cols] = _root_placements(
+            component, (r0, c0), found, found_cols
+        )
     return LevelScores.of_mixture(level, (r0, c0), component_scores, placements), records
 
 
@@ -342,8 +342,7 @@ def cascade_level_roots(
             None, origin, ci, filters[ci], approx_roots[ci],
         )  # fmt: skip
         placements = np.full((found.size, n_symbols, 2), -1, dtype=np.int64)
-        placements[:, 0, 0] = columns + origin[1] + component.root.anchor[0]
-        placements[:, 0, 1] = found + origin[0] + component.root.anchor[1]
+        placements[:, 0] = _root_placements(component, origin, found, columns)
         placements[:, 1 : 1 + len(component.parts)] = place
         found_rows.append(found)
         found_cols.append(columns)
@@ -398,6 +397,16 @@ def _level_setup(
         )
         approx_roots = [r[r0:r1, c0:c1] for r in full]
     return (r0, c0), (r1 - r0, c1 - c0), filters, approx_roots
+
+
+def _root_placements(
+    component: DpmComponent, origin: tuple[int, int], rows: np.ndarray, cols: np.ndarray
+) -> np.ndarray:
+    """``(N, 2)`` padded-map ``(col, row)`` of the root filter of the roots at grid elements
+    ``(rows, cols)`` of a rectangle starting at ``origin``."""
+    return np.column_stack(
+        [cols + origin[1] + component.root.anchor[0], rows + origin[0] + component.root.anchor[1]]
+    )
 
 
 def _chosen(start: np.ndarray, positions: np.ndarray | None, origin: tuple[int, int]) -> np.ndarray:
