@@ -75,10 +75,11 @@ def test_tracks_follow_the_frames_published_at_their_rate(server, session, pets_
         messages = follower.received()
 
         # Each message is a published frame: same sequence number, same capture timestamp.
-        # Most, not all: the service's detector takes 80-100 ms of the 100 ms between frames
+        # Not every frame: the service's detector takes 80-100 ms of the 100 ms between frames
         # on the 2-core machine (docs/benchmarks.md, live streams), so a slower moment skips
-        # frames (29 of 40 were tracked in one clean-clone run).
-        assert len(messages) > 20, "a 10 fps camera on loopback: most frames are tracked"
+        # frames (29 of 40 were tracked in one clean-clone run). How many is the machine's
+        # speed, which a test does not check: a quarter is far below any run seen.
+        assert len(messages) >= 10, "a 10 fps camera on loopback: frames are tracked"
         sequences = [m.sequence for m in messages]
         assert sequences == sorted(sequences) and len(set(sequences)) == len(sequences)
         for message in messages:
