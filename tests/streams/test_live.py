@@ -43,9 +43,7 @@ from tests.streams.live import (
     status,
 )
 
-# Not realtime: these check what the service does with a camera's frames, not how fast
-# (passed sharing the machine with another test and a busy process)
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 def test_tracks_follow_the_frames_published_at_their_rate(server, session, pets_frames):
@@ -924,7 +922,6 @@ UNREAD = 5.0
 a second with tracks in them, more than a pipe holds."""
 
 
-@pytest.mark.realtime  # its cameras' rate as the service measures it
 def test_stream_workers_survive_reports_cut_short_and_end_with_their_service(tmp_path, pets_frames):
     server = Server(tmp_path / "data", workers=1).start()
     cameras = BusyCameras(server, ["east", "west", "north"], pets_frames)

@@ -23,9 +23,7 @@ from tests.service.conftest import Server, wait_for
 from tests.streams.live import Follower, all_taken, put_frame, start_stream, status
 from tracking.detection import MotDetections
 
-# Not realtime: these check what the service does with a camera's frames, not how fast
-# (passed sharing the machine with another test and a busy process)
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 def publish_run(

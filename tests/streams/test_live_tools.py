@@ -26,9 +26,7 @@ from tests.service.conftest import PETS_VIDEO, wait_for
 from tests.streams.live import VTRACK, OutputLines, start_stream, status
 from tracking.detection import MotDetections
 
-# Not realtime: these check what the service does with a camera's frames, not how fast
-# (passed sharing the machine with another test and a busy process)
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 @contextlib.contextmanager
