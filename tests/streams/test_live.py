@@ -542,15 +542,24 @@ def test_a_recording_cut_by_a_killed_worker_is_salvaged(server, session, pets_fr
     keys = StreamKeys("vtrack", camera)
     with server.client() as client:
         start_stream(client, session, camera, record=True)
-        publish_frames(session, keys, iter(pets_frames[:40]), 10.0, block=True)
-        wait_for(
-            lambda: (
-                (c := status(client, camera)["counters"])["frames_in"] == 40
-                and c["frames_processed"] >= 20
-            ),
-            60,
-            "frames to be recorded",
+        # The camera sends until 20 frames are tracked (and recorded): how many of a fixed
+        # number get tracked is the machine's speed.
+        stop = threading.Event()
+        camera_thread = threading.Thread(
+            target=publish_frames,
+            args=(session, keys, itertools.cycle(pets_frames), 10.0),
+            kwargs={"block": True, "stop": stop},
         )
+        camera_thread.start()
+        try:
+            wait_for(
+                lambda: status(client, camera)["counters"]["frames_processed"] >= 20,
+                60,
+                "frames to be recorded",
+            )
+        finally:
+            stop.set()
+            camera_thread.join()
         worker = status(client, camera)["worker_pid"]
         os.kill(worker, signal.SIGKILL)  # no chance to finish the recording
         restarted = wait_for(
@@ -692,10 +701,12 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
                     str(shared_data / PETS_VIDEO),
                     "--camera",
                     camera,
+                    # 4 s of frames: the subscriber's 5 messages need 5 frames tracked, and a
+                    # busy worker skips frames (5 of 12 sent at 20 fps were not always tracked)
                     "--limit",
-                    "12",
+                    "40",
                     "--fps",
-                    "20",
+                    "10",
                     # Raw pixels, and the public detections as an upstream detector's.
                     "--raw",
                     "--detections",
@@ -710,7 +721,7 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
                 timeout=120,
             )
             assert publisher.returncode == 0, publisher.stderr
-            assert "12 frames sent" in publisher.stderr
+            assert "40 frames sent" in publisher.stderr
             subscriber.wait(timeout=60)
         finally:
             subscriber.kill()
@@ -721,7 +732,7 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
         assert "upstream" in {m.detections for m in messages}
         # Status reports lag the worker by a fraction of a second.
         counters = wait_for(
-            lambda: (c := status(client, camera)["counters"])["detections_in"] == 12 and c,
+            lambda: (c := status(client, camera)["counters"])["detections_in"] == 40 and c,
             30,
             "the upstream detections to be counted",
         )
