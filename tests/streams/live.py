@@ -3,17 +3,22 @@ through the API, its status, and the output of a tool running in its own process
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import subprocess
 import sys
 import threading
+from collections.abc import Iterator
 
 import httpx
+import numpy as np
 import zenoh
 
 from api_schemas.streams import StreamTracksEnded, StreamTracksMessage
 from service.streams.keys import StreamKeys
-from service.streams.tools import follow_tracks, reach_tracker, trackers_of
+from service.streams.tools import follow_tracks, publish_frames, reach_tracker, trackers_of
 from tests.service.conftest import wait_for
+from tracking.detection import MotDetections
 
 VTRACK = [sys.executable, "-m", "service.cli"]
 
@@ -108,3 +113,37 @@ class OutputLines:
             assert any(text in line for line in self.lines), "".join(self.lines)
             return True
         return False
+
+
+@contextlib.contextmanager
+def camera_running(
+    session: zenoh.Session,
+    keys: StreamKeys,
+    frames: list[np.ndarray],
+    public: MotDetections | None = None,
+    *,
+    block: bool = False,
+) -> Iterator[None]:
+    """A camera publishing ``frames`` over and over at 10 fps until the block ends: with
+    ``public``, the public detections as its upstream detector's (so that tracking is cheap);
+    with ``block``, every frame reaches the tracker (:func:`publish_frames`)."""
+    stop = threading.Event()
+    count = len(frames)
+    detections = None if public is None else (lambda index: public.for_frame(index % count))
+    thread = threading.Thread(
+        target=publish_frames,
+        args=(session, keys, itertools.cycle(frames), 10.0),
+        kwargs={
+            "detections": detections,
+            "detections_scale": 0.625,
+            "stop": stop,
+            "block": block,
+        },
+        daemon=True,
+    )
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(10)

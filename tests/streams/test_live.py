@@ -38,6 +38,7 @@ from tests.streams.live import (
     Follower,
     OutputLines,
     all_taken,
+    camera_running,
     put_frame,
     start_stream,
     status,
@@ -544,22 +545,12 @@ def test_a_recording_cut_by_a_killed_worker_is_salvaged(server, session, pets_fr
         start_stream(client, session, camera, record=True)
         # The camera sends until 20 frames are tracked (and recorded): how many of a fixed
         # number get tracked is the machine's speed.
-        stop = threading.Event()
-        camera_thread = threading.Thread(
-            target=publish_frames,
-            args=(session, keys, itertools.cycle(pets_frames), 10.0),
-            kwargs={"block": True, "stop": stop},
-        )
-        camera_thread.start()
-        try:
+        with camera_running(session, keys, pets_frames, block=True):
             wait_for(
                 lambda: status(client, camera)["counters"]["frames_processed"] >= 20,
                 60,
                 "frames to be recorded",
             )
-        finally:
-            stop.set()
-            camera_thread.join()
         worker = status(client, camera)["worker_pid"]
         os.kill(worker, signal.SIGKILL)  # no chance to finish the recording
         restarted = wait_for(
@@ -586,44 +577,36 @@ def test_a_recording_that_cannot_be_written_pauses_and_tracking_goes_on(tmp_path
     camera = "full"
     keys = StreamKeys("vtrack", camera)
     session = member_session(ZenohOptions(listen=server.zenoh_listen))
-    # The camera goes on until the test has seen tracking continue after the pause: a fixed
-    # number of frames may all be tracked before the pause on a slow machine.
-    stop = threading.Event()
     try:
         with server.client() as client:
             start_stream(client, session, camera, record=True, record_segment=60.0)
-            camera_thread = threading.Thread(
-                target=publish_frames,
-                args=(session, keys, itertools.cycle(pets_frames), 10.0),
-                kwargs={"block": True, "stop": stop},
-            )
-            camera_thread.start()
-            at_pause = wait_for(
-                lambda: (
-                    (s := status(client, camera))
-                    and any("recording paused" in e for e in s["errors"])
-                    and s
-                ),
-                60,
-                "the recording to pause",
-            )
-            paused_at = at_pause["counters"]["frames_processed"]
-            later = wait_for(
-                lambda: (
-                    (s := status(client, camera))["counters"]["frames_processed"] >= paused_at + 5
-                    and s
-                ),
-                60,
-                "tracking to go on after the pause",
-            )
-            stop.set()
-            camera_thread.join()
+            # The camera goes on until tracking is seen to continue after the pause: a fixed
+            # number of frames may all be tracked before it on a slow machine.
+            with camera_running(session, keys, pets_frames, block=True):
+                at_pause = wait_for(
+                    lambda: (
+                        (s := status(client, camera))
+                        and any("recording paused" in e for e in s["errors"])
+                        and s
+                    ),
+                    60,
+                    "the recording to pause",
+                )
+                paused_at = at_pause["counters"]["frames_processed"]
+                later = wait_for(
+                    lambda: (
+                        (s := status(client, camera))["counters"]["frames_processed"]
+                        >= paused_at + 5
+                        and s
+                    ),
+                    60,
+                    "tracking to go on after the pause",
+                )
             paused = [e for e in later["errors"] if "recording paused" in e]
             assert paused and "largest file" in paused[0] and "tracking goes on" in paused[0]
             assert later["state"] == "running" and later["worker_starts"] == 1
             assert later["tracks"] is not None
     finally:
-        stop.set()
         session.close()
         server.stop()
 

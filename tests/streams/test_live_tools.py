@@ -4,58 +4,22 @@ against ``vtrack serve`` on loopback: what they say and how they end.
 
 from __future__ import annotations
 
-import contextlib
 import re
 import signal
 import subprocess
 import threading
 import time
-from collections.abc import Iterator
-from itertools import cycle
 
-import numpy as np
 import pytest
-import zenoh
 
 from api_schemas.streams import StreamTracksEnded, StreamTracksMessage
 from service.streams.keys import StreamKeys
-from service.streams.tools import publish_frames
 from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, wait_for
-from tests.streams.live import VTRACK, OutputLines, start_stream, status
-from tracking.detection import MotDetections
+from tests.streams.live import VTRACK, OutputLines, camera_running, start_stream, status
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
-
-
-@contextlib.contextmanager
-def camera_running(
-    session: zenoh.Session,
-    keys: StreamKeys,
-    frames: list[np.ndarray],
-    public: MotDetections,
-) -> Iterator[None]:
-    """A camera publishing ``frames`` over and over at 10 fps, with the public detections as
-    its upstream detector's (so that tracking is cheap), until the block ends."""
-    stop = threading.Event()
-    count = len(frames)
-    thread = threading.Thread(
-        target=publish_frames,
-        args=(session, keys, cycle(frames), 10.0),
-        kwargs={
-            "detections": lambda index: public.for_frame(index % count),
-            "detections_scale": 0.625,
-            "stop": stop,
-        },
-        daemon=True,
-    )
-    thread.start()
-    try:
-        yield
-    finally:
-        stop.set()
-        thread.join(10)
 
 
 def connect(server) -> list[str]:
