@@ -40,5 +40,5 @@ def pets_frames(shared_data) -> list[np.ndarray]:
 
 @pytest.fixture(scope="module")
 def public_detections(shared_data) -> MotDetections:
-    """The public detections of PETS09-S2L1 (768x576: scale 0.625 to the video)."""
+    """The public detections of PETS09-S2L1 (768x576: ``live.PUBLIC_SCALE`` to the video)."""
     return MotDetections.from_file(shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt")

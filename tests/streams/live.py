@@ -21,6 +21,8 @@ from tests.service.conftest import wait_for
 from tracking.detection import MotDetections
 
 VTRACK = [sys.executable, "-m", "service.cli"]
+# The public detections of PETS09-S2L1 are boxes on its 768x576 frames; the video is 480x360.
+PUBLIC_SCALE = 0.625
 
 
 class Follower:
@@ -135,7 +137,7 @@ def camera_running(
         args=(session, keys, itertools.cycle(frames), 10.0),
         kwargs={
             "detections": detections,
-            "detections_scale": 0.625,
+            "detections_scale": PUBLIC_SCALE,
             "stop": stop,
             "block": block,
         },

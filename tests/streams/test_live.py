@@ -34,6 +34,7 @@ from service.streams.tools import (
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, Server, wait_for
 from tests.streams.live import (
+    PUBLIC_SCALE,
     VTRACK,
     Follower,
     OutputLines,
@@ -285,7 +286,7 @@ def test_a_camera_that_stops_goes_idle_its_tracks_end_and_it_resumes(
     camera = "door"
     keys = StreamKeys("vtrack", camera)
     # Upstream detections make the people certain (and the test cheap).
-    camera_options = {"detections": public_detections.for_frame, "detections_scale": 0.625}
+    camera_options = {"detections": public_detections.for_frame, "detections_scale": PUBLIC_SCALE}
     with server.client() as client:
         start_stream(client, session, camera, idle_after=0.5, end_tracks_after=1.5)
         follower = Follower(session, keys)
@@ -349,7 +350,7 @@ def test_a_camera_that_changes_resolution_starts_over_with_new_ids(
         start_stream(client, session, camera, record=True)
         follower = Follower(session, keys)
         # 480x360, then the same scene at 768x576 (where the public detections are native)
-        for frames, scale, first in ((pets_frames[:20], 0.625, 0), (large, 1.0, 20)):
+        for frames, scale, first in ((pets_frames[:20], PUBLIC_SCALE, 0), (large, 1.0, 20)):
             publish_frames(
                 session,
                 keys,
@@ -407,7 +408,7 @@ def test_upstream_detections_are_used_when_present(server, session, pets_frames,
             iter(pets_frames[:20]),
             10.0,
             detections=public.for_frame,
-            detections_scale=0.625,
+            detections_scale=PUBLIC_SCALE,
             wait_for_subscriber=10,
         )
 
@@ -695,7 +696,7 @@ def test_publish_and_subscribe_tools(server, session, tmp_path, shared_data):
                     "--detections",
                     str(shared_data / "mot" / "PETS09-S2L1" / "det" / "det.txt"),
                     "--detections-scale",
-                    "0.625",
+                    str(PUBLIC_SCALE),
                     *connect,
                 ],
                 cwd=REPO_ROOT,

@@ -20,7 +20,14 @@ from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions
 from service.streams.tools import member_session, publish_frames, reach_tracker
 from tests.service.conftest import Server, wait_for
-from tests.streams.live import Follower, all_taken, put_frame, start_stream, status
+from tests.streams.live import (
+    PUBLIC_SCALE,
+    Follower,
+    all_taken,
+    put_frame,
+    start_stream,
+    status,
+)
 from tracking.detection import MotDetections
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
@@ -42,7 +49,7 @@ def publish_run(
         iter(frames),
         10.0,
         detections=lambda index: public.for_frame(first_frame + index),
-        detections_scale=0.625,
+        detections_scale=PUBLIC_SCALE,
         first_sequence=first_sequence,
         wait_for_subscriber=10,
         block=True,

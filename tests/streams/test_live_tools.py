@@ -17,7 +17,14 @@ from service.streams.keys import StreamKeys
 from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, wait_for
-from tests.streams.live import VTRACK, OutputLines, camera_running, start_stream, status
+from tests.streams.live import (
+    PUBLIC_SCALE,
+    VTRACK,
+    OutputLines,
+    camera_running,
+    start_stream,
+    status,
+)
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
@@ -179,7 +186,7 @@ def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shar
                 "--detections",
                 str(detections),
                 "--detections-scale",
-                "0.625",
+                str(PUBLIC_SCALE),
                 *connect(server),
             ],
             cwd=REPO_ROOT,
