@@ -91,12 +91,12 @@ from tracking.detection.metrics import (
 from tracking.types import Box
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_SEQUENCES = ("PETS09-S2L1", "TUD-Stadtmitte")
 DEFAULT_DETECTORS = (
     "dpm-inria",

@@ -40,36 +40,33 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from service.streams.keys import StreamKeys  # noqa: E402
-from service.streams.network_camera import CameraConnection, CameraSettings, NetworkCamera  # noqa: E402
-from service.streams.session import ZenohOptions, open_session  # noqa: E402
-from service.streams.simulated_cameras import (  # noqa: E402
+from service.streams.keys import StreamKeys
+from service.streams.network_camera import CameraConnection, CameraSettings, NetworkCamera
+from service.streams.session import ZenohOptions, open_session
+from service.streams.simulated_cameras import (
     RtspCamera,
     TcpCamera,
     access_units,
     h264_video,
 )
-from service.streams.tools import member_session, publish_frames, video_frames  # noqa: E402
-from service.testing import free_port  # noqa: E402
+from service.streams.tools import member_session, publish_frames, video_frames
+from service.testing import free_port
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
 MODES = ("forward", "h264", "jpeg", "raw")
 
 
-def shared_data() -> Path:
-    return Path(os.environ.get("VTRACK_SHARED_DATA", REPO.parent / "shared" / "data"))
-
-
 def camera_frames(frames: int, width: int, height: int) -> list[np.ndarray]:
     """The first ``frames`` PETS frames (RGB) at ``width`` x ``height``."""
-    source, _ = video_frames(str(shared_data() / "video" / "pets09_s2l1_480x360.avi"))
+    source, _ = video_frames(str(SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"))
     return [
         cv2.resize(rgb, (width, height)) if rgb.shape[:2] != (height, width) else rgb
         for rgb in islice(source, frames)

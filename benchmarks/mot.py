@@ -74,7 +74,6 @@ import contextlib
 import dataclasses
 import hashlib
 import json
-import os
 import shutil
 import statistics
 import subprocess
@@ -101,12 +100,12 @@ from tracking.evaluation.mot import (
 from tracking.tracks import TrackEstimate
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_DATA = SHARED_DATA / "mot"
 DEFAULT_DPM = SHARED_DATA / "dpm" / "INRIA" / "inriaperson_final.mat"
 PEER_SCRIPT = Path(__file__).resolve().parent / "peers" / "mot_trackers.py"

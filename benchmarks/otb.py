@@ -22,7 +22,6 @@ import dataclasses
 import functools
 import json
 import math
-import os
 import subprocess
 import sys
 import time
@@ -45,12 +44,12 @@ from tracking.evaluation.otb import OtbSequence, SequenceError, find_otb_sequenc
 from tracking.types import Tracker
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_DATA = SHARED_DATA / "otb"
 DEFAULT_W2C = SHARED_DATA / "colornames" / "w2c.mat"
 PEER_SCRIPT = Path(__file__).resolve().parent / "peers" / "opencv_trackers.py"

@@ -41,22 +41,22 @@ from pathlib import Path
 import cv2
 import httpx
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run as a script, benchmarks/ comes first on sys.path and this file would shadow the service
 # package.
-sys.path.insert(0, str(REPO_ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from service.testing import Server, wait_for  # noqa: E402
-from tracking.detection.sequences import parse_mot_rows  # noqa: E402
-from tracking.evaluation.hota import hota  # noqa: E402
-from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes  # noqa: E402
+from service.testing import Server, wait_for
+from tracking.detection.sequences import parse_mot_rows
+from tracking.evaluation.hota import hota
+from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
-SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
 DEFAULT_GROUND_TRUTH = SHARED_DATA / "mot" / "PETS09-S2L1" / "gt" / "gt.txt"
 DEFAULT_GT_SCALE = 0.625

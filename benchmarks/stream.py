@@ -67,12 +67,12 @@ from tracking.evaluation.hota import hota
 from tracking.evaluation.mot import ground_truth_rows
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
 SEQUENCE = Path("mot") / "PETS09-S2L1"
 SCALE = 0.625

@@ -21,7 +21,6 @@ x264 uses its default threads.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 import time
@@ -29,19 +28,20 @@ from pathlib import Path
 
 import cv2
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO_ROOT))  # benchmarks/ first on sys.path would shadow the packages
+# benchmarks/ first on sys.path would shadow the packages
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from service.outputs.h264 import AccessUnitEncoder  # noqa: E402
-from service.outputs.video_out import H264Encoder, Mp4vEncoder  # noqa: E402
-from service.streams.payloads import encode_jpeg  # noqa: E402
+from service.outputs.h264 import AccessUnitEncoder
+from service.outputs.video_out import H264Encoder, Mp4vEncoder
+from service.streams.payloads import encode_jpeg
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
-SHARED_DATA = Path(os.environ.get("VTRACK_SHARED_DATA") or REPO_ROOT.parent / "shared" / "data")
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
 
 
