@@ -18,9 +18,11 @@ from __future__ import annotations
 from pathlib import Path
 
 try:  # run as a script: benchmarks/ is on sys.path
-    from _peer_env import REPO_ROOT, PeerEnvError, ensure_env
+    from _paths import REPO_ROOT
+    from _peer_env import PeerEnvError, ensure_env
 except ImportError:  # python -m benchmarks.mot from the repository root
-    from benchmarks._peer_env import REPO_ROOT, PeerEnvError, ensure_env
+    from benchmarks._paths import REPO_ROOT
+    from benchmarks._peer_env import PeerEnvError, ensure_env
 
 __all__ = ["DEFAULT_MOT_ENV", "MOT_REQUIREMENTS", "PeerEnvError", "ensure_mot_env"]
 

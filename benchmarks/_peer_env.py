@@ -20,9 +20,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+try:  # run as a script: benchmarks/ is on sys.path
+    from _paths import REPO_ROOT
+except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._paths import REPO_ROOT
+
 logger = logging.getLogger(__name__)
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_PEER_ENV = REPO_ROOT / ".venv-peers"
 MARKER_FILE = "vtrack-peer-env.json"
 PIP_TIMEOUT_SECONDS = 900.0
