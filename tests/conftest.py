@@ -16,6 +16,7 @@ import importlib.util
 import os
 import shlex
 import shutil
+import signal
 import sys
 import tempfile
 from collections.abc import Iterator
@@ -26,6 +27,13 @@ import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = REPO_ROOT / "benchmarks"
+
+
+def sigint_as_in_a_terminal() -> None:
+    """For ``subprocess.Popen(preexec_fn=...)`` of a program the test presses Ctrl-C in: SIGINT
+    as in a terminal, also where the tests run as a background job, which ignores SIGINT and
+    hands that on to every program it starts."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def copy_mot_sequence(shared_data: Path, folder: Path, frames: int) -> Path:

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from tests.conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT, sigint_as_in_a_terminal
 
 # Each program calls the library in a loop (its kernels take most of the time, so the interrupt
 # lands in one) and says when it has been interrupted the way Python programs expect.
@@ -52,8 +52,7 @@ def _interrupted(program: str) -> subprocess.CompletedProcess:
         stderr=subprocess.PIPE,
         text=True,
         cwd=REPO_ROOT,
-        # SIGINT as in a terminal, also where the tests run as a background job (ignoring it)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=sigint_as_in_a_terminal,
     )
     try:
         assert process.stdout.readline() == "running\n", process.stderr.read()

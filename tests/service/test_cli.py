@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from service.testing import free_port, try_get, wait_for
+from tests.conftest import sigint_as_in_a_terminal
 from tests.correlation.test_tracker import moving_target_scene
 from tests.service.conftest import PETS_VIDEO
 
@@ -42,8 +43,7 @@ def vtrack_interrupted(*args, cwd=None, stop=signal.SIGINT) -> tuple[int, str]:
         cwd=cwd,
         # the bar as often as on a terminal (into a pipe, every 30 s)
         env={**os.environ, "TQDM_MININTERVAL": "0.1"},
-        # SIGINT as in a terminal, also where the tests run as a background job (ignoring it)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=sigint_as_in_a_terminal,
     )
     stderr = bytearray()
 

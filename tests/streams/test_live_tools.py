@@ -15,7 +15,7 @@ import pytest
 from api_schemas.streams import StreamTracksEnded, StreamTracksMessage
 from service.streams.keys import StreamKeys
 from service.testing import free_port
-from tests.conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT, sigint_as_in_a_terminal
 from tests.service.conftest import PETS_VIDEO, wait_for
 from tests.streams.live import (
     PUBLIC_SCALE,
@@ -133,15 +133,16 @@ def test_subscribe_says_when_the_tracks_end(
     command = [*VTRACK, "subscribe", "--camera", camera, *connect(server)]
     with server.client() as client:
         start_stream(client, session, camera)
-        words = subprocess.Popen(
-            command, cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-        )
-        lines = subprocess.Popen(
-            [*command, "--json", "--output", str(out)],
-            cwd=REPO_ROOT,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
+        words, lines = (
+            subprocess.Popen(
+                args,
+                cwd=REPO_ROOT,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                preexec_fn=sigint_as_in_a_terminal,
+            )
+            for args in (command, [*command, "--json", "--output", str(out)])
         )
         said = [OutputLines(tool) for tool in (words, lines)]
         shown = [OutputLines(tool, "stdout") for tool in (words, lines)]
@@ -192,6 +193,7 @@ def test_publish_interrupted_tells_how_many_frames_it_sent(server, session, shar
             cwd=REPO_ROOT,
             stderr=subprocess.PIPE,
             text=True,
+            preexec_fn=sigint_as_in_a_terminal,
         )
         stderr = OutputLines(publisher)
         try:
@@ -275,6 +277,7 @@ def test_subscribe_stopped_while_messages_pour_in_ends_cleanly(server, session, 
         stdout=subprocess.PIPE,  # not read until Ctrl-C: it fills up
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=sigint_as_in_a_terminal,
     )
     said = OutputLines(tool)
     thread = threading.Thread(target=flood, daemon=True)
