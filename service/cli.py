@@ -619,8 +619,9 @@ def _analyze(args: argparse.Namespace) -> int:
 
 def _serve(args: argparse.Namespace) -> int:
     from service.data_folder import DataFolderError, claim_data_folder
-    from service.logs import uvicorn_log_config
+    from service.logs import quiet_ffmpeg, uvicorn_log_config
     from service.settings import InvalidSettings, load_settings
+    from service.worker_processes import start_fork_server
 
     overrides = {
         name: value
@@ -682,6 +683,8 @@ def _serve(args: argparse.Namespace) -> int:
     )
     for warning in _exposure_warnings(settings, where):
         print(f"vtrack: warning: {warning}", file=sys.stderr, flush=True)
+    quiet_ffmpeg(settings.log_level)  # for the workers, which inherit the fork server's
+    start_fork_server()
     # the application (half of the command's imports) only once the settings are known good:
     # a wrong one is then said at once
     import uvicorn

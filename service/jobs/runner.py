@@ -1,10 +1,10 @@
 """Inside a worker process: claim queued jobs from the store and run them, one at a time.
 
-A worker is started with the "spawn" method (a fresh interpreter, nothing inherited but its
-arguments) and opens its own database connection. Between frames it reports progress, which
-is also where it learns that its job was cancelled or taken away; and it watches its parent:
-when the service process that started it is gone, it stops at once and leaves the job to the
-next service, which requeues it.
+A worker is forked from the service's fork server (:func:`service.worker_processes.worker_context`:
+nothing of the service inherited but its arguments) and opens its own database connection.
+Between frames it reports progress, which is also where it learns that its job was cancelled or
+taken away; and it watches the service: when the service process that started it is gone, it
+stops at once and leaves the job to the next service, which requeues it.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import logging
 import os
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,14 +28,14 @@ from service.jobs.result_folders import (
 )
 from service.jobs.store import JobRecord, JobStore
 from service.storage import storage_problem
-from service.worker_processes import ignore_stop_signals
+from service.worker_processes import ignore_stop_signals, service_alive
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True)
 class WorkerConfig:
-    """What a worker process needs (picklable: it crosses the spawn boundary)."""
+    """What a worker process needs (picklable: it crosses the process boundary)."""
 
     database_path: Path
     poll_interval: float
@@ -57,12 +58,13 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
         level=config.log_level.upper(),
         format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",
     )
+    parent_alive = service_alive(parent_pid)
     store = JobStore(config.database_path)
     pid = os.getpid()
     ready.value = True
     try:
         while not stop.value:
-            if os.getppid() != parent_pid:
+            if not parent_alive():
                 log.warning("the service process is gone; this worker stops")
                 return
             job = store.claim(pid)
@@ -70,7 +72,7 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
                 time.sleep(config.poll_interval)
                 continue
             try:
-                run_job(store, job, config, parent_pid)
+                run_job(store, job, config, parent_alive)
             except Orphaned:
                 log.warning("the service process is gone; job %s is left to be requeued", job.id)
                 return
@@ -78,8 +80,10 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
         store.close()
 
 
-def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: int) -> None:
-    """Run one claimed job to its end state."""
+def run_job(
+    store: JobStore, job: JobRecord, config: WorkerConfig, parent_alive: Callable[[], bool]
+) -> None:
+    """Run one claimed job to its end state; ``parent_alive`` says whether the service runs."""
     pid = os.getpid()
     log.info("job %s: attempt %d starts", job.id, job.attempts)
     # what the earlier attempts left (a restart, a stop of the service) is never read again
@@ -89,7 +93,7 @@ def run_job(store: JobStore, job: JobRecord, config: WorkerConfig, parent_pid: i
 
     def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
         nonlocal reported
-        if os.getppid() != parent_pid:
+        if not parent_alive():
             raise Orphaned
         new = frames_processed - reported
         reported = frames_processed

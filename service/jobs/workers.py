@@ -1,4 +1,4 @@
-"""The worker pool: N spawned processes that run jobs, and the supervisor that keeps them.
+"""The worker pool: N processes that run jobs, and the supervisor that keeps them.
 
 The supervisor (a thread of the service process) checks every ``check_interval`` seconds:
 
@@ -12,14 +12,14 @@ Either way the failed job's partial results are removed once its worker is gone 
 before: a worker still alive could write on).
 
 On a clean stop, idle workers leave at a flag, busy ones are killed, and the jobs they were
-running go back to the queue. A worker that the stop signal ended while it started is not
-replaced (:class:`~service.worker_processes.StopSignalDeaths`).
+running go back to the queue. Workers ignore the stop signals the whole group gets from birth
+(they are forked from a fork server that ignores them); none is replaced once the service stops
+(:class:`~service.worker_processes.StopSignalDeaths`).
 """
 
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import os
 import threading
 import time
@@ -33,7 +33,7 @@ from service.worker_processes import (
     StopSignalDeaths,
     describe_exit,
     shared_flag,
-    single_threaded_blas,
+    worker_context,
 )
 
 log = logging.getLogger(__name__)
@@ -46,7 +46,7 @@ class _Slot:
 
 
 class WorkerPool:
-    """``workers`` processes started with the "spawn" method, supervised.
+    """``workers`` processes forked from the fork server (:func:`worker_context`), supervised.
 
     ``stop_requested`` is set by the service's stop-signal handler, before :meth:`stop` runs
     (the service first waits for its open requests): from then on no worker is replaced.
@@ -68,7 +68,7 @@ class WorkerPool:
         self._job_timeout = job_timeout
         self._stall_timeout = stall_timeout
         self._check_interval = check_interval
-        self._ctx = multiprocessing.get_context("spawn")
+        self._ctx = worker_context()
         self._stop_workers = shared_flag(self._ctx)
         self._stopping = threading.Event()
         self._deaths = StopSignalDeaths(stop_requested)
@@ -143,7 +143,6 @@ class WorkerPool:
     # -- supervision -----------------------------------------------------------------------
 
     def _spawn(self, index: int) -> _Slot:
-        single_threaded_blas()
         ready = shared_flag(self._ctx)
         process = self._ctx.Process(
             target=worker_main,

@@ -1,7 +1,7 @@
 """The service side of live streams: a worker process per stream, started, watched, stopped.
 
 :class:`StreamManager` lives in the service process. It opens the hub Zenoh session (the one
-cameras and workers meet at), starts a spawned worker per stream, and keeps each stream's latest
+cameras and workers meet at), starts a worker process per stream, and keeps each stream's latest
 status from the reports its worker sends over a pipe. A supervisor thread restarts a worker
 that died, waiting longer after each quick death, and gives up (state ``failed``) after
 :data:`MAX_QUICK_DEATHS` in a row. An arbiter thread keeps one tracker per camera across
@@ -12,7 +12,6 @@ liveliness token disappears.
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import os
 import shutil
 import threading
@@ -42,7 +41,7 @@ from service.worker_processes import (
     StopSignalDeaths,
     describe_exit,
     shared_flag,
-    single_threaded_blas,
+    worker_context,
 )
 
 log = logging.getLogger(__name__)
@@ -114,7 +113,7 @@ class StreamManager:
         # ordered by start time (milliseconds in fixed-width hex), so that of two instances that
         # track one camera the older, which had it first, keeps it (see _arbitrate)
         self.instance = f"{time.time_ns() // 1_000_000:011x}{uuid.uuid4().hex[:5]}"
-        self._ctx = multiprocessing.get_context("spawn")
+        self._ctx = worker_context()
         self._streams: dict[str, _Stream] = {}
         self._lock = threading.RLock()
         self._stopping = threading.Event()
@@ -330,7 +329,6 @@ class StreamManager:
             frame_limit=self._frame_limit,
             log_level=self._log_level,
         )
-        single_threaded_blas()
         stream.stop = shared_flag(self._ctx)
         # A pipe whose only write end the worker holds (a Queue's is shared with the service
         # and written by a thread): a report cut short by the worker's death then reads as the

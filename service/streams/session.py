@@ -26,7 +26,7 @@ DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
 
 @dataclass(frozen=True, slots=True)
 class ZenohOptions:
-    """How to reach the Zenoh network (picklable: it crosses the spawn boundary).
+    """How to reach the Zenoh network (picklable: it crosses the process boundary).
 
     Attributes
     ----------

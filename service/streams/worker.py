@@ -1,11 +1,12 @@
 """Inside a stream worker process: frames from Zenoh in, tracks to Zenoh out, live.
 
-One process per stream, started with the "spawn" method; it opens its own Zenoh session
-(a forked one is dead). Zenoh delivers samples on its own threads; the subscriber callbacks only
-check the attachment and drop the sample into a one-frame slot (:class:`LatestFrame`), so the
-frame the tracker takes next is always the newest and a slow tracker skips frames instead of
-queueing them. The main thread tracks, publishes, and reports its status to the service
-process over a pipe a few times per second.
+One process per stream, forked from the service's fork server
+(:func:`service.worker_processes.worker_context`); it opens its own Zenoh session. Zenoh
+delivers samples on its own threads; the subscriber callbacks only check the attachment and drop
+the sample into a one-frame slot (:class:`LatestFrame`), so the frame the tracker takes next is
+always the newest and a slow tracker skips frames instead of queueing them. The main thread
+tracks, publishes, and reports its status to the service process over a pipe a few times per
+second.
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ from service.streams.payloads import (
 )
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamStore
-from service.worker_processes import ignore_stop_signals
+from service.worker_processes import ignore_stop_signals, service_alive
 from tracking.detection.base import Detections
 from tracking.pipeline import FramePipeline
 
@@ -96,7 +97,7 @@ DATABASE_TIMEOUT = 5.0
 
 @dataclass(frozen=True, slots=True)
 class StreamContext:
-    """What a stream worker needs (picklable: it crosses the spawn boundary)."""
+    """What a stream worker needs (picklable: it crosses the process boundary)."""
 
     spec: StreamSpec
     prefix: str
@@ -778,7 +779,7 @@ def stream_main(context: StreamContext, parent_pid: int, stop, reports: Connecti
 
     worker = StreamWorker(context, report)
     try:
-        worker.run(stop, parent_alive=lambda: os.getppid() == parent_pid)
+        worker.run(stop, parent_alive=service_alive(parent_pid))
     except ZenohUnavailable as error:
         report({"state": StreamState.failed.value, "error": f"Zenoh: {error}"})
         raise SystemExit(3) from None

@@ -1,13 +1,16 @@
 """When a supervisor replaces a dead worker: not while the service stops, and a worker that a
-stop signal ended only once the service has had time to say that it stops."""
+stop signal ended only once the service has had time to say that it stops. How a worker knows
+that its service is gone, though the service is not its parent."""
 
 from __future__ import annotations
 
 import signal
+import subprocess
+import sys
 import threading
 import time
 
-from service.worker_processes import StopSignalDeaths
+from service.worker_processes import StopSignalDeaths, service_alive
 
 
 def test_a_crash_is_replaced_at_once_and_a_stop_signal_death_after_the_grace():
@@ -30,3 +33,18 @@ def test_nothing_is_replaced_once_the_service_stops():
     time.sleep(0.35)
     assert not deaths.replace_now(102, -signal.SIGTERM)
     assert not deaths.replace_now(100, -signal.SIGKILL)
+
+
+def test_a_worker_sees_its_service_end_though_it_is_not_its_parent():
+    service = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        alive = service_alive(service.pid)
+        assert alive() and alive()
+    finally:
+        service.kill()
+    deadline = time.monotonic() + 10
+    while alive() and time.monotonic() < deadline:  # ended before it is reaped
+        time.sleep(0.01)
+    assert not alive()
+    service.wait()
+    assert not service_alive(service.pid)()  # gone before the worker looked
