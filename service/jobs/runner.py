@@ -48,7 +48,7 @@ class Orphaned(Exception):
     """The service process that started this worker is gone."""
 
 
-def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
+def worker_main(config: WorkerConfig, service_pid: int, stop, ready) -> None:
     """Entry point of a worker process: run jobs until ``stop`` is set or the parent dies.
 
     ``stop`` and ``ready`` are lock-free shared flags (:func:`service.jobs.workers.shared_flag`).
@@ -58,13 +58,13 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
         level=config.log_level.upper(),
         format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",
     )
-    parent_alive = service_alive(parent_pid)
+    service_runs = service_alive(service_pid)
     store = JobStore(config.database_path)
     pid = os.getpid()
     ready.value = True
     try:
         while not stop.value:
-            if not parent_alive():
+            if not service_runs():
                 log.warning("the service process is gone; this worker stops")
                 return
             job = store.claim(pid)
@@ -72,7 +72,7 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
                 time.sleep(config.poll_interval)
                 continue
             try:
-                run_job(store, job, config, parent_alive)
+                run_job(store, job, config, service_runs)
             except Orphaned:
                 log.warning("the service process is gone; job %s is left to be requeued", job.id)
                 return
@@ -81,9 +81,9 @@ def worker_main(config: WorkerConfig, parent_pid: int, stop, ready) -> None:
 
 
 def run_job(
-    store: JobStore, job: JobRecord, config: WorkerConfig, parent_alive: Callable[[], bool]
+    store: JobStore, job: JobRecord, config: WorkerConfig, service_runs: Callable[[], bool]
 ) -> None:
-    """Run one claimed job to its end state; ``parent_alive`` says whether the service runs."""
+    """Run one claimed job to its end state; ``service_runs`` says whether the service runs."""
     pid = os.getpid()
     log.info("job %s: attempt %d starts", job.id, job.attempts)
     # what the earlier attempts left (a restart, a stop of the service) is never read again
@@ -93,7 +93,7 @@ def run_job(
 
     def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
         nonlocal reported
-        if not parent_alive():
+        if not service_runs():
             raise Orphaned
         new = frames_processed - reported
         reported = frames_processed

@@ -313,7 +313,7 @@ class StreamWorker:
 
     # -- the loop ----------------------------------------------------------------------------
 
-    def run(self, stop: ctypes.c_bool, parent_alive=lambda: True) -> None:
+    def run(self, stop: ctypes.c_bool, service_runs=lambda: True) -> None:
         self._salvage_recordings()
         self._open_id_store()
         self._pipeline = self._new_pipeline()
@@ -342,7 +342,7 @@ class StreamWorker:
             )
             log.info("camera %s: listening on %s", self.spec.camera, self.keys.frames)
             self.report(force=True)
-            while not stop.value and parent_alive():
+            while not stop.value and service_runs():
                 frame = self._latest.take(timeout=0.1)
                 if frame is not None:
                     self._track(frame, publisher)
@@ -762,7 +762,7 @@ def job_options(spec: StreamSpec) -> JobOptions:
     return JobOptions(detector=spec.detector, tracker=spec.tracker)
 
 
-def stream_main(context: StreamContext, parent_pid: int, stop, reports: Connection) -> None:
+def stream_main(context: StreamContext, service_pid: int, stop, reports: Connection) -> None:
     """Entry point of a stream worker process; ``reports`` is the write end of the pipe its
     service reads the status from."""
     ignore_stop_signals()
@@ -779,7 +779,7 @@ def stream_main(context: StreamContext, parent_pid: int, stop, reports: Connecti
 
     worker = StreamWorker(context, report)
     try:
-        worker.run(stop, parent_alive=service_alive(parent_pid))
+        worker.run(stop, service_runs=service_alive(service_pid))
     except ZenohUnavailable as error:
         report({"state": StreamState.failed.value, "error": f"Zenoh: {error}"})
         raise SystemExit(3) from None
