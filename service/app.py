@@ -80,7 +80,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         resources=resources(settings),
         log_level=settings.log_level,
     )
-    # no worker is replaced once a stop signal came: the group's signal ends those still starting
+    # no worker is replaced once a stop signal came: the service is stopping them
     stopping = app.state.stopping
     pool = WorkerPool(
         store,
