@@ -165,9 +165,7 @@ def service_alive(pid: int) -> Callable[[], bool]:
 def _exists(pid: int) -> bool:
     try:
         os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # someone else's process now holds the pid: ours is gone
+    except (ProcessLookupError, PermissionError):  # gone, or the pid is now someone else's
         return False
     return True
 
