@@ -297,8 +297,11 @@ def test_a_stream_whose_times_do_not_keep_pace_is_stamped_on_arrival():
         camera.close()
     assert news == [f"{camera.url}: {UNTIMED}"]
     stamps, arrivals = received.T
-    # spaced as they arrived (less the clock's slew back to arrival times), not 40 ms apart
-    assert np.all(np.diff(stamps[-100:]) <= np.diff(arrivals[-100:]) + 1e-3)
+    # spaced as they arrived (less the clock's slew back to arrival times), not 40 ms apart:
+    # the last 100 span about 0.4 s, not 4. Compared over the span, not frame by frame, since
+    # this loop reads the clock a scheduling delay after the stamp (milliseconds under load).
+    assert np.all(np.diff(stamps) >= 0)
+    assert stamps[-1] - stamps[-100] <= arrivals[-1] - arrivals[-100] + 0.05
 
 
 def test_an_mp4_over_http_is_forwarded_in_annex_b_form(files, pets):
