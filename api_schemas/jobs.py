@@ -77,10 +77,12 @@ class DetectorOptions(BaseModel):
         le=4,
         description="Enlarge frames by this factor before detecting. Embedded detector: "
         "people smaller than about 80 px need more than 1.5 (people 40-55 px tall need 2.0), "
-        "at about twice the cost; None: by the frame's height, 1.5 moved to keep the enlarged "
+        "at about twice the cost; None: by the frame's height (a portrait frame's width), 1.5 "
+        "moved to keep the enlarged "
         "frame 720-1080 px high, at most 2.0 (360 px high: 2.0; 480-720 px: 1.5; 1080 px: "
         "1.0; 2160 px: 0.5). DPM: it finds people down to "
-        "about 60 px / upscale tall; None: 1, or less for frames over 1080 px high, which are "
+        "about 60 px / upscale tall; None: 1, or less for frames over 1080 px high (portrait: "
+        "wide), which are "
         "searched at 1080 px (2160 px: 0.5, a quarter of the pixels). The enlarged frame may "
         "have at most 7680x4320 pixels (a 4K video: upscale 2 at most).",
     )

@@ -120,25 +120,39 @@ Detect = Callable[[np.ndarray, int], tuple[np.ndarray, np.ndarray]]
 @dataclasses.dataclass
 class Sequence:
     """A MOTChallenge sequence as the benchmark reads it: frames, ground truth and the public
-    detections, all resized by ``scale`` (``--height``)."""
+    detections, all resized by ``scale`` (``--height``) and, with ``portrait``
+    (``--portrait``), each frame centred on a black 9:16 canvas of its width, the picture of a
+    camera turned on its side (ground truth and detections moved with it)."""
 
     source: MotSequence
     scale: float = 1.0
+    portrait: bool = False
 
     def __post_init__(self) -> None:
         self.name = self.source.name
-        self.gt = {i: boxes * self.scale for i, boxes in self.source.gt.items()}
+        height, width = self.source.read_frame(0).shape[:2]
+        width, height = round(width * self.scale), round(height * self.scale)
+        self._canvas = (round(width * 16 / 9), width) if self.portrait else (height, width)
+        self._top = (self._canvas[0] - height) // 2
+        self.gt = {i: self._placed(boxes) for i, boxes in self.source.gt.items()}
         self._public: MotDetections | None = None
+
+    def _placed(self, boxes: np.ndarray) -> np.ndarray:
+        return boxes * self.scale + np.array([0.0, self._top, 0.0, 0.0])
 
     def __len__(self) -> int:
         return len(self.source)
 
     def read_frame(self, index: int) -> np.ndarray:
         frame = self.source.read_frame(index)
-        if self.scale == 1.0:
+        if self.scale != 1.0:
+            size = (round(frame.shape[1] * self.scale), round(frame.shape[0] * self.scale))
+            frame = cv2.resize(frame, size, interpolation=cv2.INTER_LINEAR)
+        if not self.portrait:
             return frame
-        size = (round(frame.shape[1] * self.scale), round(frame.shape[0] * self.scale))
-        return cv2.resize(frame, size, interpolation=cv2.INTER_LINEAR)
+        canvas = np.zeros((*self._canvas, *frame.shape[2:]), frame.dtype)
+        canvas[self._top : self._top + frame.shape[0]] = frame
+        return canvas
 
     def load_public(self) -> MotDetections:
         """The public ``det/det.txt`` (read once; MotFormatError if missing or malformed)."""
@@ -149,7 +163,7 @@ class Sequence:
     def public(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         """The public ``det/det.txt`` boxes and scores of a 0-based frame."""
         d = self.load_public().for_frame(index)
-        return d.boxes * self.scale, d.scores
+        return self._placed(d.boxes), d.scores
 
 
 # --------------------------------------------------------------------------------- detectors
@@ -377,7 +391,7 @@ def timing(
                 continue
             # The DPM's scale for these frames and its finest features' (its scale, doubled
             # by the extra octave if the model has one).
-            scale = entry.dpm.config.upscale_for(frames[0][1].shape[0])
+            scale = entry.dpm.config.upscale_for(frames[0][1].shape)
             finest = scale * (2.0 if entry.dpm.model.extra_octave else 1.0)
             for u in {scale, finest} - {1.0, PEER_UPSCALE}:
                 peers[f"opencv-hog@{u:g}"] = _opencv_peer(u)
@@ -519,7 +533,7 @@ def _sequences(args: argparse.Namespace) -> list[Sequence]:
     for item in args.sequences:
         source = MotSequence.open(sequence_folder(item, args.data))
         height = source.read_frame(0).shape[0]
-        out.append(Sequence(source, args.height / height if args.height else 1.0))
+        out.append(Sequence(source, args.height / height if args.height else 1.0, args.portrait))
     return out
 
 
@@ -567,6 +581,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--workers", type=int, default=1, help="DPM level threads (default 1)")
     parser.add_argument(
         "--height", type=int, help="resize the frames to this height in pixels (default: as is)"
+    )
+    parser.add_argument(
+        "--portrait",
+        action="store_true",
+        help="centre each frame on a black 9:16 canvas of its width, as a camera turned on its "
+        "side for a corridor frames it (after --height)",
     )
     parser.add_argument(
         "--picture",

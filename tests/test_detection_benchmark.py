@@ -62,7 +62,9 @@ def test_bad_hog_names_are_refused(detection, name):
 @pytest.mark.slow
 def test_height_resizes_frames_ground_truth_and_public_detections(detection, shared_data):
     """``--height 1080``: the PETS09-S2L1 scene as a 1440x1080 camera shows it."""
-    args = detection.argparse.Namespace(sequences=["PETS09-S2L1"], data=shared_data, height=1080)
+    args = detection.argparse.Namespace(
+        sequences=["PETS09-S2L1"], data=shared_data, height=1080, portrait=False
+    )
     (sequence,) = detection._sequences(args)
     source = sequence.source
     assert sequence.scale == pytest.approx(1080 / 576)
@@ -74,6 +76,23 @@ def test_height_resizes_frames_ground_truth_and_public_detections(detection, sha
     np.testing.assert_array_equal(scores, public.scores)
     (native,) = detection._sequences(detection.argparse.Namespace(**{**vars(args), "height": None}))
     assert native.read_frame(10).shape == (576, 768, 3)
+
+
+def test_portrait_centres_each_frame_on_a_9_by_16_canvas(detection, shared_data):
+    """``--portrait``: the frame in the middle of a black 768x1365 picture, boxes moved down."""
+    args = detection.argparse.Namespace(
+        sequences=["PETS09-S2L1"], data=shared_data, height=None, portrait=True
+    )
+    (sequence,) = detection._sequences(args)
+    source, top = sequence.source, (1365 - 576) // 2
+    down = np.array([0, top, 0, 0])
+    canvas = sequence.read_frame(10)
+    assert canvas.shape == (1365, 768, 3)
+    np.testing.assert_array_equal(canvas[top : top + 576], source.read_frame(10))
+    assert not canvas[:top].any() and not canvas[top + 576 :].any()
+    np.testing.assert_allclose(sequence.gt[10], source.gt[10] + down)
+    public = detection.MotDetections.from_file(source.detections_file).for_frame(10)
+    np.testing.assert_allclose(sequence.public(10)[0], public.boxes + down)
 
 
 def _strict(constant: str) -> None:

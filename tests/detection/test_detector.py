@@ -213,12 +213,17 @@ def test_search_levels_hold_windows_of_the_heights_with_parts_at_twice_the_resol
 
 def test_frames_taller_than_1080_px_are_searched_at_1080(detector, pets):
     config = DpmConfig()
-    assert [config.upscale_for(h) for h in (480, 576, 1080, 1440, 2160)] == [1, 1, 1, 0.75, 0.5]
-    assert DpmConfig(upscale=1.0).upscale_for(2160) == 1.0
+    heights = (480, 576, 1080, 1440, 2160)
+    assert [config.upscale_for((h, 2 * h, 3)) for h in heights] == [1, 1, 1, 0.75, 0.5]
+    # portrait frames by their shorter side: a turned 4K camera at half size, not at 0.28
+    assert [config.upscale_for((2 * h, h, 3)) for h in heights] == [1, 1, 1, 0.75, 0.5]
+    assert DpmConfig(upscale=1.0).upscale_for((2160, 3840, 3)) == 1.0
     # a 4K frame's pyramid is a 1080-px frame's at twice the cell size, not four times the work
     uhd = detector.search_levels((2160, 3840, 3))
     hd = detector.search_levels((1080, 1920, 3))
     assert [r.cell for r, _ in uhd] == pytest.approx([2 * r.cell for r, _ in hd])
+    turned = detector.search_levels((3840, 2160, 3))  # the 4K camera on its side
+    assert [r.cell for r, _ in turned] == pytest.approx([r.cell for r, _ in uhd])
     # PETS09-S2L1 frame 200 as a 2160-px camera shows it: its people found, in 4K pixels
     scale = 2160 / 576
     frame = cv2.resize(pets.read_frame(200), None, fx=scale, fy=scale)

@@ -43,6 +43,19 @@ def test_detects_the_people_of_a_large_frame(detector, pets, height):
     assert int(match_frame(found.boxes, found.scores, pets.gt[200] * scale).sum()) >= 5
 
 
+def test_detects_the_people_of_a_portrait_frame(detector, pets):
+    # The same frame in a 768x1366 corridor-format picture (a camera turned on its side): it is
+    # enlarged by its shorter side as the 1366x768 frame would be (1.41x), so its 55-100 px
+    # people are found as in the frame itself; by its height (0.79x) they would be under the
+    # window's 96-px person.
+    frame, gt = pets.read_frame(200), pets.gt[200]
+    top = (1366 - 576) // 2
+    portrait = np.zeros((1366, 768, 3), np.uint8)
+    portrait[top : top + 576] = frame
+    found = detector.detect(portrait)
+    assert int(match_frame(found.boxes, found.scores, gt + np.array([0, top, 0, 0])).sum()) >= 4
+
+
 def test_dense_scores_agree_with_the_detection(detector, pets, pets_frame):
     gt = pets.gt[0][1]
     x, y, w, h = gt
@@ -78,7 +91,7 @@ def test_a_region_scans_only_the_levels_of_its_heights(pets, pets_frame):
     x, y, w, h = pets.gt[0][1]
     heights = (0.8 * h, 1.25 * h)
     found = recording.detect_region(pets_frame, Box(x - h / 2, y - h / 2, w + h, 2 * h), heights)
-    u = recording.config.upscale_for(pets_frame.shape[0])
+    u = recording.config.upscale_for(pets_frame.shape)
     person = recording.config.box_scale[1] * 128 * np.array(scales) / u
     assert len(scales) >= 3
     assert np.all((person >= heights[0]) & (person <= heights[1]))
@@ -122,16 +135,15 @@ def test_default_upscale_follows_the_frame_height():
     config = HogPeopleConfig()
     # 480x360 video: people 40-60 px tall need 2.0; 640x480 and 768x576 keep the fitted 1.5;
     # frames above 720 px are searched at 1080 px high, so a 4K frame is shrunk, not enlarged.
-    assert config.upscale_for(240) == 2.0
-    assert config.upscale_for(360) == 2.0
-    assert config.upscale_for(400) == pytest.approx(1.8)
-    assert config.upscale_for(480) == 1.5
-    assert config.upscale_for(576) == 1.5
-    assert config.upscale_for(720) == 1.5
-    assert config.upscale_for(800) == pytest.approx(1.35)
-    assert config.upscale_for(1080) == 1.0
-    assert config.upscale_for(2160) == 0.5
-    assert HogPeopleConfig(upscale=1.0).upscale_for(2160) == 1.0
+    expected = {240: 2.0, 360: 2.0, 400: 1.8, 480: 1.5, 576: 1.5, 720: 1.5, 800: 1.35,
+                1080: 1.0, 2160: 0.5}  # fmt: skip
+    for height, factor in expected.items():
+        width = round(height * 16 / 9)
+        assert config.upscale_for((height, width, 3)) == pytest.approx(factor)
+        # a camera turned for a corridor: the shorter side counts, as for the frame upright
+        assert config.upscale_for((width, height, 3)) == pytest.approx(factor)
+    assert config.upscale_for((360, 480)) == 2.0  # greyscale shapes too
+    assert HogPeopleConfig(upscale=1.0).upscale_for((2160, 3840, 3)) == 1.0
     with pytest.raises(ValueError, match="auto_heights"):
         HogPeopleConfig(auto_heights=(1080.0, 720.0))
     with pytest.raises(ValueError, match="max_upscale"):

@@ -74,7 +74,7 @@ class HogPeopleConfig:
     ----------
     upscale:
         Enlarge the frame by this factor first; boxes are mapped back to the frame. ``None``
-        (default): by the frame's height, :meth:`upscale_for`.
+        (default): by the frame's height (its shorter side), :meth:`upscale_for`.
     auto_upscale:
         With ``upscale`` None: the factor to start from, 1.5, at which the calibration and
         ``box_scale`` were fitted (768x576 and 640x480 sequences).
@@ -88,7 +88,7 @@ class HogPeopleConfig:
         much (on PETS09-S2L1 and TUD-Stadtmitte resized to 1080 px, 1.0 matched 1.5's
         detection AP and tracking HOTA: docs/benchmarks.md).
     max_upscale:
-        The largest automatic factor, 2.0: below 360 px high, frames stay under 720 px.
+        The largest automatic factor, 2.0: frames below 360 px (shorter side) stay under 720 px.
     hit_threshold:
         Raw SVM score a window must exceed (OpenCV's ``hitThreshold``, default 0).
     win_stride:
@@ -148,13 +148,17 @@ class HogPeopleConfig:
         if self.workers is not None and (not is_int(self.workers) or self.workers < 1):
             raise ValueError(f"workers must be a positive int or None, got {self.workers}")
 
-    def upscale_for(self, frame_height: int) -> float:
-        """The enlargement of a frame ``frame_height`` pixels high: ``upscale`` if set, else
+    def upscale_for(self, frame_shape: tuple[int, ...]) -> float:
+        """The enlargement of a frame of shape ``(H, W, ...)``: ``upscale`` if set, else
         ``auto_upscale`` moved just enough to bring the enlarged height into ``auto_heights``,
-        at most ``max_upscale`` (360 px: 2.0; 480-720 px: 1.5; 1080 px: 1.0; 2160 px: 0.5)."""
+        at most ``max_upscale`` (360 px: 2.0; 480-720 px: 1.5; 1080 px: 1.0; 2160 px: 0.5).
+
+        The height that counts is the frame's shorter side: a camera turned on its side for a
+        corridor (a 720x1280 frame) sees people at the sizes it saw them at upright (1280x720)
+        and has as many pixels to search, so it gets the same factor."""
         if self.upscale is not None:
             return self.upscale
-        height = max(frame_height, 1)
+        height = max(min(frame_shape[:2]), 1)
         low, high = self.auto_heights
         return min(max(self.auto_upscale, low / height), high / height, self.max_upscale)
 
@@ -262,7 +266,7 @@ class HogPeopleDetector:
     def detect(self, frame: np.ndarray) -> Detections:
         """People in the whole frame (RGB or grayscale uint8)."""
         image = _checked_frame(frame)
-        boxes, scores = self._run(image, (0.0, 0.0), self.config.upscale_for(image.shape[0]))
+        boxes, scores = self._run(image, (0.0, 0.0), self.config.upscale_for(image.shape))
         return self._detections(boxes, scores)
 
     def _crop(
@@ -292,7 +296,7 @@ class HogPeopleDetector:
         # The factor follows the whole frame, so a region sees people as the full frame does;
         # only the levels whose people fit ``heights`` are scanned (all of them cost more than
         # the whole frame's search when the region is large).
-        u = self.config.upscale_for(image.shape[0])
+        u = self.config.upscale_for(image.shape)
         boxes, scores = self._run(crop, (x0, y0), u, heights)
         cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
         inside = (
@@ -324,7 +328,7 @@ class HogPeopleDetector:
         crop, x0, y0 = self._crop(image, clipped, high)
         stride = self.config.win_stride
         out_h, grids, origins, strides = [], [], [], []
-        scale = self.config.upscale_for(image.shape[0])
+        scale = self.config.upscale_for(image.shape)
         while True:
             person_h = sh * _WINDOW[1] / scale
             if person_h > high:

@@ -24,12 +24,13 @@ class DpmConfig:
     upscale:
         Enlarge the frame by this factor before building the pyramid (1: voc-release5). The
         smallest window the INRIA model finds is 15 cells of ``sbin / 2`` = 60 px tall at 1;
-        2.0 halves that. ``None`` (default): by the frame's height, :meth:`upscale_for`.
+        2.0 halves that. ``None`` (default): by the frame's height (its shorter side),
+        :meth:`upscale_for`.
     auto_max_height:
-        With ``upscale`` None: frames up to this many pixels high are searched as they are,
-        taller ones shrunk to it (a 4K frame by half). The cost grows with the pixels, and
-        people in such frames are far above the smallest window: on PETS09-S2L1 enlarged to
-        2160 px, half size finds them as well as full size at a quarter of the time
+        With ``upscale`` None: frames up to this many pixels high (shorter side) are searched
+        as they are, taller ones shrunk to it (a 4K frame by half). The cost grows with the
+        pixels, and people in such frames are far above the smallest window: on PETS09-S2L1
+        enlarged to 2160 px, half size finds them as well as full size at a quarter of the time
         (``docs/benchmarks.md``).
     levels_per_octave:
         Pyramid levels per octave; ``None``: the model's ``interval`` (10). Fewer levels are
@@ -140,13 +141,14 @@ class DpmConfig:
         if not (0 < low <= high):
             raise ValueError(f"region_heights must be 0 < low <= high, got {self.region_heights}")
 
-    def upscale_for(self, frame_height: int) -> float:
-        """The enlargement of a frame ``frame_height`` pixels high: ``upscale`` if set, else 1
-        up to ``auto_max_height`` and ``auto_max_height / frame_height`` above it (1080 px:
-        1.0; 2160 px: 0.5)."""
+    def upscale_for(self, frame_shape: tuple[int, ...]) -> float:
+        """The enlargement of a frame of shape ``(H, W, ...)``: ``upscale`` if set, else 1 up
+        to ``auto_max_height`` and ``auto_max_height / H`` above it (1080 px: 1.0; 2160 px:
+        0.5), with ``H`` the frame's shorter side (a portrait frame as its landscape
+        counterpart: see ``HogPeopleConfig.upscale_for``)."""
         if self.upscale is not None:
             return self.upscale
-        return min(1.0, self.auto_max_height / max(frame_height, 1))
+        return min(1.0, self.auto_max_height / max(min(frame_shape[:2]), 1))
 
 
 DPM_TRACKING_CONFIG = DpmConfig(threshold=-0.7, nms_criterion="iou", nms_overlap=0.3)

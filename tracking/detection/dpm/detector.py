@@ -231,7 +231,7 @@ class DpmDetector:
         """
         model = self.model
         levels = pyramid_levels(
-            shape, model.sbin, self.interval, model.extra_octave, self.config.upscale_for(shape[0])
+            shape, model.sbin, self.interval, model.extra_octave, self.config.upscale_for(shape)
         )
         low = heights[0] if heights[0] is not None else 0.0
         high = heights[1] if heights[1] is not None else math.inf
