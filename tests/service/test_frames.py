@@ -301,7 +301,8 @@ def test_a_motchallenge_sequence_cut_from_later_keeps_its_frame_numbers(shared_d
 
 def test_a_video_stored_turned_is_read_upright(shared_data, tmp_path):
     # A phone held upright stores its pictures turned, with a display matrix that turns them
-    # back; the people are tracked as a player shows them, upright.
+    # back; the frames come out as a player shows them, upright, for the detectors to see
+    # people standing (OpenCV applies the matrix: CAP_PROP_ORIENTATION_AUTO).
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), 10))
     path = tmp_path / "phone.mp4"
     with av.open(str(path), "w") as container:
