@@ -786,7 +786,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     track.add_argument("--w2c", type=Path, metavar="FILE", help=W2C_HELP)
     track.add_argument(
-        "--out", type=Path, metavar="FILE", help="write the boxes here instead of stdout"
+        "-o", "--out", type=Path, metavar="FILE", help="write the boxes here instead of stdout"
     )
     track.add_argument(
         "--format",
@@ -796,7 +796,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_range_arguments(track, "the first box is drawn on the first frame at or after it")
     _add_fps_argument(track)
-    track.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    track.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     track.set_defaults(handler=_track)
 
     analyze = commands.add_parser(
@@ -808,7 +808,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     analyze.add_argument("source", help="video file or image folder (MOTChallenge img1/ too)")
     analyze.add_argument(
-        "--out-dir", type=Path, required=True, metavar="DIR", help="folder for the results"
+        "-o", "--out-dir", type=Path, required=True, metavar="DIR", help="folder for the results"
     )
     analyze.add_argument(
         "--format",
@@ -884,7 +884,7 @@ def build_parser() -> argparse.ArgumentParser:
         '\'{"tracker": {"report_missing": 0.15}}\'); the flags above win over it',
     )
     analyze.add_argument("--w2c", type=Path, metavar="FILE", help=W2C_HELP)
-    analyze.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    analyze.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     analyze.set_defaults(handler=_analyze)
 
     serve = commands.add_parser(

@@ -446,8 +446,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     zenoh_arguments(subscribe)
     subscribe.add_argument(
+        "-o",
         "--output",
         type=Path,
+        metavar="FILE",
         help="append JSON lines to this file instead of printing (add --json to print too)",
     )
     subscribe.add_argument("--json", action="store_true", help="print JSON lines")

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
+from service.cli import _attach_box_values, build_parser
 from service.testing import free_port, try_get, wait_for
 from tests.conftest import sigint_as_in_a_terminal
 from tests.correlation.test_tracker import moving_target_scene
@@ -354,6 +355,22 @@ def test_version():
     )
     assert result.returncode == 0
     assert re.fullmatch(r"vtrack \d+\.\d+\.\d+\n", result.stdout), result.stdout
+
+
+@pytest.mark.parametrize(
+    ("short", "long"),
+    [
+        (["track", "v.mp4", "-o", "b.csv", "-q", "--box", "-5,-5,20,20"],
+         ["track", "v.mp4", "--out", "b.csv", "--quiet", "--box", "-5,-5,20,20"]),
+        (["analyze", "v.mp4", "-qo", "results"],
+         ["analyze", "v.mp4", "--out-dir", "results", "--quiet"]),
+        (["subscribe", "--camera", "c", "-o", "t.jsonl"],
+         ["subscribe", "--camera", "c", "--output", "t.jsonl"]),
+    ],
+)  # fmt: skip
+def test_short_options_for_the_output_and_quiet(short, long):
+    parse = build_parser().parse_args
+    assert parse(_attach_box_values(short)) == parse(_attach_box_values(long))
 
 
 @pytest.mark.parametrize(
