@@ -130,7 +130,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     most tests first, which put the live stream modules early). A realtime test in the middle
     of the run waits for the test running on the other worker (the Dockerfile replay: over a
     minute) while neither core does anything else, and the other worker then waits for it.
-    Last, they wait only for each other: the run took 624 s instead of 674 s."""
+    Last, they wait only for each other."""
     realtime = {item.path for item in items if item.get_closest_marker("realtime")}
     items.sort(key=lambda item: item.path in realtime)  # stable: each module keeps its order
 
