@@ -152,6 +152,22 @@ def test_bad_frames_raise_clear_errors(detector, frame, error):
         detector.detect(frame)
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_frames_with_values_that_are_not_finite_raise(detector, bad):
+    # The pyramid computes its features unchecked: the frame is checked once, for every call,
+    # wherever the bad value is (here outside the region searched).
+    frame = np.full((200, 300, 3), 128.0, np.float32)
+    frame[190, 290, 1] = bad
+    region = Box(40, 40, 60, 60)
+    for call in (
+        lambda: detector.detect(frame),
+        lambda: detector.detect_region(frame, region),
+        lambda: detector.dense_scores(frame, region),
+    ):
+        with pytest.raises(ValueError, match="finite"):
+            call()
+
+
 @pytest.mark.parametrize("shape", [(2, 2, 3), (16, 16, 3), (40, 30), (119, 39, 3)])
 def test_tiny_frames_give_no_detections(detector, shape):
     result = detector.detect(np.full(shape, 128, np.uint8))

@@ -84,11 +84,26 @@ def root_windows(
     ``components`` holds each root's component; ``corner`` is the ``(x, y)`` of the image the
     level was computed on in the frame.
     """
+    return _windows(model, ys, xs, components, pad, ls.level.cell, ls.origin, corner)
+
+
+def _windows(
+    model: DpmModel,
+    ys: np.ndarray,
+    xs: np.ndarray,
+    components: np.ndarray,
+    pad: tuple[int, int],
+    cell: float | np.ndarray,
+    origin: tuple[int, int] | np.ndarray,
+    corner: tuple[float, float] | np.ndarray,
+) -> np.ndarray:
+    """:func:`root_windows` with the level's ``cell``, ``origin`` ``(row, col)`` and ``corner``
+    ``(x, y)`` given per root (arrays of N, ``(N, 2)``) or for all (scalars, pairs)."""
     windows_cells = np.array([c.window for c in model.components])  # (C, 2) h, w
     shifts = np.array([c.shift for c in model.components])
-    cell = ls.level.cell
-    x0 = corner[0] + (ls.origin[1] + xs - shifts[components, 1] - pad[1]) * cell
-    y0 = corner[1] + (ls.origin[0] + ys - shifts[components, 0] - pad[0]) * cell
+    origin, corner = np.asarray(origin), np.asarray(corner)
+    x0 = corner[..., 0] + (origin[..., 1] + xs - shifts[components, 1] - pad[1]) * cell
+    y0 = corner[..., 1] + (origin[..., 0] + ys - shifts[components, 0] - pad[0]) * cell
     return np.column_stack(
         [x0, y0, windows_cells[components, 1] * cell, windows_cells[components, 0] * cell]
     )
@@ -121,44 +136,50 @@ def candidates(
     """
     pad_y, pad_x = pad
     n_symbols = max(len(c.symbols) for c in model.components)
-    out = []
-    for ls, (ox, oy) in scored:
-        above = np.flatnonzero(ls.scores > threshold)
-        if above.size == 0:
-            continue
-        ys, xs, comp = ls.rows[above], ls.cols[above], ls.components[above]
-        scores, placements = ls.scores[above], ls.placements[above]
-        boxes = root_windows(model, ls, ys, xs, comp, pad, (ox, oy))
-        cell = ls.level.cell
-        if region is not None:
-            cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
-            inside = (
-                (cx >= region.x)
-                & (cx <= region.x + region.w)
-                & (cy >= region.y)
-                & (cy <= region.y + region.h)
-            )
-            ys, xs, comp, boxes = ys[inside], xs[inside], comp[inside], boxes[inside]
-            scores, placements = scores[inside], placements[inside]
-        filters = np.full((ys.size, n_symbols, 4), np.nan)
-        for ci, component in enumerate(model.components):
-            sel = np.flatnonzero(comp == ci)
-            if sel.size == 0:
-                continue
-            symbols = component.symbols
-            # every symbol at once: (n, S, 2) placements (col, row), each symbol's cell size
-            place = placements[sel, : len(symbols)]
-            c = np.array([cell / 2 ** sym.anchor[2] for sym in symbols])[:, None]  # (S, 1)
-            sizes = np.array([sym.size[::-1] for sym in symbols]) * c  # (S, 2) w, h in pixels
-            corners = (place - (pad_x, pad_y)) * c + (ox, oy)
-            filters[sel, : len(symbols), :2] = corners
-            filters[sel, : len(symbols), 2:] = sizes
-        out.append(Candidates(boxes, filters, scores, comp))
-    if not out:
+    kept = [(ls, corner, np.flatnonzero(ls.scores > threshold)) for ls, corner in scored]
+    kept = [(ls, corner, above) for ls, corner, above in kept if above.size]
+    if not kept:
         return _empty(n_symbols)
-    merged = Candidates(*(np.concatenate(arrays) for arrays in zip(*(
-        (c.windows, c.filters, c.scores, c.components) for c in out
-    ), strict=True)))  # fmt: skip
+    # The roots of every level in one set of arrays, each root with its level's geometry: a
+    # region's few roots per level made the per-level numpy calls most of the time here.
+    ys, xs, comp, scores, placements = (
+        np.concatenate([getattr(ls, name)[above] for ls, _, above in kept])
+        for name in ("rows", "cols", "components", "scores", "placements")
+    )
+    counts = [above.size for _, _, above in kept]
+    cell = np.repeat([ls.level.cell for ls, _, _ in kept], counts)
+    origin = np.repeat([ls.origin for ls, _, _ in kept], counts, axis=0)
+    corner = np.repeat([corner for _, corner, _ in kept], counts, axis=0)  # (N, 2) x, y
+    boxes = _windows(model, ys, xs, comp, pad, cell, origin, corner)
+    if region is not None:
+        cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
+        inside = np.flatnonzero(
+            (cx >= region.x)
+            & (cx <= region.x + region.w)
+            & (cy >= region.y)
+            & (cy <= region.y + region.h)
+        )
+        comp, boxes, scores, placements = (
+            comp[inside],
+            boxes[inside],
+            scores[inside],
+            placements[inside],
+        )
+        cell, corner = cell[inside], corner[inside]
+    filters = np.full((comp.size, n_symbols, 4), np.nan)
+    for ci, component in enumerate(model.components):
+        sel = np.flatnonzero(comp == ci)
+        if sel.size == 0:
+            continue
+        symbols = component.symbols
+        # every symbol at once: (n, S, 2) placements (col, row), each symbol's cell size
+        place = placements[sel, : len(symbols)]
+        scale = np.array([2 ** sym.anchor[2] for sym in symbols])
+        c = (cell[sel, None] / scale)[:, :, None]  # (n, S, 1)
+        sizes = np.array([sym.size[::-1] for sym in symbols]) * c  # (n, S, 2) w, h in pixels
+        filters[sel, : len(symbols), :2] = (place - (pad_x, pad_y)) * c + corner[sel, None]
+        filters[sel, : len(symbols), 2:] = sizes
+    merged = Candidates(boxes, filters, scores, comp)
     if limit is not None and merged.scores.size > limit:
         merged = merged.take(np.argsort(-merged.scores, kind="stable")[:limit])
     return merged

@@ -489,6 +489,12 @@ def _checked(frame: object) -> np.ndarray:
         np.issubdtype(frame.dtype, np.integer) or np.issubdtype(frame.dtype, np.floating)
     ):
         raise ValueError(f"frame must have an integer or floating dtype, got {frame.dtype}")
+    # The pyramid's HOG features take the frame's values unchecked. min and max propagate NaN
+    # and show infinities, without a boolean copy of the frame.
+    if np.issubdtype(frame.dtype, np.floating) and not (
+        np.isfinite(frame.min()) and np.isfinite(frame.max())
+    ):
+        raise ValueError("frame must contain only finite values (it has NaN or infinity)")
     return frame
 
 

@@ -162,7 +162,8 @@ def level_features(
     Parameters
     ----------
     image:
-        ``(H, W, 3)`` RGB or ``(H, W)`` image, values in 0..255.
+        ``(H, W, 3)`` RGB or ``(H, W)`` image, values in 0..255, finite: the caller checks
+        it (:class:`.detector.DpmDetector` checks each frame once, not every resized image).
     levels:
         The levels to compute (from :func:`pyramid_levels`).
     pad:
@@ -195,6 +196,7 @@ def level_features(
                 [lv.hog_cell for lv in group],
                 truncation_feature=True,
                 margin=(pad[0] + 1, pad[1] + 1),
+                checked=True,  # resized from a checked image
             )
             for level, features in zip(group, maps, strict=True):
                 out[level.index] = features
