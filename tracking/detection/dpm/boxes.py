@@ -153,19 +153,15 @@ def candidates(
     boxes = _windows(model, ys, xs, comp, pad, cell, origin, corner)
     if region is not None:
         cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
-        inside = np.flatnonzero(
+        inside = (
             (cx >= region.x)
             & (cx <= region.x + region.w)
             & (cy >= region.y)
             & (cy <= region.y + region.h)
         )
-        comp, boxes, scores, placements = (
-            comp[inside],
-            boxes[inside],
-            scores[inside],
-            placements[inside],
+        comp, boxes, scores, placements, cell, corner = (
+            a[inside] for a in (comp, boxes, scores, placements, cell, corner)
         )
-        cell, corner = cell[inside], corner[inside]
     filters = np.full((comp.size, n_symbols, 4), np.nan)
     for ci, component in enumerate(model.components):
         sel = np.flatnonzero(comp == ci)
