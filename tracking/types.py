@@ -19,6 +19,7 @@ __all__ = [
     "as_box",
     "box_problem",
     "checked_timestamp",
+    "has_only_finite_values",
     "is_int",
     "validate_box",
     "validate_frame",
@@ -97,6 +98,16 @@ class Tracker(Protocol):
 def is_int(value: object) -> bool:
     """Whether ``value`` is a Python or numpy integer; ``bool`` is not (``True`` is no count)."""
     return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def has_only_finite_values(array: np.ndarray) -> bool:
+    """Whether a numeric array holds no NaN and no infinity (integer and empty arrays do not).
+
+    ``min`` and ``max`` propagate NaN and show infinities, without a boolean copy of the array.
+    """
+    if array.size == 0 or not np.issubdtype(array.dtype, np.floating):
+        return True
+    return bool(np.isfinite(array.min()) and np.isfinite(array.max()))
 
 
 def validate_frame(frame: object) -> np.ndarray:

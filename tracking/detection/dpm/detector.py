@@ -57,7 +57,7 @@ from tracking.detection.dpm.pyramid import (
 )
 from tracking.detection.dpm.scoring import LevelRoots, LevelScores, root_grid, score_level
 from tracking.detection.regions import checked_heights, checked_region, clip_region
-from tracking.types import Box, validate_frame
+from tracking.types import Box, has_only_finite_values, validate_frame
 
 __all__ = [
     "DEFAULT_DPM_CALIBRATION",
@@ -489,11 +489,8 @@ def _checked(frame: object) -> np.ndarray:
         np.issubdtype(frame.dtype, np.integer) or np.issubdtype(frame.dtype, np.floating)
     ):
         raise ValueError(f"frame must have an integer or floating dtype, got {frame.dtype}")
-    # The pyramid's HOG features take the frame's values unchecked. min and max propagate NaN
-    # and show infinities, without a boolean copy of the frame.
-    if np.issubdtype(frame.dtype, np.floating) and not (
-        np.isfinite(frame.min()) and np.isfinite(frame.max())
-    ):
+    # the pyramid's HOG features take the frame's values unchecked
+    if not has_only_finite_values(frame):
         raise ValueError("frame must contain only finite values (it has NaN or infinity)")
     return frame
 
