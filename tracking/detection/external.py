@@ -26,7 +26,7 @@ import numpy as np
 
 from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
-from tracking.detection.regions import checked_region
+from tracking.detection.regions import centres_inside, checked_region
 from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows
 from tracking.types import Box, is_int
 
@@ -109,16 +109,9 @@ def detections_from_arrays(
 
 def _in_region(detections: Detections, region: Box) -> Detections:
     """The detections whose box centre lies in ``region``."""
-    b = detections.boxes
-    cx, cy = b[:, 0] + b[:, 2] / 2, b[:, 1] + b[:, 3] / 2
-    keep = (
-        (cx >= region.x)
-        & (cx <= region.x + region.w)
-        & (cy >= region.y)
-        & (cy <= region.y + region.h)
-    )
+    keep = centres_inside(detections.boxes, region)
     return Detections(
-        boxes=b[keep],
+        boxes=detections.boxes[keep],
         scores=detections.scores[keep],
         probabilities=detections.probabilities[keep],
         parts=detections.parts[keep],

@@ -41,6 +41,7 @@ from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.nms import nms
 from tracking.detection.regions import (
+    centres_inside,
     checked_heights,
     checked_region,
     clip_boxes,
@@ -298,12 +299,8 @@ class HogPeopleDetector:
         # the whole frame's search when the region is large).
         u = self.config.upscale_for(image.shape)
         boxes, scores = self._run(crop, (x0, y0), u, heights)
-        cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
         inside = (
-            (cx >= clipped.x)
-            & (cx <= clipped.x + clipped.w)
-            & (cy >= clipped.y)
-            & (cy <= clipped.y + clipped.h)
+            centres_inside(boxes, clipped)
             & (boxes[:, 3] >= heights[0])
             & (boxes[:, 3] <= heights[1])
         )

@@ -9,7 +9,7 @@ import numpy as np
 
 from tracking.types import Box, as_box
 
-__all__ = ["checked_heights", "checked_region", "clip_boxes", "clip_region"]
+__all__ = ["centres_inside", "checked_heights", "checked_region", "clip_boxes", "clip_region"]
 
 
 def checked_region(region: object) -> Box:
@@ -62,3 +62,15 @@ def clip_boxes(boxes: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, n
     y2 = np.minimum(boxes[:, 1] + boxes[:, 3], height)
     keep = np.flatnonzero((x2 > x1) & (y2 > y1))
     return np.column_stack([x1, y1, x2 - x1, y2 - y1])[keep], keep
+
+
+def centres_inside(boxes: np.ndarray, region: Box) -> np.ndarray:
+    """Whether the centre of each box ``(N, 4)`` lies in ``region`` (edges included): which
+    detections a region search reports."""
+    cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
+    return (
+        (cx >= region.x)
+        & (cx <= region.x + region.w)
+        & (cy >= region.y)
+        & (cy <= region.y + region.h)
+    )

@@ -21,7 +21,7 @@ import numpy as np
 from tracking.detection.dpm.model import DpmModel
 from tracking.detection.dpm.scoring import LevelRoots, LevelScores
 from tracking.detection.nms import NmsCriterion, nms
-from tracking.detection.regions import clip_boxes
+from tracking.detection.regions import centres_inside, clip_boxes
 from tracking.types import Box
 
 __all__ = [
@@ -152,13 +152,7 @@ def candidates(
     corner = np.repeat([corner for _, corner, _ in kept], counts, axis=0)  # (N, 2) x, y
     boxes = _windows(model, ys, xs, comp, pad, cell, origin, corner)
     if region is not None:
-        cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
-        inside = (
-            (cx >= region.x)
-            & (cx <= region.x + region.w)
-            & (cy >= region.y)
-            & (cy <= region.y + region.h)
-        )
+        inside = centres_inside(boxes, region)
         comp, boxes, scores, placements, cell, corner = (
             a[inside] for a in (comp, boxes, scores, placements, cell, corner)
         )
