@@ -18,8 +18,8 @@ __all__ = [
     "TrackerOutput",
     "as_box",
     "box_problem",
+    "check_pixel_values",
     "checked_timestamp",
-    "has_only_finite_values",
     "is_int",
     "validate_box",
     "validate_frame",
@@ -100,14 +100,20 @@ def is_int(value: object) -> bool:
     return isinstance(value, int | np.integer) and not isinstance(value, bool)
 
 
-def has_only_finite_values(array: np.ndarray) -> bool:
-    """Whether a numeric array holds no NaN and no infinity (integer and empty arrays do not).
-
-    ``min`` and ``max`` propagate NaN and show infinities, without a boolean copy of the array.
-    """
-    if array.size == 0 or not np.issubdtype(array.dtype, np.floating):
-        return True
-    return bool(np.isfinite(array.min()) and np.isfinite(array.max()))
+def check_pixel_values(array: np.ndarray, name: str = "image") -> None:
+    """Raise ValueError unless ``array`` has an integer or floating dtype (not bool) and only
+    finite values: what the HOG kernels read unchecked."""
+    if array.dtype == np.bool_ or not (
+        np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)
+    ):
+        raise ValueError(f"{name} must have an integer or floating dtype, got {array.dtype}")
+    # min and max propagate NaN and show infinities, without a boolean copy of the array
+    if (
+        array.size
+        and np.issubdtype(array.dtype, np.floating)
+        and not (np.isfinite(array.min()) and np.isfinite(array.max()))
+    ):
+        raise ValueError(f"{name} must contain only finite values (it has NaN or infinity)")
 
 
 def validate_frame(frame: object) -> np.ndarray:

@@ -50,7 +50,7 @@ import numba
 import numpy as np
 
 from tracking.compiled import call_kernel
-from tracking.types import has_only_finite_values, is_int
+from tracking.types import check_pixel_values, is_int
 
 __all__ = ["NUM_FEATURES", "fhog", "fhog_cells", "hog_feature_map"]
 
@@ -101,14 +101,9 @@ def _check_margin(margin: object) -> tuple[int, int]:
 def _validated(image: np.ndarray) -> np.ndarray:
     """``image`` as an array of shape ``(H, W)`` or ``(H, W, 3)`` with finite real values."""
     image = np.asarray(image)
-    if image.dtype == np.bool_ or not (
-        np.issubdtype(image.dtype, np.integer) or np.issubdtype(image.dtype, np.floating)
-    ):
-        raise ValueError(f"image must have an integer or floating dtype, got {image.dtype}")
     if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
         raise ValueError(f"image must have shape (H, W) or (H, W, 3), got {image.shape}")
-    if not has_only_finite_values(image):
-        raise ValueError("image must contain only finite values")
+    check_pixel_values(image)
     return image
 
 

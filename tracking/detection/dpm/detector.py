@@ -57,7 +57,7 @@ from tracking.detection.dpm.pyramid import (
 )
 from tracking.detection.dpm.scoring import LevelRoots, LevelScores, root_grid, score_level
 from tracking.detection.regions import checked_heights, checked_region, clip_region
-from tracking.types import Box, has_only_finite_values, validate_frame
+from tracking.types import Box, check_pixel_values, validate_frame
 
 __all__ = [
     "DEFAULT_DPM_CALIBRATION",
@@ -485,13 +485,7 @@ class DpmDetector:
 
 def _checked(frame: object) -> np.ndarray:
     frame = validate_frame(frame)
-    if frame.dtype == np.bool_ or not (
-        np.issubdtype(frame.dtype, np.integer) or np.issubdtype(frame.dtype, np.floating)
-    ):
-        raise ValueError(f"frame must have an integer or floating dtype, got {frame.dtype}")
-    # the pyramid's HOG features take the frame's values unchecked
-    if not has_only_finite_values(frame):
-        raise ValueError("frame must contain only finite values (it has NaN or infinity)")
+    check_pixel_values(frame, "frame")  # the pyramid's HOG features take the values unchecked
     return frame
 
 
