@@ -36,6 +36,20 @@ def sigint_as_in_a_terminal() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs: a zombie (dead, not yet reaped) and a process reaped
+    between the two looks count as gone."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().split(") ", 1)[1][0] != "Z"  # the name may hold spaces
+    except FileNotFoundError:
+        return False
+
+
 def copy_mot_sequence(shared_data: Path, folder: Path, frames: int) -> Path:
     """The first ``frames`` frames of TUD-Stadtmitte with its gt/ and det/ (to break a copy)."""
     source = shared_data / "mot" / "TUD-Stadtmitte"

@@ -12,6 +12,7 @@ import time
 import pytest
 
 from service.jobs.store import JobStore
+from tests.conftest import process_alive
 from tests.service.conftest import (
     FAST_OPTIONS,
     Server,
@@ -23,19 +24,6 @@ from tests.service.conftest import (
 )
 
 pytestmark = pytest.mark.slow
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # A zombie (dead, not yet reaped) counts as gone.
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            return stat.read().split(") ", 1)[1][0] != "Z"
-    except FileNotFoundError:
-        return False
 
 
 def _worker_pid(data_dir, job_id) -> int:
@@ -54,7 +42,7 @@ def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_serv
     worker = _worker_pid(first.data_dir, job_id)
     first.kill()
     # The orphaned worker notices that its service is gone and stops by itself.
-    wait_for(lambda: not _alive(worker), 20, f"the orphaned worker {worker} to stop")
+    wait_for(lambda: not process_alive(worker), 20, f"the orphaned worker {worker} to stop")
 
     second = make_server(data_dir=first.data_dir, workers=1)
     with second.client() as client:
@@ -77,7 +65,7 @@ def test_a_stop_signal_to_the_whole_group_requeues_the_running_job(make_server, 
         os.kill(worker, signal.SIGTERM)
         os.kill(worker, signal.SIGINT)
         wait_for_frames(client, job_id, before + 2)  # the same worker tracks on
-        assert _alive(worker) and _worker_pid(first.data_dir, job_id) == worker
+        assert process_alive(worker) and _worker_pid(first.data_dir, job_id) == worker
     first.stop()
     assert "queued again: the service stopped while it ran" in first.log()
     assert "died" not in first.log()
@@ -106,7 +94,7 @@ def test_a_stalled_job_is_failed_and_its_worker_replaced(make_server, long_video
         status = wait_for_state(client, stalled, ("succeeded", "failed"), timeout=30)
         assert status["state"] == "failed"
         assert "read no frame for 3 s (VTRACK_JOB_STALL_TIMEOUT)" in status["error"]
-        wait_for(lambda: not _alive(worker), 10, "the stopped worker to be killed")
+        wait_for(lambda: not process_alive(worker), 10, "the stopped worker to be killed")
         status = wait_for_state(client, waiting, ("succeeded", "failed"))
         assert status["state"] == "succeeded", status  # on the worker that replaced it
         figures = metrics(client)

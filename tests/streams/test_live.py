@@ -31,7 +31,7 @@ from service.streams.tools import (
     reach_tracker,
     trackers_of,
 )
-from tests.conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT, process_alive
 from tests.service.conftest import PETS_VIDEO, Server, wait_for
 from tests.streams.live import (
     PUBLIC_SCALE,
@@ -904,18 +904,6 @@ class BusyCameras:
         self.session.close()
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:  # reaped between the two looks
-        return False
-    return stat.split()[2] != "Z"  # not a zombie
-
-
 UNREAD = 5.0
 """Seconds the service is paused (SIGSTOP) so that it reads no status reports: at four reports
 a second with tracks in them, more than a pipe holds."""
@@ -957,10 +945,10 @@ def test_stream_workers_survive_reports_cut_short_and_end_with_their_service(tmp
         time.sleep(UNREAD)
         server.kill()
         for camera, pid in workers.items():
-            wait_for(lambda p=pid: not _alive(p), 30, f"the worker of {camera} to end")
+            wait_for(lambda p=pid: not process_alive(p), 30, f"the worker of {camera} to end")
     finally:
         cameras.close()
         server.stop()
         for pid in workers.values():
-            if _alive(pid):
+            if process_alive(pid):
                 os.kill(pid, signal.SIGKILL)
