@@ -393,8 +393,8 @@ def test_jobs_are_listed_a_page_at_a_time(client, pets_short):
     assert gone.status_code == 404 and "start again from the newest" in gone.json()["detail"]
 
 
-def test_unfinished_job_has_no_result_yet_and_can_be_cancelled_then_deleted(client, pets_cut):
-    job_id = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
+def test_unfinished_job_has_no_result_yet_and_can_be_cancelled_then_deleted(client, long_video):
+    job_id = submit(client, long_video, FAST_OPTIONS).json()["id"]
     early = client.get(f"/v1/jobs/{job_id}/result", params={"format": "json"})
     assert early.status_code == 409
     assert "results are served once it has succeeded" in early.json()["detail"]

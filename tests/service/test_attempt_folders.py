@@ -11,6 +11,7 @@ import pytest
 
 from service.jobs.store import JobStore
 from tests.service.conftest import (
+    FAST_OPTIONS,
     submit,
     wait_for,
     wait_for_frames,
@@ -20,7 +21,7 @@ from tests.service.conftest import (
 pytestmark = pytest.mark.slow
 
 # every format, so that every kind of partial file is there: MCAP, MP4, MOT, the JSON's points
-ALL_FORMATS = {"formats": ["json", "mcap", "mot", "mp4"]}
+ALL_FORMATS = {**FAST_OPTIONS, "formats": ["json", "mcap", "mot", "mp4"]}
 
 
 def _listing(server, job_id) -> list[str] | None:

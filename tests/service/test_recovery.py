@@ -34,10 +34,10 @@ def _worker_pid(data_dir, job_id) -> int:
         store.close()
 
 
-def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_server, pets_cut):
+def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_server, long_video):
     first = make_server(workers=1)
     with first.client() as client:
-        job_id = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
+        job_id = submit(client, long_video, FAST_OPTIONS).json()["id"]
         wait_for_frames(client, job_id, 3)
     worker = _worker_pid(first.data_dir, job_id)
     first.kill()
@@ -50,7 +50,7 @@ def test_a_job_running_when_the_service_dies_completes_after_a_restart(make_serv
         assert status["state"] == "succeeded", status
         assert status["attempts"] == 2
         document = client.get(f"/v1/jobs/{job_id}/result").json()
-        assert document["frames_processed"] == 24
+        assert document["frames_processed"] == 150
     assert not list((first.data_dir / "results" / job_id).glob(".attempt-*"))
 
 
@@ -103,10 +103,12 @@ def test_a_stalled_job_is_failed_and_its_worker_replaced(make_server, long_video
         assert figures["vtrack_workers_replaced_total"] == 1
 
 
-def test_a_killed_worker_fails_its_job_and_the_next_job_succeeds(make_server, pets_cut, pets_short):
+def test_a_killed_worker_fails_its_job_and_the_next_job_succeeds(
+    make_server, long_video, pets_short
+):
     server = make_server(workers=1)
     with server.client() as client:
-        doomed = submit(client, pets_cut, FAST_OPTIONS).json()["id"]
+        doomed = submit(client, long_video, FAST_OPTIONS).json()["id"]
         following = submit(client, pets_short, FAST_OPTIONS).json()["id"]
         wait_for_frames(client, doomed, 3)
         os.kill(_worker_pid(server.data_dir, doomed), signal.SIGKILL)
