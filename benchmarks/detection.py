@@ -44,7 +44,7 @@ the embedded default (``HogPeopleConfig.upscale_for``) and the cost of larger fr
 then measured on the resized frames.
 
 DPM variants are named ``dpm-<model>[@upscale][:levels per octave][>min height][+exact]``, e.g.
-``dpm-inria`` (the voc-release5 defaults with the star cascade), ``dpm-inria+exact`` (every root
+``dpm-inria`` (the ``DpmConfig`` defaults with the star cascade), ``dpm-inria+exact`` (every root
 scored exactly), ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave) or
 ``dpm-inria>128`` (only windows at least 128 pixels tall, the height of OpenCV's HOG window).
 ``default`` is the embedded detector with its enlargement chosen by the frame's height,
@@ -91,9 +91,11 @@ from tracking.detection.metrics import (
 from tracking.types import Box
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _drawing import require_drawing
     from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._drawing import require_drawing
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
@@ -607,6 +609,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
             parser.error(f"--{name.replace('_', '-')} must be at least 1, got {value}")
     if args.height is not None and args.height < 16:
         parser.error("--height must be at least 16 pixels")
+    if args.picture is not None:
+        require_drawing(parser, "--picture", "PIL")
+    if args.plot is not None:
+        require_drawing(parser, "--plot", "matplotlib")
     return args
 
 

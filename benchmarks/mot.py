@@ -100,9 +100,11 @@ from tracking.evaluation.mot import (
 from tracking.tracks import TrackEstimate
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _drawing import require_drawing
     from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._drawing import require_drawing
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
@@ -924,6 +926,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     problem = tracker_problem(args)
     if problem is not None:
         parser.error(problem)
+    if args.picture is not None:
+        require_drawing(parser, "--picture", "PIL")
     return args
 
 

@@ -44,9 +44,11 @@ from tracking.evaluation.otb import OtbSequence, SequenceError, find_otb_sequenc
 from tracking.types import Tracker
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _drawing import require_drawing
     from _paths import SHARED_DATA
     from _report import print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._drawing import require_drawing
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import print_json
 
@@ -472,7 +474,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "sequences with small targets (default 1)",
     )
     parser.add_argument("--list", action="store_true", help="list the tracker names and exit")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.plots is not None:
+        require_drawing(parser, "--plots", "matplotlib")
+    return args
 
 
 def select(

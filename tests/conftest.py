@@ -94,6 +94,16 @@ def benchmark_module(name: str) -> Iterator[ModuleType]:
         sys.path.remove(str(BENCHMARKS))
 
 
+@pytest.fixture
+def drawing_packages(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Empty stand-ins for Pillow and matplotlib where they are not installed (they come with the
+    bench extra, not the test set-up), for tests of the benchmarks' command lines: a drawing
+    option is refused unless its package imports (``benchmarks/_drawing.py``)."""
+    for name in ("PIL", "matplotlib"):
+        if importlib.util.find_spec(name) is None:
+            monkeypatch.setitem(sys.modules, name, ModuleType(name))
+
+
 def _shared_data_root() -> Path:
     configured = os.environ.get("VTRACK_SHARED_DATA")
     return Path(configured) if configured else REPO_ROOT.parent / "shared" / "data"

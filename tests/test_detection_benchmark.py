@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -191,12 +192,27 @@ def test_help_describes_detectors_and_step(detection, capsys, monkeypatch):
     assert "see above" not in text  # the help has no "above" to point at
 
 
-def test_no_picture_unless_asked(detection, tmp_path):
+def test_no_picture_unless_asked(detection, tmp_path, drawing_packages):
     """A quick run must not overwrite the committed docs/images/detections.png."""
     assert detection.parse_args([]).picture is None
     assert detection.parse_args(["--picture", str(tmp_path / "d.png")]).picture == (
         tmp_path / "d.png"
     )
+
+
+@pytest.mark.parametrize(("option", "module"), [("--picture", "PIL"), ("--plot", "matplotlib")])
+def test_drawing_without_its_package_fails_before_measuring(
+    detection, tmp_path, monkeypatch, capsys, option, module
+):
+    # a run of every frame takes half an hour; it once lost its figures to the ImportError of
+    # the picture drawn at its end
+    monkeypatch.setitem(sys.modules, module, None)  # import fails as if not installed
+    with pytest.raises(SystemExit) as exit_info:
+        detection.parse_args([option, str(tmp_path / "d.png")])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err
+    assert option in error
+    assert ".[bench]" in error
 
 
 def test_text_output_shows_no_nan_for_times_not_measured(detection, shared_data, capsys):
@@ -213,7 +229,7 @@ def test_text_output_shows_no_nan_for_times_not_measured(detection, shared_data,
     assert row.split()[-1] == "-"
 
 
-def test_the_documented_commands_are_accepted(detection):
+def test_the_documented_commands_are_accepted(detection, drawing_packages):
     """docs/benchmarks.md's commands still parse, their detector names included."""
     commands = documented_commands("detection.py")
     assert len(commands) >= 10

@@ -8,6 +8,7 @@ import dataclasses
 import io
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import cv2
@@ -179,10 +180,18 @@ def test_selection_runs_what_was_asked(mot, argv, peers, ours):
     assert mot.select(mot.parse_args(argv)) == (peers, ours)
 
 
-def test_no_picture_unless_asked(mot, tmp_path):
+def test_no_picture_unless_asked(mot, tmp_path, drawing_packages):
     """A quick run must not overwrite the committed docs/images/mot.png."""
     assert mot.parse_args([]).picture is None
     assert mot.parse_args(["--picture", str(tmp_path / "m.png")]).picture == tmp_path / "m.png"
+
+
+def test_picture_without_pillow_fails_before_tracking(mot, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "PIL", None)  # import fails as if not installed
+    with pytest.raises(SystemExit) as exit_info:
+        mot.parse_args(["--picture", str(tmp_path / "m.png")])
+    assert exit_info.value.code == 2
+    assert "--picture" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -243,7 +252,7 @@ def test_seeded_runs_report_the_configuration_they_used(unscored_run):
     assert trackers["ours_seed1"]["config"]["seed"] == trackers["ours_seed1"]["seed"] == 1
 
 
-def test_the_documented_commands_are_accepted(mot):
+def test_the_documented_commands_are_accepted(mot, drawing_packages):
     """docs/benchmarks.md's commands still parse: none names a tracker its options leave out."""
     commands = documented_commands("mot.py")
     assert len(commands) >= 15
