@@ -68,13 +68,14 @@ __all__ = [
 ]
 
 # Fitted with our calibration command on 1 frame in 4 of PETS09-S2L1 and TUD-Stadtmitte
-# (244 frames; 1253 positives, 1281 negatives), default options, threshold model.thresh - 1:
+# (244 frames; 1324 positives, 1759 negatives), default options (suppression by IoU 0.5 since
+# 2026-12-05; release 5's gave a = 3.73723, b = -0.320898), threshold model.thresh - 1:
 #   python -m tracking.detection.calibrate --detector dpm --model INRIA/inriaperson_final.mat \
 #       --sequences <data>/mot/PETS09-S2L1 <data>/mot/TUD-Stadtmitte --step 4
-# p = 0.5 at a score of 0.086 (the model's threshold, -0.126, gives p = 0.31).
+# p = 0.5 at a score of 0.105 (the model's threshold, -0.126, gives p = 0.31).
 DEFAULT_DPM_CALIBRATION = LogisticCalibration(
-    a=3.73723,
-    b=-0.320898,
+    a=3.41073,
+    b=-0.357880,
     source="DPM inriaperson_final.mat, threshold -1.126; fitted on PETS09-S2L1 and "
     "TUD-Stadtmitte (1 frame in 4)",
 )
@@ -85,11 +86,12 @@ similar scale but not the same: fit theirs with ``python -m tracking.detection.c
 KNOWN_CALIBRATIONS: Mapping[tuple[str, int], LogisticCalibration] = MappingProxyType(
     {
         ("inriaperson", 2): DEFAULT_DPM_CALIBRATION,
-        # VOC2007/person_final.mat, fitted the same way (1145 positives, 8095 negatives, threshold
-        # -2.442); p = 0.5 at a score of -0.296.
+        # VOC2007/person_final.mat, fitted the same way (1283 positives, 81358 negatives,
+        # threshold -2.442; release 5's suppression left 8095 negatives and gave a = 4.83467,
+        # b = 1.43075); p = 0.5 at a score of -0.188.
         ("person", 6): LogisticCalibration(
-            a=4.83467,
-            b=1.43075,
+            a=4.90847,
+            b=0.920655,
             source="DPM VOC2007 person_final.mat, threshold -2.442; fitted on PETS09-S2L1 and "
             "TUD-Stadtmitte (1 frame in 4)",
         ),
