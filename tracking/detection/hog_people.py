@@ -39,7 +39,7 @@ import numpy as np
 
 from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
-from tracking.detection.nms import NMS_CRITERIA, NmsCriterion, nms
+from tracking.detection.nms import NmsCriterion, check_nms_options, nms
 from tracking.detection.regions import (
     centres_inside,
     checked_heights,
@@ -144,12 +144,7 @@ class HogPeopleConfig:
             raise ValueError(f"win_stride must be a positive int, got {self.win_stride}")
         if not (math.isfinite(self.scale_step) and self.scale_step > 1.0):
             raise ValueError(f"scale_step must be > 1, got {self.scale_step}")
-        if not 0.0 <= self.nms_overlap <= 1.0:
-            raise ValueError(f"nms_overlap must be in [0, 1], got {self.nms_overlap}")
-        if self.nms_criterion not in NMS_CRITERIA:
-            raise ValueError(
-                f"nms_criterion must be one of {NMS_CRITERIA}, got {self.nms_criterion!r}"
-            )
+        check_nms_options(self.nms_overlap, self.nms_criterion, prefix="nms_")
         if not all(0 < s <= 1 for s in self.box_scale) or len(self.box_scale) != 2:
             raise ValueError(f"box_scale must be two fractions in (0, 1], got {self.box_scale}")
         low, high = self.region_heights

@@ -21,11 +21,21 @@ from typing import Literal, get_args
 
 import numpy as np
 
-__all__ = ["NMS_CRITERIA", "NmsCriterion", "box_iou", "nms"]
+__all__ = ["NMS_CRITERIA", "NmsCriterion", "box_iou", "check_nms_options", "nms"]
 
 NmsCriterion = Literal["smaller", "iou"]
 """How :func:`nms` measures overlap: over the lower-scoring box's area, or over the union."""
 NMS_CRITERIA: tuple[str, ...] = get_args(NmsCriterion)
+
+
+def check_nms_options(overlap: float, criterion: str, prefix: str = "") -> None:
+    """Raise ``ValueError`` unless ``overlap`` is in ``[0, 1]`` and ``criterion`` is one of
+    :data:`NMS_CRITERIA`; ``prefix`` names the options as the caller's user spells them
+    (``"nms_"`` for the detector configs)."""
+    if not 0.0 <= overlap <= 1.0:
+        raise ValueError(f"{prefix}overlap must be in [0, 1], got {overlap}")
+    if criterion not in NMS_CRITERIA:
+        raise ValueError(f"{prefix}criterion must be one of {NMS_CRITERIA}, got {criterion!r}")
 
 
 def _as_boxes(boxes: object) -> np.ndarray:
@@ -85,10 +95,7 @@ def nms(
     scores = np.asarray(scores, dtype=np.float64).reshape(-1)
     if scores.shape[0] != boxes.shape[0]:
         raise ValueError(f"scores must have shape ({boxes.shape[0]},), got {scores.shape}")
-    if not 0.0 <= overlap <= 1.0:
-        raise ValueError(f"overlap must be in [0, 1], got {overlap}")
-    if criterion not in NMS_CRITERIA:
-        raise ValueError(f"criterion must be one of {NMS_CRITERIA}, got {criterion!r}")
+    check_nms_options(overlap, criterion)
     order = np.argsort(-scores, kind="stable")
     x1, y1 = boxes[order, 0], boxes[order, 1]
     x2, y2 = x1 + boxes[order, 2], y1 + boxes[order, 3]

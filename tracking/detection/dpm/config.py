@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from tracking.detection.nms import NMS_CRITERIA, NmsCriterion
+from tracking.detection.nms import NmsCriterion, check_nms_options
 from tracking.types import is_int
 
 __all__ = ["DPM_TRACKING_CONFIG", "DpmConfig"]
@@ -130,12 +130,7 @@ class DpmConfig:
             raise ValueError(f"deformation_window must be a non-negative int or None, got {window}")
         if window is not None and window < 0:
             raise ValueError(f"deformation_window must be non-negative, got {window}")
-        if not 0.0 <= self.nms_overlap <= 1.0:
-            raise ValueError(f"nms_overlap must be in [0, 1], got {self.nms_overlap}")
-        if self.nms_criterion not in NMS_CRITERIA:
-            raise ValueError(
-                f"nms_criterion must be one of {NMS_CRITERIA}, got {self.nms_criterion!r}"
-            )
+        check_nms_options(self.nms_overlap, self.nms_criterion, prefix="nms_")
         if self.workers is not None and (not is_int(self.workers) or self.workers < 1):
             raise ValueError(f"workers must be a positive int or None, got {self.workers}")
         if self.max_candidates < 1:
