@@ -104,9 +104,11 @@ def job_detector(options: DetectorOptions, resources: PipelineResources) -> Dete
                 "detector 'dpm' needs a voc-release5 model, and this service has none: set "
                 "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
             )
-        config = DPM_TRACKING_CONFIG
-        if options.upscale:
-            config = dataclasses.replace(config, upscale=options.upscale)
+        config = dataclasses.replace(
+            DPM_TRACKING_CONFIG,
+            upscale=options.upscale or DPM_TRACKING_CONFIG.upscale,
+            levels_per_octave=options.levels_per_octave,
+        )
         # the model is known to be a DPM: make_detector would tell it by its .mat suffix
         return DpmDetector.from_file(resources.dpm_model, config)
     config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None

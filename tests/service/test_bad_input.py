@@ -151,6 +151,13 @@ def _voice_memo(folder, video):
         (lambda d, v: v, {"preset": "rcsk_cn"}, 422, "preset: only for mode 'single_target'"),
         # The DPM detector on a service without a model.
         (lambda d, v: v, {"detector": {"name": "dpm"}}, 422, "VTRACK_DPM_MODEL"),
+        # A DPM option for the embedded detector, which would ignore it.
+        (
+            lambda d, v: v,
+            {"detector": {"levels_per_octave": 5}},
+            422,
+            "detector.levels_per_octave: only for detector 'dpm'",
+        ),
     ],
 )
 def test_bad_upload(server, client, tmp_path, pets_short, make_video, options, status, message):

@@ -1,4 +1,5 @@
-"""Job options reach what runs: the DPM takes ``upscale`` too, tracker options the tracker."""
+"""Job options reach what runs: the DPM takes ``upscale`` and ``levels_per_octave``, tracker
+options the tracker."""
 
 from __future__ import annotations
 
@@ -91,3 +92,20 @@ def test_upscale_is_limited_to_an_8k_enlarged_frame(size, upscale, refused):
             check_options(options, PipelineResources(), video)
     else:
         check_options(options, PipelineResources(), video)
+
+
+def test_dpm_job_with_fewer_pyramid_levels_still_finds_people(resources, shared_data):
+    frame = cv2.imread(str(shared_data / "mot" / "PETS09-S2L1" / "img1" / "000100.jpg"))
+    frame = cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+    gt = np.loadtxt(shared_data / "mot" / "PETS09-S2L1" / "gt" / "gt.txt", delimiter=",")
+    people = gt[gt[:, 0] == 100, 2:6]
+    people[:, :2] -= 1
+
+    options = JobOptions.model_validate({"detector": {"name": "dpm", "levels_per_octave": 5}})
+    check_options(options, resources)
+    coarse = job_detector(options.detector, resources)
+    assert coarse.config == dataclasses.replace(DPM_TRACKING_CONFIG, levels_per_octave=5)
+    assert coarse.interval == 5  # the model's own is 10
+    found = coarse.detect(frame)
+    assert _confident_people(found, people) >= len(people) - 1
+    assert "head" in found.part_names and np.isfinite(found.parts).any()
