@@ -107,7 +107,7 @@ def job_detector(options: DetectorOptions, resources: PipelineResources) -> Dete
         config = dataclasses.replace(
             DPM_TRACKING_CONFIG,
             upscale=options.upscale or DPM_TRACKING_CONFIG.upscale,
-            levels_per_octave=options.levels_per_octave,
+            levels_per_octave=options.levels_per_octave or DPM_TRACKING_CONFIG.levels_per_octave,
         )
         # the model is known to be a DPM: make_detector would tell it by its .mat suffix
         return DpmDetector.from_file(resources.dpm_model, config)
