@@ -66,9 +66,14 @@ def copy_mot_sequence(shared_data: Path, folder: Path, frames: int) -> Path:
 
 
 def documented_commands(script: str) -> list[list[str]]:
-    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md
-    (lines joined at a trailing backslash, comments and backticks dropped)."""
-    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
+    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md and
+    docs/benchmarks-history.md (lines joined at a trailing backslash, comments and backticks
+    dropped)."""
+    docs = REPO_ROOT / "docs"
+    text = "\n".join(
+        (docs / name).read_text().replace("\\\n", " ")
+        for name in ("benchmarks.md", "benchmarks-history.md")
+    )
     commands = []
     for line in text.splitlines():
         start = line.find(f"python benchmarks/{script}")
