@@ -297,7 +297,31 @@ def test_five_levels_per_octave_still_find_the_person(inria_model, pets, pets_fr
     gt = pets.gt[0][1]
     region, heights = _person_region(gt)
     found = coarse.detect_region(pets_frame, region, heights)
-    assert match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
+    assert len(found) >= 1 and match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
+
+
+def test_a_coarse_pyramid_searches_a_narrow_region_at_its_nearest_level(
+    inria_model, pets, pets_frame
+):
+    # 2 levels per octave: windows 1.41x apart, so 0.9-1.1 times a person's height can fall
+    # between two levels; the region is then searched at the nearest one, not skipped
+    coarse = DpmDetector(inria_model, DpmConfig(levels_per_octave=2))
+    window = inria_model.components[0].window[0]  # both components' (one is the mirror)
+    (first, _), (second, _), *_ = coarse.search_levels((576, 768, 3))
+    low, high = first.cell * window, second.cell * window
+    assert high / low == pytest.approx(2**0.5)
+    between = (1.03 * low, 0.9 * high)
+    assert coarse.search_levels((576, 768, 3), between) == []
+    (only, _), *rest = coarse.search_levels((576, 768, 3), between, nearest=True)
+    assert not rest and only == first  # its windows 1.03x too small, the next 1.11x too large
+    gt = pets.gt[0][0]  # 75 px tall: 68-83 px holds no window of this pyramid (60, 85, 120...)
+    x, y, w, h = gt
+    region = Box(x + w / 2 - 0.25 * h, y + h / 2 - 0.25 * h, 0.5 * h, 0.5 * h)
+    assert coarse.search_levels((576, 768, 3), (0.9 * h, 1.1 * h)) == []
+    found = coarse.detect_region(pets_frame, region, (0.9 * h, 1.1 * h))
+    assert len(found) >= 1 and match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
+    # beyond the pyramid's ends there is still nothing to search
+    assert coarse.search_levels((576, 768, 3), (10, 20), nearest=True) == []
 
 
 def test_threads_give_the_same_detections(inria_model, pets_frame):
@@ -346,5 +370,5 @@ def test_a_model_with_parts_of_several_sizes_is_scored_without_the_kernels(
     gt = pets.gt[0][1]
     region, heights = _person_region(gt)
     found = detector.detect_region(pets_frame, region, heights)
-    assert match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
+    assert len(found) >= 1 and match_frame(found.boxes[:1], found.scores[:1], gt[None]).all()
     assert detector.dense_scores(pets_frame, region, heights) is not None

@@ -223,13 +223,20 @@ class DpmDetector:
 
     # ------------------------------------------------------------------ levels and scoring
     def search_levels(
-        self, shape: tuple[int, ...], heights: tuple[float | None, float | None] = (None, None)
+        self,
+        shape: tuple[int, ...],
+        heights: tuple[float | None, float | None] = (None, None),
+        nearest: bool = False,
     ) -> list[tuple[PyramidLevel, tuple[PyramidLevel, ...]]]:
         """The levels that can hold a root (``gdetect_parse.m``) in an image of ``shape``.
 
         Only levels where some component's window is ``heights[0] .. heights[1]`` pixels tall
         (``None``: unbounded), each with the levels its score reads: itself and, for a model
-        with parts, the level one octave finer where the parts sit.
+        with parts, the level one octave finer where the parts sit. With ``nearest``, heights
+        that fall between two levels (a coarse pyramid of a few levels per octave and a narrow
+        range) give the level whose windows come nearest to them instead of no level: a region
+        around a person is then searched at the closest scale the pyramid has. Heights beyond
+        either end of the pyramid still give no level.
         """
         model = self.model
         levels = pyramid_levels(
@@ -238,12 +245,26 @@ class DpmDetector:
         low = heights[0] if heights[0] is not None else 0.0
         high = heights[1] if heights[1] is not None else math.inf
         window_heights = [c.window[0] for c in model.components]
+        roots = [level for level in levels if level.index >= self.interval]
+
+        def outside(level: PyramidLevel) -> float:
+            """How many times too small or too large the level's nearest window is; 1 inside."""
+            return min(
+                max(low / (h * level.cell), h * level.cell / high, 1.0) for h in window_heights
+            )
+
+        chosen = [level for level in roots if outside(level) == 1.0]
+        if not chosen and nearest:
+            # between two levels, not beyond either end of the pyramid: people smaller than
+            # its smallest window or larger than the frame are not searched at another size
+            smaller = any(max(window_heights) * level.cell < low for level in roots)
+            larger = any(min(window_heights) * level.cell > high for level in roots)
+            if smaller and larger:
+                chosen = [min(roots, key=outside)]
         parts = any(c.parts for c in model.components)
         return [
             (level, (level, levels[level.index - self.interval]) if parts else (level,))
-            for level in levels
-            if level.index >= self.interval
-            and any(low <= h * level.cell <= high for h in window_heights)
+            for level in chosen
         ]
 
     def _run(
@@ -369,7 +390,7 @@ class DpmDetector:
         reach = (4 if window is None else window) / 2 + _HOG_BORDER
         comps = self.model.components
         crops = []  # per root level: the level, the levels it reads, its crop, root positions
-        for root, needed in self.search_levels(frame.shape, heights):
+        for root, needed in self.search_levels(frame.shape, heights, nearest=True):
             c = root.cell
             margin_x = max(c_.window[1] / 2 + abs(c_.shift[1]) + reach for c_ in comps) * c
             margin_y = max(c_.window[0] / 2 + abs(c_.shift[0]) + reach for c_ in comps) * c
