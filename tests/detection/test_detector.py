@@ -324,14 +324,23 @@ def test_a_coarse_pyramid_searches_a_narrow_region_at_its_nearest_level(
     assert coarse.search_levels((576, 768, 3), (10, 20), nearest=True) == []
 
 
-def test_threads_give_the_same_detections(inria_model, pets_frame):
+@pytest.mark.parametrize("levels", [10, 5, 2])  # by chain; by level (few chains: 5 and 2)
+def test_threads_give_the_same_detections(inria_model, pets_frame, levels):
     crop = pets_frame[190:330, 220:320]  # the person at (257, 218), 33 x 89 px
-    one = DpmDetector(inria_model, DpmConfig(workers=1)).detect(crop)
-    two = DpmDetector(inria_model, DpmConfig(workers=2)).detect(crop)
+    one = DpmDetector(inria_model, DpmConfig(workers=1, levels_per_octave=levels)).detect(crop)
+    two = DpmDetector(inria_model, DpmConfig(workers=2, levels_per_octave=levels)).detect(crop)
     np.testing.assert_array_equal(one.boxes, two.boxes)
     np.testing.assert_array_equal(one.scores, two.scores)
     np.testing.assert_array_equal(one.parts, two.parts)
     assert len(one) >= 1
+    # a whole frame, every level scored on the pool
+    whole = [
+        DpmDetector(inria_model, DpmConfig(workers=w, levels_per_octave=levels)) for w in (1, 2)
+    ]
+    one, two = (detector.detect(pets_frame) for detector in whole)
+    np.testing.assert_array_equal(one.boxes, two.boxes)
+    np.testing.assert_array_equal(one.scores, two.scores)
+    assert len(one) >= 2
 
 
 def _level_threads() -> set[threading.Thread]:
