@@ -187,7 +187,10 @@ def test_help_describes_detectors_and_step(detection, capsys, monkeypatch):
     with pytest.raises(SystemExit):
         detection.parse_args(["--help"])
     text = capsys.readouterr().out
-    assert "(default: dpm-inria,dpm-inria@1.3:5,dpm-voc2007,default,opencv-hog,public)" in text
+    assert (
+        "(default: dpm-inria,dpm-inria:2,dpm-inria@1.3:5,dpm-voc2007,default,opencv-hog,public)"
+        in text
+    )
     assert "score every N-th frame" in text
     assert "see above" not in text  # the help has no "above" to point at
 
