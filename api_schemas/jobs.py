@@ -64,11 +64,26 @@ class DetectorOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    name: Literal["default", "dpm"] = Field(
-        default="default",
-        description="'default': the embedded HOG people detector (no model file); 'dpm': the "
-        "deformable part model the service was configured with (VTRACK_DPM_MODEL), which also "
-        "locates body parts.",
+    name: Literal["auto", "cnn", "default", "dpm"] = Field(
+        default="auto",
+        description="'auto' (default): 'cnn' when the service has a CNN model, else 'default' "
+        "with a warning on the job that says how to install the model. 'cnn': a CNN person "
+        "detector on OpenVINO (the model the service was configured with, or 'model'); it "
+        "finds the most people. 'default': the embedded HOG people detector (no model file). "
+        "'dpm': the deformable part model the service was configured with (VTRACK_DPM_MODEL), "
+        "which also locates body parts. Results name the detector and model that ran.",
+    )
+    model: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=200,
+        pattern=r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$",
+        description="'cnn' only: a model of the service's models folder (VTRACK_MODELS_DIR), by "
+        "name as `vtrack models list` shows it (person-detection-0202, person-detection-0200, "
+        "person-detection-retail-0013) or as a path inside that folder to an OpenVINO .xml or "
+        "an .onnx file (yolox-nano/yolox_nano.onnx). None: the service's model "
+        "(VTRACK_CNN_MODEL, by default person-detection-0202).",
+        examples=["person-detection-0202"],
     )
     upscale: float | None = Field(
         strict=True,
@@ -83,7 +98,10 @@ class DetectorOptions(BaseModel):
         "1.0; 2160 px: 0.5). DPM: it finds people down to "
         "about 60 px / upscale tall; None: 1, or less for frames over 1080 px high (portrait: "
         "wide), which are "
-        "searched at 1080 px (2160 px: 0.5, a quarter of the pixels). The enlarged frame may "
+        "searched at 1080 px (2160 px: 0.5, a quarter of the pixels). CNN: the network's input "
+        "is the frame enlarged by this factor; None: the frame as it is when its height (a "
+        "portrait frame's width) is 576-1080 px, else scaled into that range, at most 2x (360 "
+        "px high: 1.6; 2160 px: 0.5). The enlarged frame may "
         "have at most 7680x4320 pixels (a 4K video: upscale 2 at most).",
     )
     levels_per_octave: int | None = Field(
@@ -102,9 +120,25 @@ class DetectorOptions(BaseModel):
     @field_validator("levels_per_octave")
     @classmethod
     def _of_the_dpm(cls, value: int | None, info: ValidationInfo) -> int | None:
-        # the embedded detector has a pyramid of its own: the option would do nothing there
-        if value is not None and info.data.get("name") == "default" and not stored(info):
-            raise ValueError("only for detector 'dpm': the embedded detector's pyramid is fixed")
+        # the other detectors have no such pyramid: the option would do nothing there
+        name = info.data.get("name")
+        if value is not None and name not in (None, "dpm") and not stored(info):
+            raise ValueError(
+                f"only for detector 'dpm': detector '{name}' has no pyramid of this kind"
+            )
+        return value
+
+    @field_validator("model")
+    @classmethod
+    def _of_the_cnn(cls, value: str | None, info: ValidationInfo) -> str | None:
+        name = info.data.get("name")
+        if value is not None and name not in (None, "cnn") and not stored(info):
+            raise ValueError(
+                f"only for detector 'cnn': detector '{name}' takes no model"
+                + (" (set name to 'cnn' to choose the CNN's model)" if name == "auto" else "")
+            )
+        if value is not None and ".." in value.split("/"):
+            raise ValueError("must name a file inside the models folder, without '..'")
         return value
 
 
@@ -288,9 +322,11 @@ class JobOptions(BaseModel):
         mode, reason = _MODE_OF[info.field_name]
         given = info.data.get("mode")
         default = cls.model_fields[info.field_name].get_default(call_default_factory=True)
-        # the preset's default was DEFAULT_PRESET in every mode: options copied from an earlier
-        # people job's status still pass (and show None)
-        old_default = DEFAULT_PRESET if info.field_name == "preset" else default
+        # the preset's default was DEFAULT_PRESET in every mode, and the detector's 'default'
+        # before 'auto': options copied from an earlier job's status still pass
+        old_default = {"preset": DEFAULT_PRESET, "detector": DetectorOptions(name="default")}.get(
+            info.field_name, default
+        )
         if given is not None and given != mode and value not in (default, old_default):
             raise ValueError(f"only for mode '{mode}': {reason}")
         return value

@@ -308,6 +308,17 @@ class StreamStatus(BaseModel):
         "finished at the end of its segment, when the tracks end, and when the worker stops: "
         "DELETE, a service restart).",
     )
+    detector: DetectorOptions | None = Field(
+        default=None,
+        description="The detector the stream's worker runs: its spec's with 'auto' resolved "
+        "and the CNN's model named; None when the stream takes upstream detections only or "
+        "the detector cannot run (see error).",
+    )
+    detector_warning: str | None = Field(
+        default=None,
+        description="What the stream loses with that detector (detector 'auto' without a CNN "
+        "model: the embedded detector, and how to install the model).",
+    )
     spec: StreamSpec
 
 

@@ -1,12 +1,13 @@
 """End-to-end service benchmark: upload-to-result time for a video, as a ratio to its duration.
 
     python benchmarks/service.py [--video PATH] [--options JSON] [--workers N]
-                                 [--dpm-model MODEL.mat] [--jobs N] [--json]
+                                 [--dpm-model MODEL.mat] [--models-dir DIR]
+                                 [--inference-threads N] [--jobs N] [--json]
 
 Starts ``vtrack serve`` (default settings; a temporary data folder) on a loopback port, uploads
 the video (default: the PETS09-S2L1 video of the shared data, 795 frames at 10 fps = 79.5 s)
-with the given job options (default: none, i.e. the service defaults: the embedded detector,
-every frame, all four outputs), follows the job to its end, downloads every result, and reports:
+with the given job options (default: none, i.e. the service defaults: detector 'auto', every
+frame, all four outputs), follows the job to its end, downloads every result, and reports:
 
 * ``upload_to_result_s``: from the first byte of the upload to the last byte of the last result;
 * ``ratio_to_real_time``: that divided by the video's duration (below 1: faster than real time);
@@ -24,7 +25,10 @@ frames where nobody was found. With ``--jobs N``, the first job's.
 
 One job uses one worker process; ``--workers`` only sets how many the server starts.
 ``--dpm-model`` configures the server with a voc-release5 model (``VTRACK_DPM_MODEL``), for jobs
-with ``{"detector": {"name": "dpm"}}``.
+with ``{"detector": {"name": "dpm"}}``; ``--models-dir`` with a folder of CNN models
+(``VTRACK_MODELS_DIR``; the shared data's ``models`` folder is laid out as ``vtrack models
+fetch`` lays one out), with which detector 'auto' runs the CNN. ``detector`` in the report is the
+detector and model that ran, as the JSON result names them.
 """
 
 from __future__ import annotations
@@ -86,9 +90,15 @@ def run(
     dpm_model: Path | None = None,
     jobs: int = 1,
     ground_truth: tuple[Path, float] | None = None,
+    models_dir: Path | None = None,
+    inference_threads: int | None = None,
 ) -> dict:
     frames, fps, duration = _video_seconds(video)
     settings = {"dpm_model": str(dpm_model.resolve())} if dpm_model else {}
+    if models_dir is not None:
+        settings["models_dir"] = str(models_dir.resolve())
+    if inference_threads is not None:
+        settings["inference_threads"] = inference_threads
     with tempfile.TemporaryDirectory(prefix="vtrack-bench-") as scratch:
         server = Server(
             Path(scratch) / "data", workers=workers, log_level="warning", **settings
@@ -125,6 +135,9 @@ def run(
                         for fmt, link in status["links"]["results"].items()
                     }
                     results.append(contents)
+                detector = None
+                if "json" in results[0]:
+                    detector = json.loads(results[0]["json"])["options"].get("detector")
                 end = time.perf_counter()
         finally:
             server.stop()
@@ -147,6 +160,8 @@ def run(
         "video_fps": fps,
         "video_seconds": round(duration, 3),
         "options": options or {},
+        "settings": settings,
+        "detector": detector,
         "jobs": jobs,
         "upload_to_result_s": round(total, 2),
         "ratio_to_real_time": round(total / duration, 3),
@@ -170,6 +185,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, help="worker processes of the server")
     parser.add_argument(
         "--dpm-model", type=Path, help="voc-release5 model for jobs with detector 'dpm'"
+    )
+    parser.add_argument(
+        "--models-dir",
+        type=Path,
+        help="folder of CNN models (VTRACK_MODELS_DIR), e.g. the shared data's models folder",
+    )
+    parser.add_argument(
+        "--inference-threads",
+        type=int,
+        help="threads of each CNN inference (VTRACK_INFERENCE_THREADS; default: the service's)",
     )
     parser.add_argument(
         "--jobs", type=int, default=1, help="upload the video this many times at once"
@@ -204,12 +229,16 @@ def main(argv: list[str] | None = None) -> int:
         args.dpm_model,
         args.jobs,
         None if gt is None else (gt, scale),
+        args.models_dir,
+        args.inference_threads,
     )
     if args.json:
         print_json(figures, indent=None)
         return 0
     print(f"{figures['video']}: {figures['frames']} frames, {figures['video_seconds']} s of video")
     print(f"options: {json.dumps(figures['options'])}, {figures['jobs']} job(s) at once")
+    if figures["detector"] is not None:
+        print(f"detector that ran: {json.dumps(figures['detector'])}")
     rows = [
         ("upload to result", f"{figures['upload_to_result_s']:.1f} s"),
         ("ratio to real time", f"{figures['ratio_to_real_time']:.2f}"),

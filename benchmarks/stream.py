@@ -11,8 +11,11 @@ camera does (JPEG, or ``--payload`` H.264 or raw pixels; sequence number and cap
 attached), while following the camera's
 tracks with :func:`service.streams.tools.follow_tracks` in this process. Configurations:
 
-* ``service_detector``: default stream options; the service's embedded HOG detector (at the
-  factor it picks for 360 px frames, 2.0).
+* ``service_cnn``: default stream options, detector 'auto', which runs the CNN person detector
+  (the server is given the shared data's ``models`` folder as ``VTRACK_MODELS_DIR``: Open Model
+  Zoo's person-detection-0202, at 576 px for these 360 px frames).
+* ``service_detector``: the service's embedded HOG detector (``"default"``, at the factor it
+  picks for 360 px frames, 2.0).
 * ``upstream_detections``: the publisher also publishes the public ``det/det.txt`` detections
   (scaled by 0.625 from 768x576) on the detections key, as an upstream detector would.
 * ``service_detector_1_5x`` (only when asked for): the embedded detector with ``upscale`` 1.5,
@@ -80,13 +83,17 @@ SCALE = 0.625
 PREFIX = "vtrack"
 
 CONFIGS = {
-    "service_detector": {},
+    "service_cnn": {},
+    "service_detector": {"detector": {"name": "default"}},
     "upstream_detections": {},
-    "service_detector_1_5x": {"detector": {"upscale": 1.5}},
-    "service_detector_regions": {"tracker": {"full_detection_interval": 0.2}},
+    "service_detector_1_5x": {"detector": {"name": "default", "upscale": 1.5}},
+    "service_detector_regions": {
+        "detector": {"name": "default"},
+        "tracker": {"full_detection_interval": 0.2},
+    },
 }
 """Stream options (the body of ``POST /v1/streams`` besides the camera) per configuration."""
-DEFAULT_CONFIGS = ("service_detector", "upstream_detections")
+DEFAULT_CONFIGS = ("service_cnn", "service_detector", "upstream_detections")
 UPSTREAM = "upstream_detections"
 SKIP_GOAL = 0.05
 LATENCY_GOAL = 0.150
@@ -261,7 +268,11 @@ def run_config(
     median = _percentile(end_to_end, 50)
     cpu = cpu_end - cpu_start if cpu_start is not None and cpu_end is not None else None
     samples = sampler.samples
+    detector = status.get("detector")
     figures = {
+        "detector": None
+        if detector is None
+        else " ".join(filter(None, (detector["name"], detector["model"]))),
         "frames_published": published,
         "publish_seconds": round(report.seconds, 2),
         "publish_fps": round(published / report.seconds, 2) if report.seconds else None,
@@ -419,7 +430,10 @@ def run(
         "configs": {},
     }
     with tempfile.TemporaryDirectory(prefix="vtrack-stream-bench-") as scratch:
-        server = Server(Path(scratch) / "data", workers=1, zenoh_prefix=PREFIX)
+        models = data / "models"
+        server = Server(
+            Path(scratch) / "data", workers=1, zenoh_prefix=PREFIX, models_dir=models.resolve()
+        )
         try:
             _log(f"starting the server (HTTP {server.url}, Zenoh {server.zenoh_listen[0]})")
             server.start()

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import os
 import shutil
 import time
@@ -18,29 +17,30 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from api_schemas.jobs import DetectorOptions, JobOptions, OutputFormat
+from api_schemas.jobs import JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
 from service.convert import frame_message
 from service.frames import (
     FrameSource,
     ReadProgress,
-    frame_size_problem,
     is_greyscale,
     open_frames,
 )
 from service.outputs import RESULT_FILES, RunSummary, h264, open_writers
 from service.outputs.base import StreamInfo
+from service.pipelines import (
+    OptionsError,
+    PipelineResources,
+    build_pipeline,
+    check_options,
+    choose_detector,
+    people_config,
+)
 from tracking.correlation import PRESETS
-from tracking.detection.base import Detections, Detector
-from tracking.detection.dpm import DpmDetector
-from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
-from tracking.detection.factory import make_detector
-from tracking.detection.hog_people import HogPeopleConfig
+from tracking.detection.base import Detections
 from tracking.gap_filling import GapFiller
 from tracking.people import PeopleTrackerConfig
-from tracking.people.config import default_part_appearance
-from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
-from tracking.types import Box, box_problem
+from tracking.pipeline import PeoplePipeline
 
 log = logging.getLogger(__name__)
 
@@ -49,20 +49,8 @@ ProgressCallback = Callable[[int, int, float | None], bool]
 every ``progress_interval`` seconds; returning ``False`` stops the run."""
 
 
-class OptionsError(ValueError):
-    """Job options this service cannot run (unknown preset, no DPM model...)."""
-
-
 class AnalysisStopped(Exception):
     """The progress callback asked the run to stop (cancelled, or the job is no longer ours)."""
-
-
-@dataclass(frozen=True, slots=True)
-class PipelineResources:
-    """Files the service was configured with (settings), not chosen per job."""
-
-    dpm_model: Path | None = None
-    color_names: Path | None = None
 
 
 @dataclass(slots=True)
@@ -73,122 +61,9 @@ class AnalysisResult:
     video: VideoInfo
     frames_processed: int
     seconds: float
+    options: JobOptions
+    """The options that ran: detector 'auto' resolved, the CNN's model named."""
     warnings: list[str] = field(default_factory=list)
-
-
-# -- options -> pipeline ---------------------------------------------------------------------
-
-
-def people_config(options: JobOptions, resources: PipelineResources) -> PeopleTrackerConfig:
-    base = PeopleTrackerConfig()
-    if resources.color_names is not None:
-        appearance = dataclasses.replace(
-            base.appearance, color_names_path=str(resources.color_names)
-        )
-        base = dataclasses.replace(base, appearance=appearance)
-    overrides = options.tracker.model_dump(exclude_none=True)
-    if "part_appearance" in overrides:  # the option switches the tracker's part trackers
-        overrides["part_appearance"] = (
-            default_part_appearance() if overrides["part_appearance"] else None
-        )
-    try:
-        return dataclasses.replace(base, **overrides)
-    except ValueError as error:
-        raise OptionsError(f"tracker options are inconsistent: {error}") from None
-
-
-def job_detector(options: DetectorOptions, resources: PipelineResources) -> Detector:
-    if options.name == "dpm":
-        if resources.dpm_model is None:
-            raise OptionsError(
-                "detector 'dpm' needs a voc-release5 model, and this service has none: set "
-                "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
-            )
-        config = dataclasses.replace(
-            DPM_TRACKING_CONFIG,
-            upscale=options.upscale or DPM_TRACKING_CONFIG.upscale,
-            levels_per_octave=options.levels_per_octave or DPM_TRACKING_CONFIG.levels_per_octave,
-        )
-        # the model is known to be a DPM: make_detector would tell it by its .mat suffix
-        return DpmDetector.from_file(resources.dpm_model, config)
-    config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
-    return make_detector("default", config)
-
-
-MAX_ENLARGED_PIXELS = 7680 * 4320
-"""The largest frame a detector is given after ``detector.upscale``: 8K. A 4K video at 4x
-(15360x8640) took about 25 s and 3.6 GB per frame in one worker."""
-
-
-def enlargement_problem(upscale: float | None, frame_size: tuple[int, int]) -> str | None:
-    """Why ``detector.upscale`` cannot run on frames of ``frame_size`` (width, height): they
-    would be enlarged beyond :data:`MAX_ENLARGED_PIXELS`; ``None`` when it can."""
-    width, height = frame_size
-    if upscale is None or width * height * upscale**2 <= MAX_ENLARGED_PIXELS:
-        return None
-    largest = math.floor(math.sqrt(MAX_ENLARGED_PIXELS / (width * height)) * 100) / 100
-    return (
-        f"detector.upscale {upscale:g} enlarges frames of {width}x{height} to "
-        f"{round(width * upscale)}x{round(height * upscale)}, beyond the 7680x4320 the detector "
-        f"takes: use at most {largest:g}, or leave it unset to let the detector choose"
-    )
-
-
-def check_options(
-    options: JobOptions, resources: PipelineResources, source: FrameSource | None = None
-) -> None:
-    """Raise :class:`OptionsError` for options that could not run; cheap (loads no model).
-
-    ``source``, the video, to check that its frames are large enough to track
-    (:data:`~service.frames.MIN_SIDE`), a single target's first box, how large
-    ``detector.upscale`` makes the frames, and that a frame is at or after ``start``.
-    """
-    frame_size = None if source is None else (source.width, source.height)
-    if frame_size is not None and (problem := frame_size_problem(*frame_size)):
-        raise OptionsError(problem)
-    if source is not None and (problem := source.start_problem(options.start)):
-        raise OptionsError(problem)
-    if options.mode == "single_target":
-        if options.preset not in PRESETS:
-            raise OptionsError(
-                f"unknown preset {options.preset!r}: choose one of {', '.join(sorted(PRESETS))}"
-            )
-        if frame_size is not None and options.first_box is not None:
-            b = options.first_box
-            if problem := box_problem(Box(b.x, b.y, b.w, b.h), (frame_size[1], frame_size[0])):
-                raise OptionsError(f"first_box {problem}")
-        return
-    people_config(options, resources)
-    if frame_size is not None and (
-        problem := enlargement_problem(options.detector.upscale, frame_size)
-    ):
-        raise OptionsError(problem)
-    if options.detector.name == "dpm" and resources.dpm_model is None:
-        raise OptionsError(
-            "detector 'dpm' needs a voc-release5 model, and this service has none: set "
-            "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
-        )
-    if options.detector.name == "dpm" and not resources.dpm_model.is_file():
-        raise OptionsError(
-            f"detector 'dpm' needs the model {resources.dpm_model} (VTRACK_DPM_MODEL), which is "
-            "no longer there: the service's operator must put it back, or use detector "
-            "'default'"
-        )
-
-
-def build_pipeline(options: JobOptions, resources: PipelineResources) -> FramePipeline:
-    """The pipeline the options ask for."""
-    check_options(options, resources)
-    if options.mode == "single_target":
-        config = PRESETS[options.preset]
-        if resources.color_names is not None:
-            config = dataclasses.replace(config, color_names_path=str(resources.color_names))
-        b = options.first_box
-        assert b is not None  # JobOptions guarantees it in this mode
-        return SingleTargetPipeline(Box(b.x, b.y, b.w, b.h), config)
-    return PeoplePipeline(
-        job_detector(options.detector, resources), people_config(options, resources)
-    )
 
 
 # -- the run ---------------------------------------------------------------------------------
@@ -228,6 +103,11 @@ def analyze(
     started = time.perf_counter()
     source = video if isinstance(video, FrameSource) else open_frames(video)
     check_options(options, resources, source)
+    choice = None
+    if detections is None and options.mode == "people":
+        # the results name the detector that ran: 'auto' resolved, the CNN's model named
+        choice = choose_detector(options.detector, resources)
+        options = options.model_copy(update={"detector": choice.options})
     if detections is None:
         pipeline = build_pipeline(options, resources)
     elif options.mode == "people":
@@ -300,6 +180,8 @@ def analyze(
                 f"last frame is at {read.end_time:.2f} s"
             )
         summary = _summary(source, options, read, processed, filename, greyscale)
+        if choice is not None and choice.warning:
+            summary.warnings.append(choice.warning)
         for writer in writers.values():
             writer.close(summary)
     except BaseException:
@@ -312,6 +194,7 @@ def analyze(
         video=summary.video,
         frames_processed=processed,
         seconds=seconds,
+        options=options,
         warnings=summary.warnings,
     )
 

@@ -32,10 +32,11 @@ from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.probing import VideoProber
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
-from service.jobs.submit import InvalidOptions, resources
+from service.jobs.submit import InvalidOptions
 from service.jobs.workers import WorkerPool
 from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
+from service.pipelines import PipelineResources
 from service.routers import health, jobs, metrics, streams
 from service.settings import Settings, ip_address, is_loopback
 from service.storage import storage_problem
@@ -77,7 +78,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     config = WorkerConfig(
         database_path=settings.database_path,
         poll_interval=settings.poll_interval,
-        resources=resources(settings),
+        resources=PipelineResources.from_settings(settings),
         log_level=settings.log_level,
     )
     # no worker is replaced once a stop signal came: the service is stopping them

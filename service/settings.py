@@ -11,11 +11,12 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, SecretStr, ValidationError, field_validator
+from pydantic import Field, SecretStr, ValidationError, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict, SettingsError
 
 from api_schemas.common import error_message
 from api_schemas.streams import PREFIX_PATTERN, StreamSpec
+from service.models.catalog import CATALOG, DEFAULT_DETECTOR, model_path
 from service.streams.session import (
     DEFAULT_LISTEN,
     ZenohOptions,
@@ -36,6 +37,8 @@ _WITHOUT = {
     "retention_hours": "finished jobs kept until deleted, or give hours",
     "dpm_model": "no DPM (the embedded detector), or give the model file's path",
     "color_names": "the embedded colour naming, or give the w2c.mat path",
+    "models_dir": "no CNN models folder (the embedded detector), or give the folder",
+    "cnn_model": "the default model of VTRACK_MODELS_DIR, or give a model name or file",
 }
 """What an optional setting means when unset, for the message about an empty one."""
 
@@ -139,6 +142,23 @@ class Settings(BaseSettings):
         default=None,
         description="van de Weijer w2c.mat Color Names table; default: the embedded model.",
     )
+    models_dir: Path | None = Field(
+        default=None,
+        description="Folder of CNN model files as `vtrack models fetch --dir` lays them out: "
+        "detector 'auto' runs the CNN when its model (VTRACK_CNN_MODEL) is there.",
+    )
+    cnn_model: str | None = Field(
+        default=None,
+        description="The CNN person detector's network: a model name of VTRACK_MODELS_DIR "
+        f"(default: {DEFAULT_DETECTOR}) or the path of an OpenVINO .xml or an .onnx file.",
+    )
+    inference_threads: int = Field(
+        default=0,
+        ge=0,
+        le=64,
+        description="Threads of each CNN inference; 0: every core, as the other detectors "
+        "use (two jobs at once on 2 cores ran faster with 2 threads each than with 1).",
+    )
     poll_interval: float = Field(
         default=0.2, gt=0, le=5, description="Seconds an idle worker waits between job checks."
     )
@@ -190,6 +210,37 @@ class Settings(BaseSettings):
         if value is not None and not value.is_file():
             raise ValueError(f"{value} is not a file")
         return value
+
+    @field_validator("models_dir")
+    @classmethod
+    def _existing_folder(cls, value: Path | None) -> Path | None:
+        if value is not None and not value.is_dir():
+            raise ValueError(f"{value} is not a folder (`vtrack models fetch --dir` makes one)")
+        return value
+
+    @model_validator(mode="after")
+    def _cnn_loadable(self) -> Settings:
+        # A network that is not one stops the service when it starts, rather than failing
+        # every job; a models folder without the default model is not an error (detector
+        # 'auto' falls back to the embedded one and /readyz says so).
+        path = self.cnn_model_path
+        if self.cnn_model is not None and (path is None or not path.is_file()):
+            where = "" if path is None else f" ({path} is not a file)"
+            raise ValueError(
+                f"VTRACK_CNN_MODEL {self.cnn_model!r} is neither a model of VTRACK_MODELS_DIR "
+                f"nor an .xml or .onnx file{where}: `vtrack models fetch` downloads the models"
+            )
+        if path is not None and path.is_file():
+            from tracking.detection.cnn import CnnDetector
+
+            setting = "VTRACK_CNN_MODEL" if self.cnn_model else "VTRACK_MODELS_DIR"
+            try:
+                CnnDetector.from_file(path)
+            except ValueError as error:  # CnnModelError: what is wrong with the file
+                raise ValueError(
+                    f"{setting}: {error}; `vtrack models fetch` downloads it again"
+                ) from None
+        return self
 
     @field_validator("dpm_model", "color_names")
     @classmethod
@@ -243,7 +294,9 @@ class Settings(BaseSettings):
             )
         return value
 
-    @field_validator("retention_hours", "dpm_model", "color_names", mode="before")
+    @field_validator(
+        "retention_hours", "dpm_model", "color_names", "models_dir", "cnn_model", mode="before"
+    )
     @classmethod
     def _not_empty(cls, value: object, info) -> object:
         # An unset ${VAR} in a compose or unit file: say so, rather than "." is not a file or
@@ -271,6 +324,26 @@ class Settings(BaseSettings):
             connect=tuple(self.zenoh_connect),
             config_file=self.zenoh_config,
         )
+
+    @property
+    def cnn_model_path(self) -> Path | None:
+        """The CNN network file detectors 'cnn' and 'auto' run: VTRACK_CNN_MODEL as a model
+        name in VTRACK_MODELS_DIR or as a path, else the default model in VTRACK_MODELS_DIR;
+        None without either (it may not exist: see :attr:`cnn_model`)."""
+        name = self.cnn_model
+        if name is not None and Path(name).suffix.lower() in (".xml", ".onnx"):
+            return Path(name)
+        if self.models_dir is None:
+            return None
+        if name is not None and name not in CATALOG:
+            return None
+        return model_path(self.models_dir, name or DEFAULT_DETECTOR)
+
+    @property
+    def cnn_threads(self) -> int:
+        """Inference threads per CNN: the setting, or every core (jobs side by side share them
+        as the other detectors' threads do: measured faster than one thread each)."""
+        return self.inference_threads or _default_workers()
 
     @property
     def streams_dir(self) -> Path:
@@ -346,6 +419,8 @@ def unknown_variables(environ: Mapping[str, str]) -> list[str]:
 
 def _problem(item: Any, options: Collection[str]) -> str:
     loc = item["loc"]
+    if not loc:  # a check of several settings: its message names them
+        return error_message(item)
     field = str(loc[0]) if loc else ""
     name = f"--{field.replace('_', '-')}" if field in options else f"VTRACK_{field.upper()}"
     # the place inside a list or object setting: VTRACK_STREAMS[0].camera

@@ -13,7 +13,7 @@ import signal
 import sys
 
 from service import __version__
-from service.cli import analyze, serve, track
+from service.cli import analyze, models, serve, track
 from service.cli.common import CLOSED_OUTPUT, stopped, terminate
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
@@ -26,6 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_command(commands)
     analyze.add_command(commands)
     serve.add_command(commands)
+    models.add_command(commands)  # models fetch, models list
     add_stream_commands(commands)  # publish, subscribe
     return parser
 

@@ -19,6 +19,7 @@ from service.cli.common import (
     W2C_HELP,
     add_fps_argument,
     add_range_arguments,
+    cnn_models,
     color_names_file,
     dpm_model_file,
     open_source,
@@ -68,6 +69,13 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         type=Path,
         help="detect with this voc-release5 model (.mat) instead (VTRACK_DPM_MODEL gives the "
         "model for a detector 'dpm' of --options)",
+    )
+    analyze.add_argument(
+        "--cnn-model",
+        type=Path,
+        help="detect with this CNN network (an OpenVINO .xml or an .onnx file); by default the "
+        "CNN of VTRACK_CNN_MODEL or VTRACK_MODELS_DIR runs when there is one (`vtrack models "
+        "fetch`), else the embedded detector",
     )
     analyze.add_argument(
         "--upscale",
@@ -171,7 +179,9 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
             None if box is None else {"x": box.x, "y": box.y, "w": box.w, "h": box.h},
         ),
         ("preset",): ("--preset", args.preset),
-        ("detector", "name"): ("--dpm-model", "dpm" if args.dpm_model else None),
+        ("detector", "name"): ("--dpm-model", "dpm" if args.dpm_model else None)
+        if args.cnn_model is None
+        else ("--cnn-model", "cnn"),
         ("detector", "upscale"): ("--upscale", args.upscale),
         ("tracker", "full_detection_interval"): ("--detection-interval", args.detection_interval),
     }
@@ -202,13 +212,18 @@ def _detections_conflict(args: argparse.Namespace, options: JobOptions) -> str |
         return None
     if options.mode == "single_target":
         return "--detections gives people to track, not with --box"
-    flags = {"--dpm-model": args.dpm_model, "--upscale": args.upscale}
+    flags = {
+        "--dpm-model": args.dpm_model,
+        "--cnn-model": args.cnn_model,
+        "--upscale": args.upscale,
+    }
     idle = [flag for flag, value in flags.items() if value is not None]
     if args.detection_interval is not None:
         idle.append("--detection-interval")
     elif options.tracker.full_detection_interval:
         idle.append("--options: tracker.full_detection_interval")
-    if args.dpm_model is None and args.upscale is None and options.detector != DetectorOptions():
+    explicit = (args.dpm_model, args.cnn_model, args.upscale)
+    if all(v is None for v in explicit) and options.detector != DetectorOptions():
         idle.append("--options: detector")
     if idle:
         return f"--detections replaces the detector: {', '.join(idle)} would do nothing beside it"
@@ -296,6 +311,8 @@ def _tracked_with(options: JobOptions, dpm_model: Path | None, detections: Path 
         return f"the detections of {detections}"
     if options.detector.name == "dpm" and dpm_model is not None:
         return f"the DPM {dpm_model.name}"
+    if options.detector.name == "cnn":
+        return f"the CNN detector {options.detector.model}"
     return "the embedded detector (OpenCV's HOG people detector)"
 
 
@@ -353,7 +370,8 @@ def _analyze(args: argparse.Namespace) -> int:
         print(f"vtrack: {problem}", file=sys.stderr)
         return 2
     # the trackers and detectors (most of the command's imports) once the options are good
-    from service.analysis import PipelineResources, analyze, check_options, publish
+    from service.analysis import analyze, publish
+    from service.pipelines import PipelineResources, check_options
 
     try:
         # VTRACK_DPM_MODEL is read only for a run that detects with it; --dpm-model always
@@ -364,7 +382,15 @@ def _analyze(args: argparse.Namespace) -> int:
                 "detector 'dpm' needs a voc-release5 model: give --dpm-model MODEL.mat or set "
                 "VTRACK_DPM_MODEL"
             )
-        resources = PipelineResources(dpm_model=dpm_model, color_names=color_names_file(args.w2c))
+        cnn_model, models_dir = (
+            cnn_models(args.cnn_model) if options.mode == "people" else (None, None)
+        )
+        resources = PipelineResources(
+            dpm_model=dpm_model,
+            color_names=color_names_file(args.w2c),
+            models_dir=models_dir,
+            cnn_model=cnn_model,
+        )
         if options.mode == "single_target":
             warn_unused_table(args.w2c, options.preset)
         source = open_source(args)
@@ -427,9 +453,10 @@ def _analyze(args: argparse.Namespace) -> int:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if not args.quiet:
         rate = result.frames_processed / max(result.seconds, 1e-9)
+        tracked_with = _tracked_with(result.options, dpm_model, args.detections)
         print(
             f"vtrack: tracked {result.frames_processed} frames in {result.seconds:.1f} s "
-            f"({rate:.1f} frames/s) with {_tracked_with(options, dpm_model, args.detections)}",
+            f"({rate:.1f} frames/s) with {tracked_with}",
             file=sys.stderr,
         )
     for fmt, path in files.items():

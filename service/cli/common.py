@@ -103,6 +103,38 @@ def warn_unused_table(w2c: Path | None, preset: str) -> None:
         )
 
 
+def cnn_models(given: Path | None) -> tuple[Path | None, Path | None]:
+    """The CNN network of ``--cnn-model``, else of ``VTRACK_CNN_MODEL`` and
+    ``VTRACK_MODELS_DIR`` as ``vtrack serve`` reads them, and the models folder; an explicitly
+    named network is loaded once to check it (the default model of a folder may be missing:
+    detector 'auto' then runs the embedded detector and says so).
+
+    Raises
+    ------
+    ValueError
+        A network named but missing or unreadable, a models folder that is none; the message
+        names the flag or variable.
+    """
+    from service.models.catalog import CATALOG, DEFAULT_DETECTOR, model_path
+    from tracking.detection.cnn import CnnDetector
+
+    folder = Path(os.environ["VTRACK_MODELS_DIR"]) if os.environ.get("VTRACK_MODELS_DIR") else None
+    if folder is not None and not folder.is_dir():
+        raise ValueError(f"VTRACK_MODELS_DIR: {folder} is not a folder")
+    path, origin = _model_file(given, "--cnn-model", "VTRACK_CNN_MODEL")
+    if path is not None and given is None and str(path) in CATALOG:
+        if folder is None:
+            raise ValueError(f"VTRACK_CNN_MODEL names {path}, which needs VTRACK_MODELS_DIR")
+        path = model_path(folder, str(path))
+    if path is None:
+        return (None if folder is None else model_path(folder, DEFAULT_DETECTOR)), folder
+    try:
+        CnnDetector.from_file(path)
+    except ValueError as error:  # CnnModelError: what is wrong with the file
+        raise ValueError(f"{origin}: {error}") from None
+    return path, folder
+
+
 def dpm_model_file(given: Path | None) -> Path | None:
     """The DPM model of ``--dpm-model`` or ``VTRACK_DPM_MODEL``, loaded once to check it.
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from api_schemas.jobs import JobOptions, JobState, OutputFormat
-from service.analysis import AnalysisStopped, OptionsError, PipelineResources, analyze, publish
+from service.analysis import AnalysisStopped, analyze, publish
 from service.frames import FrameSourceError
 from service.jobs.result_folders import (
     attempt_folder,
@@ -27,6 +27,7 @@ from service.jobs.result_folders import (
     write_gzip_copy,
 )
 from service.jobs.store import JobRecord, JobStore
+from service.pipelines import OptionsError, PipelineResources
 from service.storage import storage_problem
 from service.worker_processes import ignore_stop_signals, service_alive
 

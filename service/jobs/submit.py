@@ -13,10 +13,10 @@ from starlette.concurrency import run_in_threadpool
 
 from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
-from service.analysis import OptionsError, PipelineResources, check_options
 from service.frames import FrameSource, FrameSourceError
 from service.jobs.probing import ProbeInterrupted, VideoProber
 from service.jobs.store import JobRecord, JobStore
+from service.pipelines import OptionsError, PipelineResources, check_options
 from service.settings import Settings
 from service.storage import storage_problem
 from service.uploads import receive_upload
@@ -24,10 +24,6 @@ from service.uploads import receive_upload
 log = logging.getLogger(__name__)
 
 _VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"}
-
-
-def resources(settings: Settings) -> PipelineResources:
-    return PipelineResources(dpm_model=settings.dpm_model, color_names=settings.color_names)
 
 
 def describe_validation(error: ValidationError) -> str:
@@ -105,7 +101,7 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
         prober = request.app.state.prober
         source = await run_in_threadpool(probe_video, prober, upload.video_path, upload.size)
         try:
-            check_options(options, resources(settings), source)
+            check_options(options, PipelineResources.from_settings(settings), source)
         except OptionsError as error:
             raise HTTPException(422, str(error)) from None
         suffix = Path(upload.filename or "").suffix.lower()

@@ -7,7 +7,9 @@ import os
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
+from api_schemas.jobs import DetectorOptions
 from service.deps import PoolDep, SettingsDep, StoreDep, StreamsDep
+from service.pipelines import PipelineResources, choose_detector
 from service.settings import Settings
 from service.storage import FREE_SPACE, free_bytes, writable_remedy
 
@@ -49,6 +51,7 @@ def readyz(
         "jobs": {state.value: n for state, n in counts.items()},
         "streams": streams.counts(),
         "zenoh": streams.unavailable or "ok",
+        "detector": _default_detector(settings),
     }
     if unwritable is not None:
         body["status"] = "unwritable"
@@ -59,6 +62,17 @@ def readyz(
     elif not ready:
         body["detail"] = "no worker process is ready yet; try again in a few seconds"
     return JSONResponse(body, status_code=200 if ready else 503)
+
+
+def _default_detector(settings: Settings) -> dict[str, str | None]:
+    """What a job's detector 'auto' runs now: the CNN and its model, or the embedded detector
+    and how to install the model (a models folder can be filled while the service runs)."""
+    choice = choose_detector(DetectorOptions(), PipelineResources.from_settings(settings))
+    return {
+        "name": choice.options.name,
+        "model": choice.options.model,
+        "warning": choice.warning,
+    }
 
 
 def _unwritable(settings: Settings) -> str | None:

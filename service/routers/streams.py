@@ -9,9 +9,9 @@ from fastapi import APIRouter, HTTPException, Response, status
 
 from api_schemas.jobs import OutputFormat
 from api_schemas.streams import StreamDetail, StreamList, StreamSpec, StreamStatus
-from service.analysis import OptionsError
 from service.deps import AuthDep, KnownQueryDep, StreamsDep
 from service.outputs.base import MEDIA_TYPES
+from service.pipelines import OptionsError
 from service.routers import BINARY_CONTENT, error_responses
 from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download
 from service.streams.manager import StreamConflict, StreamNotFound

@@ -31,7 +31,7 @@ from api_schemas.streams import (
     StreamStatus,
     StreamTracksMessage,
 )
-from service.analysis import PipelineResources, check_options
+from service.pipelines import OptionsError, PipelineResources, check_options, choose_detector
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
@@ -509,7 +509,13 @@ class StreamManager:
         )
         last = report.get("last_frame_at")
         recordings = sorted(self.recordings_dir(record.id).glob("*.mcap"))
+        try:
+            choice = choose_detector(record.spec.detector, self._resources)
+        except OptionsError:  # the model went away: the worker says so in error
+            choice = None
         return StreamStatus(
+            detector=None if choice is None else choice.options,
+            detector_warning=None if choice is None else choice.warning,
             id=record.id,
             camera=record.spec.camera,
             state=self._state(stream),

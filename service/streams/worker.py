@@ -38,11 +38,16 @@ from api_schemas.streams import (
     StreamTracksMessage,
 )
 from api_schemas.tracks import VideoInfo
-from service.analysis import PipelineResources, build_pipeline, enlargement_problem
 from service.convert import track_state
 from service.frames import TimedFrame
 from service.outputs.base import RunSummary, StreamInfo
 from service.outputs.mcap_out import McapWriter, salvage
+from service.pipelines import (
+    PipelineResources,
+    build_pipeline,
+    choose_detector,
+    enlargement_problem,
+)
 from service.storage import storage_problem
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
@@ -243,6 +248,7 @@ class StreamWorker:
         self._no_tracks = "has no tracks yet"  # the query's answer without one
         self._state = StreamState.waiting
         self._pipeline: FramePipeline | None = None
+        self._options = job_options(self.spec)  # what runs: 'auto' resolved by the pipeline
         self._recorder: McapWriter | None = None
         self._recording_path: Path | None = None
         self._segment_start = 0.0  # capture time of the recording's first frame
@@ -394,7 +400,8 @@ class StreamWorker:
         self._reserved = up_to
 
     def _new_pipeline(self) -> FramePipeline:
-        return build_pipeline(job_options(self.spec), self.context.resources)
+        self._options = job_options(self.spec, self.context.resources)
+        return build_pipeline(self._options, self.context.resources)
 
     def _check_stamp_spacing(self, attachment: FrameAttachment, arrived: float) -> None:
         """Warn once per worker when consecutive frames are stamped far further apart than
@@ -635,7 +642,7 @@ class StreamWorker:
                 frame_step=1,
                 part_names=tuple(self._pipeline.part_names) if self._pipeline else (),
                 mode="people",
-                options=job_options(self.spec),
+                options=self._options,
                 mcap_images=self.spec.record_images,
             )
             partial = self._recording_path.with_suffix(".mcap.partial")
@@ -757,9 +764,15 @@ def _recording_name(folder: Path, camera: str) -> Path:
         millis += 1
 
 
-def job_options(spec: StreamSpec) -> JobOptions:
-    """The options of a job that tracks as the stream ``spec`` asks (its detector, its tracker)."""
-    return JobOptions(detector=spec.detector, tracker=spec.tracker)
+def job_options(spec: StreamSpec, resources: PipelineResources | None = None) -> JobOptions:
+    """The options of a job that tracks as the stream ``spec`` asks (its detector, its
+    tracker); with ``resources``, its detector resolved as it runs ('auto' -> 'cnn' or
+    'default', the CNN's model named: recordings say what ran)."""
+    options = JobOptions(detector=spec.detector, tracker=spec.tracker)
+    if resources is None:
+        return options
+    detector = choose_detector(spec.detector, resources).options
+    return options.model_copy(update={"detector": detector})
 
 
 def stream_main(context: StreamContext, service_pid: int, stop, reports: Connection) -> None:

@@ -42,7 +42,7 @@ def test_factory(inria_path, pets):
     assert isinstance(make_detector("submitted"), SubmittedDetections)
 
 
-@pytest.mark.parametrize("name", ["yolo", "model.onnx"])
+@pytest.mark.parametrize("name", ["yolo", "model.pt"])
 def test_factory_rejects_unknown_detectors(name):
     with pytest.raises(ValueError, match="unknown detector"):
         make_detector(name)

@@ -21,9 +21,14 @@ from tracking.types import Box
 # The sequences in ../shared/data/otb and their frame counts (shared/data/README.md).
 REAL_SEQUENCES = {
     "Basketball_first200": 200,
+    "Bird2": 99,
+    "Couple": 140,
     "Crossing": 120,
     "Deer": 71,
+    "Football1": 74,
+    "Freeman1": 326,
     "Skating1": 400,
+    "Skiing": 81,
     "Soccer": 392,
 }
 

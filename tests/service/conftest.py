@@ -28,7 +28,7 @@ PETS_VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
 # enlarged twice as it enlarges 360-px video by default: a quarter of the CPU (8 against 36 s for
 # 120 frames), since it then finds none of the clip's 40-55 px people and the tracker has little
 # to do either.
-FAST_OPTIONS = {"formats": ["json"], "detector": {"upscale": 1.0}}
+FAST_OPTIONS = {"formats": ["json"], "detector": {"name": "default", "upscale": 1.0}}
 
 
 def cut_video(source: Path, target: Path, frames: int, start: int = 0) -> Path:

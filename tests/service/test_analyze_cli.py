@@ -25,13 +25,14 @@ from tests.service.test_cli import vtrack_interrupted
 
 DPM_MODEL = Path("dpm") / "INRIA" / "inriaperson_final.mat"
 DPM_OPTIONS = json.dumps({"detector": {"name": "dpm"}})
+# The embedded detector, named: without a CNN model detector 'auto' runs it with a warning
+EMBEDDED = ("--options", json.dumps({"detector": {"name": "default"}}))
 
 
 def vtrack(*args, env=None):
     """``vtrack ARGS`` with ``env`` over this environment (without its model variables)."""
-    base = {
-        k: v for k, v in os.environ.items() if k not in ("VTRACK_DPM_MODEL", "VTRACK_COLOR_NAMES")
-    }
+    models = ("VTRACK_DPM_MODEL", "VTRACK_COLOR_NAMES", "VTRACK_MODELS_DIR", "VTRACK_CNN_MODEL")
+    base = {k: v for k, v in os.environ.items() if k not in models}
     return subprocess.run(
         [sys.executable, "-m", "service.cli", *map(str, args)],
         capture_output=True,
@@ -348,7 +349,9 @@ def damaged(shared_data, tmp_path_factory):
 def test_analyze_passes_over_damaged_frames_and_goes_on(damaged, tmp_path):
     # before: the video "ended" at frame 10, and the rest of it was not tracked
     out = tmp_path / "out"
-    result = vtrack("analyze", damaged, "--out-dir", out, "--format", "json,mot", "--quiet")
+    result = vtrack(
+        "analyze", damaged, "--out-dir", out, "--format", "json,mot", "--quiet", *EMBEDDED
+    )
     assert result.returncode == 0, result.stderr
     frames = cv2.VideoCapture(str(damaged)).get(cv2.CAP_PROP_FRAME_COUNT)
     assert result.stderr == (
@@ -447,7 +450,7 @@ def test_analyze_leaves_only_this_runs_results_and_says_what_detected(pets_short
         (out / name).write_text("an earlier run's file")  # notes.txt: not a result
     # a model set for the service but not asked for, and a misspelt variable
     env = {"VTRACK_DPM_MODEL": str(tmp_path / "model.mat"), "VTRACK_DMP_MODEL": "x"}
-    result = vtrack("analyze", pets_short, "--out-dir", out, "--format", "json", env=env)
+    result = vtrack("analyze", pets_short, "--out-dir", out, "--format", "json", *EMBEDDED, env=env)
     assert result.returncode == 0, result.stderr
     # before: the earlier mcap, mot and mp4 stayed beside the new json
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "trajectories.json"]
@@ -455,7 +458,9 @@ def test_analyze_leaves_only_this_runs_results_and_says_what_detected(pets_short
     assert "ignoring VTRACK_DMP_MODEL: not a setting (did you mean VTRACK_DPM_MODEL?)" in (
         result.stderr
     )
-    quiet = vtrack("analyze", pets_short, "--out-dir", out, "--format", "json", "--quiet")
+    quiet = vtrack(
+        "analyze", pets_short, "--out-dir", out, "--format", "json", "--quiet", *EMBEDDED
+    )
     assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
 
 

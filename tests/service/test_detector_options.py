@@ -12,14 +12,14 @@ import pytest
 from pydantic import ValidationError
 
 from api_schemas.jobs import JobOptions
-from service.analysis import (
+from service.frames import FrameSource
+from service.pipelines import (
     OptionsError,
     PipelineResources,
     check_options,
     job_detector,
     people_config,
 )
-from service.frames import FrameSource
 from tests.service.conftest import PETS_VIDEO
 from tracking.detection import DPM_TRACKING_CONFIG, box_iou
 from tracking.people import PeopleTrackerConfig

@@ -2,9 +2,12 @@
 
 The Dockerfile's install steps are replayed in a fresh virtual environment: its COPY steps
 copy from the repository into a scratch build folder, its ``pip``/``python`` RUN steps run there
-with the environment's interpreter (other RUN steps, such as creating the system user, need a
-container and are only checked for presence). The installed ``vtrack`` must then start and pass
-the image's own HEALTHCHECK command. The compose file must parse and name files that exist.
+with the environment's interpreter, its ``vtrack`` RUN steps (the model fetch) with the installed
+command through a shell, the build arguments given by the test: the model files come from the
+shared reference copies as a mirror, since the machines running the tests have no internet access
+(other RUN steps, such as creating the system user, need a container and are only checked for
+presence). The installed ``vtrack`` must then start and pass the image's own HEALTHCHECK command.
+The compose file must parse and name files that exist.
 """
 
 from __future__ import annotations
@@ -125,15 +128,22 @@ def test_dockerignore_keeps_environments_and_caches_out_but_not_what_the_image_c
     assert [s for s in sources if _ignored(s, patterns)] == []
 
 
-def _replay(dockerfile, build: Path, env_dir: Path) -> dict[str, str]:
-    """Run the Dockerfile's COPY and pip/python RUN steps in ``build`` with ``env_dir``, under
-    its ENV settings (``/app`` read as ``build``); returns those settings."""
+def _replay(
+    dockerfile, build: Path, env_dir: Path, build_args: dict[str, str] | None = None
+) -> dict[str, str]:
+    """Run the Dockerfile's COPY and pip/python/vtrack RUN steps in ``build`` with
+    ``env_dir``, under its ENV settings (``/app`` read as ``build``) and its ARGs (``build_args``
+    for ``--build-arg``); returns the ENV settings."""
     venv.EnvBuilder(with_pip=True, clear=True).create(env_dir)
     bindir = env_dir / "bin"
     replayed = 0
     settings: dict[str, str] = {}
+    arguments: dict[str, str] = {}  # the build's alone, not the image's environment
     for keyword, args in dockerfile:
-        if keyword == "ENV":
+        if keyword == "ARG":
+            name, _, default = args.partition("=")
+            arguments[name] = (build_args or {}).get(name, default)
+        elif keyword == "ENV":
             for pair in shlex.split(args):
                 name, _, value = pair.partition("=")
                 settings[name] = value.replace("/app", str(build), 1)
@@ -147,15 +157,20 @@ def _replay(dockerfile, build: Path, env_dir: Path) -> dict[str, str]:
                 shutil.copy2(REPO_ROOT / source, destination if target != "./" else build)
         elif keyword == "RUN":
             command = shlex.split(args)
-            if command[0] not in ("pip", "python"):
+            if command[0] == "vtrack":  # in the build's shell: it expands the ARGs and ENVs
+                command = ["sh", "-c", args]
+                path = f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}"
+            elif command[0] in ("pip", "python"):
+                command[0] = str(bindir / command[0])
+                path = os.environ.get("PATH", "")
+            else:
                 continue
-            command[0] = str(bindir / command[0])
             result = subprocess.run(
                 command,
                 cwd=build,
                 capture_output=True,
                 text=True,
-                env={**os.environ, **settings},
+                env={**os.environ, **settings, **arguments, "PATH": path},
             )
             assert result.returncode == 0, f"RUN {args}\n{result.stdout}\n{result.stderr}"
             replayed += 1
@@ -172,10 +187,17 @@ _SHIPPED_CASCADES = (
 
 @pytest.mark.slow
 @pytest.mark.timeout(900)
-def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path):
+def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path, shared_data):
+    from service.models import DEFAULT_DETECTOR, model_state
+
     build, env_dir = tmp_path / "app", tmp_path / "env"
     build.mkdir()
-    image_env = _replay(dockerfile, build, env_dir)
+    mirror = {"VTRACK_MODELS_MIRROR": str(shared_data / "models")}  # no internet here
+    image_env = _replay(dockerfile, build, env_dir, build_args=mirror)
+    # the default CNN detector in the image, verified, inside the build (not a mounted volume)
+    models_dir = Path(image_env["VTRACK_MODELS_DIR"])
+    assert models_dir.is_relative_to(build)
+    assert model_state(models_dir, DEFAULT_DETECTOR) == "present"
     bindir = env_dir / "bin"
     elsewhere = tmp_path / "elsewhere"  # not the build folder: import the installed package
     elsewhere.mkdir()

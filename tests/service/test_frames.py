@@ -120,7 +120,11 @@ def test_frames_over_the_pixel_limit_are_refused_before_decoding(shared_data, mo
 
 def test_frames_skipped_at_the_end_are_counted_as_read(vfr_video, tmp_path):
     # 12 frames with step 5: frames 0, 5 and 10 are tracked, 11 is read and skipped
-    result = analyze(vfr_video, JobOptions(formats=["json"], frame_step=5), tmp_path / "out")
+    result = analyze(
+        vfr_video,
+        JobOptions(formats=["json"], frame_step=5, detector={"name": "default"}),
+        tmp_path / "out",
+    )
     assert result.frames_processed == 3
     assert result.video.frames_read == len(VFR_MS)
     assert result.warnings == []
@@ -238,13 +242,14 @@ def test_a_clip_shorter_than_a_confirmation_says_so(shared_data, tmp_path):
     # before: a one-frame clip of five people succeeded with no track and no word why
     frames = list(islice(open_frames(shared_data / PETS_VIDEO), 1))
     clip = write_stamped(frames, [0], tmp_path / "one_frame.mp4")
-    result = analyze(clip, JobOptions(formats=["json"]), tmp_path / "out")
+    embedded = {"name": "default"}  # no CNN model here: 'auto' would add its warning
+    result = analyze(clip, JobOptions(formats=["json"], detector=embedded), tmp_path / "out")
     assert read_trajectories(result.files["json"]).tracks == []
     assert result.warnings == [
         "only 1 frame was tracked, and a person is reported once seen in 3 "
         "(tracker.confirm_hits): for a clip this short, set tracker.confirm_hits to 1"
     ]
-    options = JobOptions(formats=["json"], tracker={"confirm_hits": 1})
+    options = JobOptions(formats=["json"], tracker={"confirm_hits": 1}, detector=embedded)
     result = analyze(clip, options, tmp_path / "again")
     assert read_trajectories(result.files["json"]).tracks and result.warnings == []
 

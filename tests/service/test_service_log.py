@@ -24,7 +24,7 @@ def test_debug_adds_each_jobs_video_and_options_and_ffmpegs_own_errors(
     # before: the same lines as at info
     assert (
         f"job {job_id}: 480x360 video, 10.000 frames per second, 24 frames announced; "
-        'options {"detector":{"upscale":1.0},"formats":["json"]}'
+        'options {"detector":{"name":"default","upscale":1.0},"formats":["json"]}'
     ) in log
     # FFmpeg's complaint about the cut frame, which info leaves out, with OpenCV's prefix
     assert "[OPENCV:FFMPEG:16]" in log

@@ -12,11 +12,12 @@ from mcap.reader import make_reader
 from pydantic import ValidationError
 
 from api_schemas.jobs import JobOptions
-from service.analysis import AnalysisStopped, OptionsError, analyze, damage_warnings
+from service.analysis import AnalysisStopped, analyze, damage_warnings
 from service.frames import ReadProgress, open_frames
 from service.outputs.json_out import read_trajectories
+from service.pipelines import OptionsError
 from tests.service.conftest import PETS_VIDEO, VFR_MS, submit, wait_for_state
-from tests.service.test_analyze_cli import vtrack
+from tests.service.test_analyze_cli import EMBEDDED, vtrack
 
 pytestmark = pytest.mark.slow
 
@@ -63,7 +64,9 @@ def test_progress_and_cancelling_go_on_through_the_frames_before_start(long_vide
 
 
 def test_a_job_with_a_range_writes_the_part_with_the_video_times(pets_cut, tmp_path):
-    options = JobOptions(formats=["json", "mot", "mp4", "mcap"], start=1.05, end=2.0)
+    options = JobOptions(
+        formats=["json", "mot", "mp4", "mcap"], start=1.05, end=2.0, detector={"name": "default"}
+    )
     result = analyze(pets_cut, options, tmp_path / "out")
     assert result.frames_processed == 9 and result.warnings == []  # frames 11-19
     trajectories = read_trajectories(result.files["json"])
@@ -232,7 +235,17 @@ def test_an_image_folder_plays_at_the_rate_given(shared_data, tmp_path):
         in result.stderr
     )
     result = vtrack(
-        "analyze", folder, "--fps", "5", "--start", "1", "--out-dir", out, "--format", "json"
+        "analyze",
+        folder,
+        "--fps",
+        "5",
+        "--start",
+        "1",
+        "--out-dir",
+        out,
+        "--format",
+        "json",
+        *EMBEDDED,
     )
     assert result.returncode == 0, result.stderr
     assert "warning" not in result.stderr

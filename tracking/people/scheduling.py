@@ -46,7 +46,12 @@ class DetectionScheduler:
             self._last_full = timestamp
             return self._detector.detect(frame)
         regions = search_regions(predicted, frame.shape, c.region_margin, c.region_heights)
-        found = [self._detector.detect_region(frame, box, heights) for box, heights in regions]
+        # a detector that batches its regions (the CNN: one inference for all) says so
+        batched = getattr(self._detector, "detect_regions", None)
+        if batched is not None:
+            found = batched(frame, regions)
+        else:
+            found = [self._detector.detect_region(frame, box, h) for box, h in regions]
         return merge(found, self._detector.part_names)
 
 

@@ -1,0 +1,166 @@
+"""OpenVINO inference for the CNN detectors: a model read once, compiled once per input shape.
+
+OpenVINO (Apache-2.0) runs Open Model Zoo IR pairs (``.xml`` graph + ``.bin`` weights beside it)
+and ONNX files on the CPU. A worker process reads each model file once and compiles it once for
+each input shape it is asked for (a video's frames all have one shape; batches of regions of
+interest a few), so :func:`load_network` keeps what it loaded for the life of the process.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["MODEL_SUFFIXES", "CnnModelError", "Network", "load_network"]
+
+MODEL_SUFFIXES = (".xml", ".onnx")
+"""Model files the runtime reads: OpenVINO IR (with its ``.bin`` beside it) and ONNX."""
+
+_MAX_SHAPES = 8  # compiled shapes kept per model: the frame's, and a few batch sizes of regions
+
+
+class CnnModelError(ValueError):
+    """A file is not a model the CNN detector can run (missing, corrupt, wrong outputs)."""
+
+
+@dataclass(slots=True)
+class Network:
+    """One model file on the CPU: its single image input and first output, compiled per shape.
+
+    Attributes
+    ----------
+    path:
+        The ``.xml`` or ``.onnx`` file.
+    threads:
+        Inference threads (OpenVINO's ``INFERENCE_NUM_THREADS``); 0: the runtime's choice.
+    input_shape:
+        The model's own input shape ``(N, C, H, W)``.
+    output_rank:
+        Dimensions of its first output (4 for SSD's ``[1, 1, N, 7]``, 3 for YOLOX's head).
+    reshapeable:
+        Whether the model compiles at other input sizes and batch sizes.
+    """
+
+    path: Path
+    threads: int
+    input_shape: tuple[int, int, int, int]
+    output_rank: int
+    reshapeable: bool
+    _model: object = field(repr=False)
+    _compiled: OrderedDict = field(default_factory=OrderedDict, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    @property
+    def name(self) -> str:
+        """The model's name: its file's stem (``person-detection-0202``)."""
+        return self.path.stem
+
+    def infer(self, batch: np.ndarray) -> np.ndarray:
+        """The first output for ``batch`` ``(N, 3, H, W)`` float32; compiles the shape on first
+        use (a non-reshapeable model takes its own shape only)."""
+        shape = tuple(int(n) for n in batch.shape)
+        if not self.reshapeable and shape != self.input_shape:
+            raise ValueError(f"{self.path.name} takes input {self.input_shape} only, got {shape}")
+        compiled = self._compiled_for(shape)
+        request = compiled.create_infer_request()
+        request.infer({0: batch})
+        return np.array(request.get_output_tensor(0).data, copy=True)
+
+    def _compiled_for(self, shape: tuple[int, ...]):
+        with self._lock:
+            compiled = self._compiled.get(shape)
+            if compiled is not None:
+                self._compiled.move_to_end(shape)
+                return compiled
+            model = self._model.clone()
+            if shape != self.input_shape:
+                model.reshape({model.inputs[0]: list(shape)})
+            config = {"PERFORMANCE_HINT": "LATENCY"}
+            if self.threads:
+                config["INFERENCE_NUM_THREADS"] = self.threads
+            compiled = _core().compile_model(model, "CPU", config)
+            self._compiled[shape] = compiled
+            if len(self._compiled) > _MAX_SHAPES:
+                self._compiled.popitem(last=False)
+            return compiled
+
+
+_CORE = None
+_NETWORKS: dict[tuple[str, int, int, int], Network] = {}
+_NETWORKS_LOCK = threading.Lock()
+
+
+def _core():
+    global _CORE
+    if _CORE is None:
+        import openvino  # imported on first use: the embedded detector never loads it
+
+        _CORE = openvino.Core()
+    return _CORE
+
+
+def load_network(path: str | os.PathLike[str], threads: int = 0) -> Network:
+    """The model at ``path``, read once per process (per file version and thread count).
+
+    Raises
+    ------
+    CnnModelError
+        A missing file, an IR without its ``.bin``, a file OpenVINO cannot read, or a model
+        without one image input ``(N, 3, H, W)``.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in MODEL_SUFFIXES:
+        raise CnnModelError(
+            f"{path} is not a CNN model file: expected an OpenVINO IR .xml (with its .bin "
+            "beside it) or an .onnx file"
+        )
+    try:
+        stat = path.stat()
+    except OSError as error:
+        raise CnnModelError(f"cannot read the CNN model {path}: {error.strerror}") from None
+    if path.suffix.lower() == ".xml" and not path.with_suffix(".bin").is_file():
+        raise CnnModelError(f"{path} has no weights file {path.with_suffix('.bin').name} beside it")
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, threads)
+    with _NETWORKS_LOCK:
+        if key not in _NETWORKS:
+            _NETWORKS[key] = _read(path, threads)
+        return _NETWORKS[key]
+
+
+def _read(path: Path, threads: int) -> Network:
+    try:
+        model = _core().read_model(str(path))
+    except Exception as error:  # OpenVINO raises RuntimeError subclasses with long C++ traces
+        first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise CnnModelError(f"{path} is not a model OpenVINO can read ({first[:300]})") from None
+    if len(model.inputs) != 1 or not model.outputs:
+        raise CnnModelError(
+            f"{path.name} has {len(model.inputs)} inputs: the CNN detector runs models with one "
+            "image input"
+        )
+    shape = model.inputs[0].get_partial_shape()
+    if shape.rank.is_dynamic or shape.rank.get_length() != 4 or shape.is_dynamic:
+        raise CnnModelError(f"{path.name}'s input is {shape}, not an image (N, 3, H, W)")
+    input_shape = tuple(int(d.get_length()) for d in shape)
+    if input_shape[1] != 3:
+        raise CnnModelError(f"{path.name}'s input is {shape}, not a 3-channel image (N, 3, H, W)")
+    rank = model.outputs[0].get_partial_shape().rank.get_length()
+    network = Network(path, threads, input_shape, rank, reshapeable=True, _model=model)
+    # Compile the model's own shape now, so that a file OpenVINO reads but cannot run fails
+    # here, at load, and not on a job's first frame; then try another size.
+    try:
+        network._compiled_for(input_shape)
+    except Exception as error:
+        first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise CnnModelError(f"{path.name} does not compile on the CPU ({first[:300]})") from None
+    n, c, h, w = input_shape
+    try:
+        network._compiled_for((n, c, h + 32, w + 32))
+    except Exception:
+        network.reshapeable = False
+    return network
