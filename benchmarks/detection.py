@@ -1,4 +1,5 @@
-"""Person detection benchmark: the DPM engine, the embedded default, OpenCV's HOG and public boxes.
+"""Person detection benchmark: the DPM engine, the CNN detectors, the embedded default, OpenCV's HOG
+and public boxes.
 
     python benchmarks/detection.py [--data DIR] [--sequences NAME_OR_DIR ...] [--step N]
                                    [--detectors a,b,...] [--json] [--picture PNG] [--plot PNG]
@@ -26,8 +27,10 @@ Boxes are compared in 0-based image pixels, the detectors' convention: ``MotSequ
 
 Each detector runs at an evaluation threshold below its operating one so that its whole
 precision/recall curve is seen: the DPM at ``model.thresh - 1``, the embedded default at SVM
-score -0.5; OpenCV's peer runs as OpenCV does by default (score 0, its own grouping); the public
-detections are used as published (confidence >= 0.5).
+score -0.5, the CNN detectors at network confidence 0.02 (operating: 0.2; the SSDs' own output
+layer keeps nothing below it); OpenCV's peer runs as
+OpenCV does by default (score 0, its own grouping); the public detections are used as published
+(confidence >= 0.5).
 
 Speed, at native resolution, on ``timing-frames`` frames of each sequence (median over ``repeats``
 runs per frame, reported as frames per second): full-frame detection for each detector (the DPM at
@@ -37,11 +40,20 @@ scale of the DPM's finest features (twice its upscale for models with an extra o
 region of interest -- the DPM's ``dense_scores`` and ``detect_region`` over a window around each of
 up to three ground-truth people per frame (centre +- 0.25 of its height; window heights 0.8..1.25
 ("wide", 6 pyramid levels) or 0.9..1.1 ("narrow", 3 levels) of its height: the spread a particle
-filter searches).
+filter searches). CNN detectors: full frames as the others, and, those at the frame's aspect
+(a fixed input does not change how regions are searched), per region of interest
+``detect_regions`` with the regions of a frame (the same windows, up to three) in one batched
+inference, reported as regions per second (the regions of all timed frames over the sum of
+each frame's median time). Every full-frame row also gets its speed as a ratio to the embedded
+``default`` (timed in every run, on the same frames, whether or not it is among
+``--detectors``): ``speed_ratio_to_default`` in the report. The detectors take turns frame by
+frame, so that a burst of load on a shared machine slows them all rather than one.
 
 ``--height H`` resizes every frame (and its ground truth and public detections) to ``H`` pixels
 high: the same scene as a camera of that resolution shows it, for the automatic enlargement of
-the embedded default (``HogPeopleConfig.upscale_for``) and the cost of larger frames. Speed is
+the embedded default (``HogPeopleConfig.upscale_for``), the CNN's input size
+(``CnnConfig.input_for``; the accuracy rows of a CNN give the input it chose) and the cost of
+larger frames. Speed is
 then measured on the resized frames.
 
 DPM variants are named ``dpm-<model>[@upscale][:levels per octave][>min height][+exact]``, e.g.
@@ -51,13 +63,22 @@ scored exactly), ``dpm-inria@1.3:5`` (frame enlarged 1.3x, 5 levels per octave) 
 The default detectors include ``dpm-inria:2``: 2 levels per octave, the coarsest pyramid measured
 that keeps issue 3's AP target, and the one that runs at least as fast as OpenCV's HOG on the
 unscaled frame (``docs/benchmarks.md``, "Coarser pyramids").
+CNN detectors (``tracking.detection.cnn``, OpenVINO) are named ``cnn-<model>[@native|@<W>x<H>]``
+with a model of ``CNN_MODELS`` under ``<--data>/models`` (``0202``, ``0200``, ``retail-0013``,
+``yolox-nano``): by default the input has the frame's aspect at the size ``CnnConfig`` gives
+(the frame's own when its shorter side is 576-1080 px, else scaled into that range, enlarged at
+most 2x); ``@native`` feeds the model's own input size (512x512 for 0202, 416x416 for
+yolox-nano), ``@<W>x<H>`` a fixed one (multiples of 32). ``cnn`` is the product's default,
+person-detection-0202 at the frame's aspect (``cnn-0202``).
 ``default`` is the embedded detector with its enlargement chosen by the frame's height,
 ``default@<upscale>`` the same at a fixed enlargement. ``opencv-hog`` runs OpenCV's HOG at 1.5x,
 ``opencv-hog@<upscale>`` at another scale.
 
 The machine may be shared; timings are medians. ``--workers`` sets the DPM's level threads (its
 hot path makes no BLAS call, so BLAS's thread count does not matter to it; the report records
-``OPENBLAS_NUM_THREADS`` all the same). OpenCV uses its default thread count.
+``OPENBLAS_NUM_THREADS`` all the same). OpenCV uses its default thread count. The CNN detectors
+run on ``--workers`` inference threads when it is given, else on OpenVINO's choice (every core);
+each model is compiled for a shape before that shape is timed.
 """
 
 from __future__ import annotations
@@ -86,6 +107,7 @@ from tracking.detection import (
     MotFormatError,
     MotSequence,
 )
+from tracking.detection.cnn import CnnConfig, CnnDetector, CnnModelError
 from tracking.detection.metrics import (
     DetectionCurve,
     average_precision,
@@ -109,11 +131,19 @@ DEFAULT_DETECTORS = (
     "dpm-inria:2",  # the coarsest pyramid that keeps the AP target: speed against HOG at 1.0x
     "dpm-inria@1.3:5",
     "dpm-voc2007",
+    # every detection model of the shared data (issue 75), the product's first
+    "cnn",
+    "cnn-0200",
+    "cnn-retail-0013",
+    "cnn-yolox-nano",
+    "cnn-0202@native",
+    "cnn-yolox-nano@native",
     "default",
     "opencv-hog",
     "public",
 )
 PEER_UPSCALE = 1.5  # the issue's reference setting for OpenCV's HOG
+CNN_THRESHOLD = 0.02  # the SSDs' output floor: the whole curve (operating: 0.2)
 ROI_HALF_SIZE = 0.25  # region: ground-truth centre +- this fraction of its height
 ROI_HEIGHTS = {  # window heights searched, as fractions of the person's height
     "wide": (0.8, 1.25),
@@ -183,6 +213,8 @@ class Entry:
     detect: Detect  # (frame, 0-based index) -> boxes (N, 4), scores (N,)
     timed: bool = True
     dpm: DpmDetector | None = None
+    cnn: CnnDetector | None = None
+    regions: bool = False  # time the CNN's batched regions of interest too
 
 
 def _opencv_peer(upscale: float) -> Detect:
@@ -207,9 +239,17 @@ def _opencv_peer(upscale: float) -> Detect:
 
 DPM_MODELS = {"inria": "INRIA/inriaperson_final.mat", "voc2007": "VOC2007/person_final.mat"}
 DPM_FORM = "dpm-<model>[@upscale][:levels][>min height][+exact]"
+CNN_MODELS = {  # under <--data>/models
+    "0202": "person-detection-0202/FP16/person-detection-0202.xml",
+    "0200": "person-detection-0200/FP16/person-detection-0200.xml",
+    "retail-0013": "person-detection-retail-0013/FP16/person-detection-retail-0013.xml",
+    "yolox-nano": "yolox-nano/yolox_nano.onnx",
+}
+CNN_DEFAULT_MODEL = "0202"  # ``cnn``: the product's default network
+CNN_FORM = "cnn-<model>[@native|@<W>x<H>]"
 DETECTOR_FORMS = (
-    f"{DPM_FORM} with model {' or '.join(DPM_MODELS)}, default[@upscale], "
-    "opencv-hog[@upscale] or public"
+    f"{DPM_FORM} with model {' or '.join(DPM_MODELS)}, cnn, {CNN_FORM} with model "
+    f"{', '.join(CNN_MODELS)}, default[@upscale], opencv-hog[@upscale] or public"
 )
 
 
@@ -244,6 +284,39 @@ def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
     return DPM_MODELS[match["model"]], fields
 
 
+_CNN_NAME = re.compile(
+    r"cnn-(?P<model>[a-z0-9-]+?)(@(?:(?P<native>native)|(?P<width>[0-9]+)x(?P<height>[0-9]+)))?"
+)
+
+
+def parse_cnn_name(name: str) -> tuple[str, tuple[int, int] | str | None]:
+    """``cnn`` or ``cnn-<model>[@native|@<W>x<H>]`` -> model file under ``models/``, input.
+
+    The input is ``None`` (the frame's aspect, ``CnnConfig``'s rule), ``"native"`` (the
+    model's own size, known once it is loaded) or ``(width, height)``, multiples of the
+    networks' stride (32).
+    """
+    if name == "cnn":
+        return CNN_MODELS[CNN_DEFAULT_MODEL], None
+    match = _CNN_NAME.fullmatch(name)
+    if match is None or match["model"] not in CNN_MODELS:
+        raise DetectorNameError(
+            f"bad CNN detector name {name!r}: {CNN_FORM} with a model of {sorted(CNN_MODELS)}"
+        )
+    model = CNN_MODELS[match["model"]]
+    if match["native"]:
+        return model, "native"
+    if match["width"] is None:
+        return model, None
+    stride = CnnConfig().stride
+    size = (int(match["width"]), int(match["height"]))
+    if not all(v >= stride and v % stride == 0 for v in size):
+        raise DetectorNameError(
+            f"bad CNN detector name {name!r}: {CNN_FORM}, W and H multiples of {stride}"
+        )
+    return model, size
+
+
 def _positive(text: str, name: str, form: str) -> float:
     """``text`` (a number in detector ``name``) as a positive float, else DetectorNameError."""
     try:
@@ -270,6 +343,8 @@ def check_detector_name(name: str) -> str:
     """
     if name.startswith("dpm-"):
         parse_dpm_name(name)
+    elif name == "cnn" or name.startswith("cnn-"):
+        parse_cnn_name(name)
     elif name.startswith(("default@", "opencv-hog@")):
         _upscale(name, name.partition("@")[0])
     elif name not in ("default", "opencv-hog", "public"):
@@ -298,6 +373,8 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
         For an unknown name.
     ModelFileError
         If a DPM model file is missing or malformed.
+    CnnModelError
+        If a CNN model file is missing or malformed.
     """
     entries: dict[str, Entry] = {}
     for name in names:
@@ -305,7 +382,7 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
             model, fields = parse_dpm_name(name)
             probe = DpmDetector.from_file(args.data / "dpm" / model)
             config = DpmConfig(
-                threshold=probe.model.threshold - 1.0, workers=args.workers, **fields
+                threshold=probe.model.threshold - 1.0, workers=args.workers or 1, **fields
             )
             detector = DpmDetector(probe.model, config)
             scale = "by frame height" if config.upscale is None else f"{config.upscale:g}"
@@ -322,18 +399,10 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
                 detect,
                 dpm=detector,
             )
+        elif name == "cnn" or name.startswith("cnn-"):
+            entries[name] = cnn_entry(name, args.data, args.workers or 0)
         elif name == "default" or name.startswith("default@"):
-            fixed = None if name == "default" else _upscale(name, "default")
-            detector = HogPeopleDetector(HogPeopleConfig(hit_threshold=-0.5, upscale=fixed))
-
-            def detect(frame: np.ndarray, index: int, d: HogPeopleDetector = detector) -> tuple:
-                result = d.detect(frame)
-                return result.boxes, result.scores
-
-            scale = "by frame height" if fixed is None else f"{fixed:g}x"
-            entries[name] = Entry(
-                name, f"embedded default (OpenCV HOG {scale}, our NMS, SVM >= -0.5)", detect
-            )
+            entries[name] = default_entry(name)
         elif name == "opencv-hog" or name.startswith("opencv-hog@"):
             upscale = PEER_UPSCALE if name == "opencv-hog" else _upscale(name, "opencv-hog")
             entries[name] = Entry(
@@ -350,6 +419,67 @@ def build_entries(args: argparse.Namespace, names: list[str]) -> dict[str, Entry
                 f"unknown detector {name!r}; the detectors are {DETECTOR_FORMS}"
             )
     return entries
+
+
+def cnn_entry(name: str, data: Path, threads: int = 0) -> Entry:
+    """The CNN detector ``name`` (``cnn-<model>[@native|@<W>x<H>]``) with its model from
+    ``data/models``, at confidence :data:`CNN_THRESHOLD` on ``threads`` inference threads (0:
+    OpenVINO's choice); CnnModelError if the model file is missing or malformed."""
+    model, size = parse_cnn_name(name)
+    config = CnnConfig(threshold=CNN_THRESHOLD, threads=threads)
+    detector = CnnDetector.from_file(data / "models" / model, config)
+    if size == "native":
+        _, _, height, width = detector.network.input_shape
+        detector = CnnDetector(
+            detector.network, dataclasses.replace(config, input_size=(width, height))
+        )
+        shown = f"{width}x{height} (native)"
+    elif size is not None:
+        detector = CnnDetector(detector.network, dataclasses.replace(config, input_size=size))
+        shown = f"{size[0]}x{size[1]}"
+    elif detector.network.reshapeable:
+        low, high = config.input_heights
+        shown = (
+            f"frame aspect (shorter side {low:g}-{high:g} px, enlarged <= {config.max_upscale:g}x)"
+        )
+    else:
+        _, _, height, width = detector.network.input_shape
+        shown = f"{width}x{height} (letterboxed: the model's only shape)"
+
+    def detect(frame: np.ndarray, index: int, d: CnnDetector = detector) -> tuple:
+        result = d.detect(frame)
+        return result.boxes, result.scores
+
+    return Entry(
+        name,
+        f"CNN {Path(model).name}, input {shown}, confidence >= {CNN_THRESHOLD:g}, "
+        f"{threads or 'default'} threads",
+        detect,
+        cnn=detector,
+        regions=size is None,
+    )
+
+
+def cnn_input(detector: CnnDetector, shape: tuple[int, ...]) -> str:
+    """``WxH``, the network input of a frame of ``shape``."""
+    if detector.network.reshapeable:
+        width, height = detector.config.input_for(shape)
+    else:
+        _, _, height, width = detector.network.input_shape
+    return f"{width}x{height}"
+
+
+def default_entry(name: str = "default") -> Entry:
+    """The embedded default (``default`` or ``default@<upscale>``) at SVM score -0.5."""
+    fixed = None if name == "default" else _upscale(name, "default")
+    detector = HogPeopleDetector(HogPeopleConfig(hit_threshold=-0.5, upscale=fixed))
+
+    def detect(frame: np.ndarray, index: int, d: HogPeopleDetector = detector) -> tuple:
+        result = d.detect(frame)
+        return result.boxes, result.scores
+
+    scale = "by frame height" if fixed is None else f"{fixed:g}x"
+    return Entry(name, f"embedded default (OpenCV HOG {scale}, our NMS, SVM >= -0.5)", detect)
 
 
 # --------------------------------------------------------------------------------- accuracy
@@ -387,7 +517,9 @@ def timing(
     repeats: int,
 ) -> dict[str, dict[str, float]]:
     """Frames (or regions) per second on the sequences' frames (native resolution unless
-    ``--height``); medians over frames and repeats."""
+    ``--height``); medians over frames and repeats. The embedded ``default`` is timed in every
+    run, the reference of :func:`ratios_to_default`; full frames are timed frame by frame, each
+    detector in turn on the same frame."""
     out: dict[str, dict[str, float]] = {}
     for sequence in sequences:
         picks = np.linspace(0, len(sequence) - 1, frames_per_sequence).round().astype(int)
@@ -406,6 +538,11 @@ def timing(
         calls: dict[str, Callable[[np.ndarray, int], object]] = {
             name: entry.detect for name, entry in entries.items() if entry.timed
         }
+        if "default" not in calls:  # the reference of the speed ratios
+            calls["default"] = default_entry().detect
+        for entry in entries.values():
+            if entry.cnn is not None:  # compile the frame's shape outside the timing
+                entry.detect(*frames[0][::-1])
         for name, entry in entries.items():
             if entry.dpm is not None:  # also at the threshold it runs at by default
                 operating = DpmDetector(
@@ -413,9 +550,14 @@ def timing(
                 )
                 calls[f"{name}@model-threshold"] = lambda f, i, d=operating: d.detect(f)
         calls.update(peers)
-        for name, call in calls.items():
-            per_frame = [_median_time(lambda c=call, f=f, i=i: c(f, i), repeats) for i, f in frames]
-            row[f"{name} full"] = 1.0 / statistics.median(per_frame)
+        # The detectors take turns frame by frame: a burst of load on a shared machine then
+        # falls on all of them, not on one, and their ratios hold.
+        per_frame: dict[str, list[float]] = {name: [] for name in calls}
+        for i, f in frames:
+            for name, call in calls.items():
+                per_frame[name].append(_median_time(lambda c=call, f=f, i=i: c(f, i), repeats))
+        for name, times in per_frame.items():
+            row[f"{name} full"] = 1.0 / statistics.median(times)
         for name, entry in entries.items():
             if entry.dpm is None:
                 continue
@@ -437,7 +579,53 @@ def timing(
                     row[f"{name} roi-{spread} detect_region"] = 1.0 / statistics.median(
                         region_times
                     )
+        for name, entry in entries.items():
+            if entry.cnn is not None and entry.regions:
+                row.update(_cnn_regions(name, entry.cnn, sequence, frames, repeats))
         out[sequence.name] = row
+    return out
+
+
+def _cnn_regions(
+    name: str,
+    detector: CnnDetector,
+    sequence: Sequence,
+    frames: list[tuple[int, np.ndarray]],
+    repeats: int,
+) -> dict[str, float]:
+    """Regions per second of ``detect_regions``, each frame's regions (around up to three
+    ground-truth people) in one call: the regions of all frames over the sum of each frame's
+    median time."""
+    row = {}
+    for spread in ROI_HEIGHTS:
+        count, seconds = 0, 0.0
+        for i, frame in frames:
+            regions = [roi_around(g, spread) for g in sequence.gt[int(i)][:3]]
+            if not regions:
+                continue
+            detector.detect_regions(frame, regions)  # compiles this batch size untimed
+            seconds += _median_time(
+                lambda f=frame, r=regions: detector.detect_regions(f, r), repeats
+            )
+            count += len(regions)
+        if count:
+            row[f"{name} roi-{spread} detect_regions"] = count / seconds
+    return row
+
+
+def ratios_to_default(speed: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Each full-frame speed of :func:`timing` divided by the embedded ``default``'s on the
+    same frames, per sequence, by detector name (2.0: twice as fast)."""
+    out = {}
+    for sequence, row in speed.items():
+        reference = row.get("default full")
+        if not reference:
+            continue
+        out[sequence] = {
+            what.removesuffix(" full"): fps / reference
+            for what, fps in row.items()
+            if what.endswith(" full")
+        }
     return out
 
 
@@ -550,8 +738,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "--data",
         type=Path,
         default=SHARED_DATA,
-        help=f"shared data root, with the sequences in mot/ and the DPM models in dpm/ "
-        f"(default {SHARED_DATA})",
+        help=f"shared data root, with the sequences in mot/, the DPM models in dpm/ and the CNN "
+        f"models in models/ (default {SHARED_DATA})",
     )
     parser.add_argument(
         "--sequences",
@@ -585,7 +773,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--repeats", type=int, default=3, help="timed runs per frame or region (default 3)"
     )
-    parser.add_argument("--workers", type=int, default=1, help="DPM level threads (default 1)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        help="DPM level threads (default 1); CNN inference threads (default: OpenVINO's "
+        "choice, every core)",
+    )
     parser.add_argument(
         "--height", type=int, help="resize the frames to this height in pixels (default: as is)"
     )
@@ -610,7 +803,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     for name in ("step", "timing_frames", "repeats", "workers"):
         value = getattr(args, name)
-        if value < 1:
+        if value is not None and value < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1, got {value}")
     if args.height is not None and args.height < 16:
         parser.error("--height must be at least 16 pixels")
@@ -625,7 +818,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
         report = run(args)
-    except (MotFormatError, ModelFileError) as error:
+    except (MotFormatError, ModelFileError, CnnModelError) as error:
         # a missing or malformed input file: one line, the exit status of argparse's errors
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -644,8 +837,8 @@ def run(args: argparse.Namespace) -> dict:
     MotFormatError
         If a sequence folder, its ground truth, public detections or a frame is missing or
         malformed.
-    ModelFileError
-        If a DPM model file is missing or malformed.
+    ModelFileError, CnnModelError
+        If a DPM or CNN model file is missing or malformed.
     """
     sequences = _sequences(args)
     entries = build_entries(args, args.detectors)
@@ -667,12 +860,14 @@ def run(args: argparse.Namespace) -> dict:
             "step": args.step,
             "height": args.height,
             "roi": {"half_size": ROI_HALF_SIZE, "heights": ROI_HEIGHTS},
-            "workers": args.workers,
+            "workers": args.workers or 1,
+            "cnn_threads": args.workers or 0,  # 0: OpenVINO's choice
             "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS", "default"),
         },
         "detectors": {n: e.description for n, e in entries.items()},
         "accuracy": results,
         "speed_fps": speed,
+        "speed_ratio_to_default": ratios_to_default(speed),
     }
     return report
 
@@ -697,10 +892,12 @@ def accuracy(
                 "seconds_per_frame": seconds,
                 "frames": len(frames),
             }
+            if entry.cnn is not None:  # the input the frame-size rule chose
+                r["input"] = cnn_input(entry.cnn, sequence.read_frame(0).shape)
             if not args.json:  # progress: the DPM variants take minutes per sequence
                 timed = f"  {seconds:.3f} s/frame" if math.isfinite(seconds) else ""
                 print(
-                    f"{sequence.name:16s} {name:18s} AP {r['ap']:.3f}  "
+                    f"{sequence.name:16s} {name:22s} AP {r['ap']:.3f}  "
                     f"LAMR {r['log_average_miss_rate']:.3f}{timed}",
                     flush=True,
                 )
@@ -717,11 +914,11 @@ def _seconds(value: float, width: int = 0) -> str:
 def print_table(report: dict) -> None:
     """The report as readable tables."""
     print()
-    print(f"{'sequence':16s} {'detector':18s} {'AP':>6s} {'LAMR':>6s} {'s/frame':>8s}")
+    print(f"{'sequence':16s} {'detector':22s} {'AP':>6s} {'LAMR':>6s} {'s/frame':>8s}")
     for sequence, rows in report["accuracy"].items():
         for name, r in rows.items():
             print(
-                f"{sequence:16s} {name:18s} {r['ap']:6.3f} {r['log_average_miss_rate']:6.3f} "
+                f"{sequence:16s} {name:22s} {r['ap']:6.3f} {r['log_average_miss_rate']:6.3f} "
                 f"{_seconds(r['seconds_per_frame'], 8)}"
             )
     if report["speed_fps"]:
@@ -730,6 +927,12 @@ def print_table(report: dict) -> None:
         for sequence, rows in report["speed_fps"].items():
             for what, fps in rows.items():
                 print(f"{sequence:16s} {what:40s} {fps:8.2f}")
+    if report["speed_ratio_to_default"]:
+        print()
+        print(f"{'sequence':16s} {'full frame, speed / embedded default':40s} {'ratio':>8s}")
+        for sequence, rows in report["speed_ratio_to_default"].items():
+            for what, ratio in rows.items():
+                print(f"{sequence:16s} {what:40s} {ratio:8.2f}")
 
 
 if __name__ == "__main__":

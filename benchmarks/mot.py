@@ -2,9 +2,9 @@
 
     python benchmarks/mot.py [--data DIR] [--sequences NAME_OR_DIR ...] [--trackers a,b,...]
                              [--frames N] [--repeats R] [--seeds S] [--no-end-to-end]
-                             [--no-peers] [--dpm-config JSON] [--hog-config JSON]
-                             [--tracker-config JSON] [--json] [--picture PNG] [--results DIR]
-                             [--list]
+                             [--no-peers] [--dpm PATH] [--dpm-config JSON] [--hog-config JSON]
+                             [--cnn-model PATH] [--tracker-config JSON] [--json]
+                             [--picture PNG] [--results DIR] [--list]
 
 Sequences: the MOTChallenge folders under ``--data`` (default ``<repo>/../shared/data/mot`` or
 ``$VTRACK_SHARED_DATA/mot``: PETS09-S2L1 and TUD-Stadtmitte), or those named by
@@ -23,13 +23,18 @@ Trackers, all in one run:
 * ``ours``: :class:`tracking.people.MultiPersonTracker` with its default configuration on the
   same public detections (``detector=None``; ``update(frame, i / fps, detections)``);
 * end to end (``--end-to-end``, the default): ``ours_hog``, the same tracker running the
-  embedded HOG people detector (``make_detector("default")``), and ``ours_dpm`` running the
+  embedded HOG people detector (``make_detector("default")``), ``ours_dpm`` running the
   voc-release5 INRIA person DPM (``--dpm``) at its operating point for tracking
-  (``DPM_TRACKING_CONFIG``); the tracker gets no detections and runs its detector on the
-  schedule of its configuration. The DPM is slow: ``--no-end-to-end`` skips both, ``--frames N``
-  shortens every sequence;
+  (``DPM_TRACKING_CONFIG``), and ``ours_cnn`` running the CNN person detector
+  (``CnnDetector``, ``CnnConfig`` defaults) on ``--cnn-model``, by default Open Model Zoo's
+  person-detection-0202 under the shared data's ``models/``: the product's default model, which
+  a service job with detector 'auto' runs. The tracker gets no detections and runs its detector
+  on the schedule of its configuration. The DPM is slow: ``--no-end-to-end`` skips all three,
+  ``--frames N`` shortens every sequence. A missing model (``--dpm``, ``--cnn-model``) leaves
+  its tracker out with a note in a run of all trackers, and is an argument error when
+  ``--trackers`` names it;
 * with ``--seeds S`` (default 4) each of ours also runs with the particle filter's seeds 1 to
-  S - 1 (``ours_seed1``, ``ours_dpm_seed1``...), and the comparison with the peers adds the
+  S - 1 (``ours_seed1``, ``ours_cnn_seed1``...), and the comparison with the peers adds the
   mean over the seeds (``ours_mean``...). The seeded end-to-end runs replay the detections of
   the first run, frame by frame (the detector is deterministic), so the detector runs once.
 
@@ -110,12 +115,18 @@ except ImportError:  # python -m benchmarks.<name> from the repository root
 
 DEFAULT_DATA = SHARED_DATA / "mot"
 DEFAULT_DPM = SHARED_DATA / "dpm" / "INRIA" / "inriaperson_final.mat"
+# The product's default network (service.models.catalog.DEFAULT_DETECTOR in the catalog's
+# layout, what a job with detector 'auto' runs); the shared data's copy is OMZ's files.
+DEFAULT_CNN_MODEL = (
+    SHARED_DATA / "models" / "person-detection-0202" / "FP16" / "person-detection-0202.xml"
+)
+CNN_SUFFIXES = (".xml", ".onnx")  # tracking.detection.cnn.MODEL_SUFFIXES, without importing it
 PEER_SCRIPT = Path(__file__).resolve().parent / "peers" / "mot_trackers.py"
 SCORE_SCRIPT = Path(__file__).resolve().parent / "peers" / "trackeval_score.py"
 
 PEERS = ("sort", "bytetrack", "ocsort", "botsort")
 OURS = "ours"
-END_TO_END = ("ours_hog", "ours_dpm")
+END_TO_END = ("ours_hog", "ours_dpm", "ours_cnn")
 TRACKERS = (*PEERS, OURS, *END_TO_END)
 PICTURE_SEQUENCE = "PETS09-S2L1"
 PICTURE_TRAIL = 20  # frames of trail behind each track
@@ -246,6 +257,7 @@ class OurTracker:
     public: bool  # fed the public detections (else it runs its own detector)
     details: dict[str, object]
     fill_gaps: float = 0.0  # seconds; the service's job option of that name
+    detector: object | None = None  # the detector the trackers get (None: public detections)
 
 
 def _frame_key(frame: np.ndarray) -> bytes:
@@ -307,9 +319,12 @@ def build_ours(
     hog_config: object | None = None,
     tracker_config: object | None = None,
     fill_gaps: float = 0.0,
+    cnn_model: Path = DEFAULT_CNN_MODEL,
 ) -> dict[str, OurTracker]:
     """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
-    detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``). With ``seeds``
+    detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``, ``ours_cnn``:
+    the CNN detector on the network ``cnn_model`` with the ``CnnConfig`` defaults, as a service
+    job runs it; the model loads on first use, like the DPM's). With ``seeds``
     above 1, each also runs with the particle filter's seeds 1, 2... (``ours_seed1``,
     ``ours_dpm_seed1``...): the scores of a particle filter vary with its random draws, and one
     seed would hide by how much. The seeded end-to-end runs replay the detections of the first
@@ -329,6 +344,7 @@ def build_ours(
         If ``tracking.people`` cannot be imported.
     """
     from tracking.detection import DPM_TRACKING_CONFIG, make_detector
+    from tracking.detection.cnn import CnnConfig
     from tracking.people import MultiPersonTracker, PeopleTrackerConfig
 
     config = tracker_config or PeopleTrackerConfig()
@@ -344,6 +360,11 @@ def build_ours(
             dpm,
             dpm_config or DPM_TRACKING_CONFIG,
             {"detections": "DPM", "detector": str(dpm)},
+        ),
+        "ours_cnn": (
+            cnn_model,
+            CnnConfig(),
+            {"detections": f"CNN {Path(cnn_model).stem}", "detector": str(cnn_model)},
         ),
     }
     out: dict[str, OurTracker] = {}
@@ -366,8 +387,23 @@ def build_ours(
                 source is None,
                 {**used, "seed": seed} if seed else used,
                 fill_gaps,
+                detector,
             )
     return out
+
+
+def detector_calibration(detector: object | None) -> dict[str, object] | None:
+    """The score calibration ``detector`` ran with (``a``, ``b``, ``source``), or None.
+
+    Part of what an end-to-end run measured: the tracker weighs detections by their calibrated
+    probability, and a model's calibration can change between runs (a fitted file beside it,
+    ``KNOWN_CALIBRATIONS`` refitted). Ask only after the detector has run: a
+    :class:`RecordingDetector` makes its detector on first use.
+    """
+    calibration = None if detector is None else getattr(detector, "calibration", None)
+    if calibration is None or not dataclasses.is_dataclass(calibration):
+        return None
+    return dataclasses.asdict(calibration)
 
 
 def public_detections(sequence: SequenceInfo) -> object:
@@ -452,6 +488,9 @@ def run_ours(
                 print(
                     f"{name} {sequence.name}: {frames} frames, {run.fps:.1f} fps", file=sys.stderr
                 )
+        calibration = detector_calibration(tracker.detector) if name in outcome.runs else None
+        if calibration is not None:
+            outcome.details[name]["calibration"] = calibration
 
 
 # --------------------------------------------------------------------------------------------
@@ -610,8 +649,8 @@ def summarize(outcome: Outcome, scored: dict[str, object], results: Path) -> dic
             for s in outcome.sequences
         },
         "protocol": {
-            "detections": "public det/det.txt for the peers and ours; ours_hog and ours_dpm run "
-            "their own detector",
+            "detections": "public det/det.txt for the peers and ours; ours_hog, ours_dpm and "
+            "ours_cnn run their own detector",
             "coordinates": "MOTChallenge files are 1-based; ours gets 0-based boxes and writes "
             "1-based ones; the peers keep the file's",
             "trackeval": {k: v for k, v in scored.items() if k in ("trackeval", "config")},
@@ -649,9 +688,9 @@ def format_table(report: dict[str, object]) -> str:
     header = "".join(f" {h:>6}" for _, h, _ in TABLE)
     lines = [
         f"MOT: {len(sequences)} sequences, {frames} frames. Peers and 'ours' on the public "
-        "detections; ours_hog and ours_dpm run their own detector. Scores by TrackEval (HOTA, "
-        "DetA, AssA over IoU 0.05..0.95; MOTA, IDF1, counts at IoU 0.5), in percent. fps: "
-        "update calls only, median of the repeats.",
+        "detections; ours_hog, ours_dpm, ours_cnn run their own detector. Scores by TrackEval "
+        "(HOTA, DetA, AssA over IoU 0.05..0.95; MOTA, IDF1, counts at IoU 0.5), in percent. "
+        "fps: update calls only, median of the repeats.",
         "",
         f"{'tracker':<{width}}  {'sequence':<{width}} {header} {'fps':>8}",
     ]
@@ -780,7 +819,7 @@ def make_picture(outcome: Outcome, path: Path) -> dict[str, object] | None:
     sequence = next((s for s in outcome.sequences if s.name == PICTURE_SEQUENCE), None)
     if sequence is None:
         return None
-    for tracker in (OURS, "ours_dpm", "ours_hog"):
+    for tracker in (OURS, "ours_dpm", "ours_cnn", "ours_hog"):
         run = outcome.runs.get(tracker, {}).get(sequence.name)
         if run is None or not run.estimates or not any(run.estimates):
             continue
@@ -871,7 +910,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--end-to-end",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="also run ours with its own detectors, HOG and DPM (default on; the DPM is slow)",
+        help="also run ours with its own detectors, HOG, DPM and CNN (default on; the DPM is slow)",
     )
     parser.add_argument(
         "--end-to-end-repeats", type=int, default=1, help="timed end-to-end runs (default 1)"
@@ -889,6 +928,14 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--hog-config",
         type=lambda text: _config("HogPeopleConfig", text),
         help="HogPeopleConfig fields for ours_hog as JSON, over the embedded defaults",
+    )
+    parser.add_argument(
+        "--cnn-model",
+        type=Path,
+        default=DEFAULT_CNN_MODEL,
+        metavar="PATH",
+        help="network of ours_cnn, an OpenVINO IR .xml (its .bin beside it) or an .onnx file "
+        f"(default: the product's default, {DEFAULT_CNN_MODEL})",
     )
     parser.add_argument("--no-peers", action="store_true", help="skip SORT, ByteTrack...")
     parser.add_argument(
@@ -935,11 +982,11 @@ def tracker_problem(args: argparse.Namespace) -> str | None:
     """What is wrong with ``--trackers`` given the other options, or None.
 
     A tracker asked for by name is run or refused, never dropped: unknown names, and names
-    that ``--no-peers``, ``--no-end-to-end`` or a missing ``--dpm`` model leave out, are
-    argument errors.
+    that ``--no-peers``, ``--no-end-to-end`` or a missing ``--dpm`` or ``--cnn-model`` model
+    leave out, are argument errors.
     """
     requested = _names(args.trackers)
-    if requested is None:  # all: the options choose, and a missing DPM model becomes a note
+    if requested is None:  # all: the options choose, and a missing model becomes a note
         return None
     if not requested:
         return f"--trackers names no tracker; choose from {', '.join(TRACKERS)}"
@@ -962,6 +1009,24 @@ def tracker_problem(args: argparse.Namespace) -> str | None:
             f"--trackers asks for ours_dpm but there is no DPM model at {args.dpm}; give its "
             "path with --dpm"
         )
+    if "ours_cnn" in requested:
+        problem = cnn_model_problem(args.cnn_model)
+        if problem is not None:
+            return f"--trackers asks for ours_cnn but {problem}; give its path with --cnn-model"
+    return None
+
+
+def cnn_model_problem(path: Path) -> str | None:
+    """Why ``ours_cnn`` cannot run the network at ``path`` (not a model file, missing, an IR
+    without its weights), or None. Only the files are looked at, so that a bad path is told
+    before anything runs; a file OpenVINO cannot read fails ``ours_cnn`` on every sequence."""
+    if path.suffix.lower() not in CNN_SUFFIXES:
+        return f"{path} is not a CNN model (an OpenVINO IR .xml or an .onnx file)"
+    if not path.is_file():
+        return f"there is no CNN model at {path}"
+    weights = path.with_suffix(".bin")
+    if path.suffix.lower() == ".xml" and not weights.is_file():
+        return f"the CNN model {path} has no weights {weights.name} beside it"
     return None
 
 
@@ -1032,10 +1097,15 @@ def make_ours(
     args: argparse.Namespace, names: list[str], outcome: Outcome
 ) -> dict[str, OurTracker]:
     """Our trackers of ``names``; those that cannot be made are left out with a note (only in a
-    run of all trackers: :func:`tracker_problem` refuses a named ``ours_dpm`` without model)."""
+    run of all trackers: :func:`tracker_problem` refuses a named ``ours_dpm`` or ``ours_cnn``
+    without model)."""
     if "ours_dpm" in names and not args.dpm.is_file():
         outcome.notes.append(f"note: ours_dpm left out: no DPM model at {args.dpm}")
         names = [n for n in names if n != "ours_dpm"]
+    cnn_problem = cnn_model_problem(args.cnn_model) if "ours_cnn" in names else None
+    if cnn_problem is not None:
+        outcome.notes.append(f"note: ours_cnn left out: {cnn_problem} (--cnn-model)")
+        names = [n for n in names if n != "ours_cnn"]
     if not names:
         return {}
     try:
@@ -1047,6 +1117,7 @@ def make_ours(
             args.hog_config,
             args.tracker_config,
             args.fill_gaps,
+            args.cnn_model,
         )
     except ImportError as exc:
         outcome.notes.append(f"note: our tracker is unavailable (tracking.people: {exc})")
@@ -1075,11 +1146,29 @@ def scored_trackers(report: dict[str, object]) -> list[str]:
     ]
 
 
+def list_trackers(args: argparse.Namespace) -> str:
+    """``--list``: the tracker names, and what each of ours tracks on (models: missing or not)."""
+
+    def model(kind: str, path: Path, problem: str | None) -> str:
+        return f"{kind} {path}" if problem is None else f"{kind}: {problem}"
+
+    dpm_problem = None if args.dpm.is_file() else f"there is no DPM model at {args.dpm}"
+    sources = {
+        OURS: "public detections det/det.txt",
+        "ours_hog": "embedded HOG people detector",
+        "ours_dpm": model("DPM", args.dpm, dpm_problem),
+        "ours_cnn": model("CNN", args.cnn_model, cnn_model_problem(args.cnn_model)),
+    }
+    width = max(len(n) for n in sources)
+    lines = ["peers: " + ", ".join(PEERS), "ours:  " + ", ".join([OURS, *END_TO_END])]
+    lines += [f"  {name:<{width}}  {source}" for name, source in sources.items()]
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     if args.list:
-        print("peers: " + ", ".join(PEERS))
-        print("ours:  " + ", ".join([OURS, *END_TO_END]))
+        print(list_trackers(args))
         return 0
     peers, ours_names = select(args)
     try:

@@ -1,6 +1,7 @@
 """The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``,
-``opencv-hog@<upscale>``, ``default@<upscale>``), its resized sequences (``--height``), and how
-its command line reports bad arguments and bad input files."""
+``cnn-<model>[@native|@<W>x<H>]``, ``opencv-hog@<upscale>``, ``default@<upscale>``), its resized
+sequences (``--height``), a quick run of the CNN, and how its command line reports bad arguments
+and bad input files."""
 
 from __future__ import annotations
 
@@ -46,6 +47,71 @@ def test_dpm_names_give_config_fields(detection, name, fields):
 def test_bad_dpm_names_are_refused(detection, name):
     with pytest.raises(detection.DetectorNameError, match="detector name"):
         detection.parse_dpm_name(name)
+
+
+@pytest.mark.parametrize(
+    "name, model, size",
+    [
+        ("cnn", "person-detection-0202.xml", None),
+        ("cnn-0202", "person-detection-0202.xml", None),
+        ("cnn-0200", "person-detection-0200.xml", None),
+        ("cnn-retail-0013", "person-detection-retail-0013.xml", None),
+        ("cnn-yolox-nano", "yolox_nano.onnx", None),
+        ("cnn-0202@native", "person-detection-0202.xml", "native"),
+        ("cnn-yolox-nano@native", "yolox_nano.onnx", "native"),
+        ("cnn-retail-0013@544x320", "person-detection-retail-0013.xml", (544, 320)),
+    ],
+)
+def test_cnn_names_give_model_and_input(detection, name, model, size):
+    path, parsed = detection.parse_cnn_name(name)
+    assert path.endswith("/" + model)
+    assert parsed == size
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["cnn-", "cnn-0201", "cnn-yolox", "cnn-0202@", "cnn-0202@big", "cnn-0202@512",
+     "cnn-0202@500x500", "cnn-0202@0x0", "cnn-0202@512x512x3", "cnn-yolox-nano@native@native"],
+)  # fmt: skip
+def test_bad_cnn_names_are_refused(detection, name):
+    with pytest.raises(detection.DetectorNameError, match="bad CNN detector name"):
+        detection.parse_cnn_name(name)
+
+
+def test_every_shared_detection_model_is_a_default_detector(detection, shared_data):
+    """Issue 75: every detection model of the shared data beside the embedded default, the
+    DPM and the public detections, in the same run."""
+    for short, file in detection.CNN_MODELS.items():
+        assert (shared_data / "models" / file).is_file()
+        assert short == "0202" or f"cnn-{short}" in detection.DEFAULT_DETECTORS
+    assert {"cnn", "default", "dpm-inria", "public"} <= set(detection.DEFAULT_DETECTORS)
+
+
+@pytest.mark.slow
+def test_a_quick_cnn_run_reports_ap_speed_ratio_and_regions(detection, shared_data, capsys):
+    """``cnn`` on 3 frames of TUD-Stadtmitte, timed on one: AP, the input chosen for 640x480
+    frames (enlarged to the rule's 576 px), full-frame fps, the ratio to the embedded default
+    timed beside it, and the batched regions of interest."""
+    code = detection.main(
+        ["--data", str(shared_data), "--sequences", "TUD-Stadtmitte", "--step", "80",
+         "--detectors", "cnn", "--timing-frames", "1", "--repeats", "1", "--json"]
+    )  # fmt: skip
+    assert code == 0
+    report = json.loads(capsys.readouterr().out, parse_constant=_strict)
+    assert "person-detection-0202.xml" in report["detectors"]["cnn"]
+    assert f"confidence >= {detection.CNN_THRESHOLD:g}" in report["detectors"]["cnn"]
+    row = report["accuracy"]["TUD-Stadtmitte"]["cnn"]
+    assert 0 < row["ap"] <= 1
+    assert row["frames"] == 3
+    assert row["input"] == "768x576"  # 480 px is below 576: enlarged 1.2x
+    speed = report["speed_fps"]["TUD-Stadtmitte"]
+    for key in ("cnn full", "default full", "cnn roi-wide detect_regions",
+                "cnn roi-narrow detect_regions"):  # fmt: skip
+        assert speed[key] > 0
+    ratio = report["speed_ratio_to_default"]["TUD-Stadtmitte"]
+    assert ratio["default"] == 1.0
+    assert ratio["cnn"] == pytest.approx(speed["cnn full"] / speed["default full"])
+    assert report["protocol"]["cnn_threads"] == 0  # no --workers: OpenVINO's choice
 
 
 @pytest.mark.parametrize("detector", ["opencv-hog", "default"])
@@ -139,6 +205,10 @@ def _bad_det(folder: Path) -> None:
         # no DPM model under this --data
         (None, ["--sequences", "{seq}", "--data", "{tmp}", "--detectors", "dpm-inria"],
          "DPM model file not found: {tmp}/dpm/INRIA/inriaperson_final.mat"),
+        # no CNN model under this --data
+        (None, ["--sequences", "{seq}", "--data", "{tmp}", "--detectors", "cnn"],
+         "cannot read the CNN model "
+         "{tmp}/models/person-detection-0202/FP16/person-detection-0202.xml"),
     ],
 )  # fmt: skip
 def test_bad_inputs_end_in_one_error_line(
@@ -164,14 +234,21 @@ def test_an_unknown_detector_lists_the_valid_forms(detection, capsys):
     err = capsys.readouterr().err
     assert "unknown detector 'foo'; the detectors are " in err
     for form in ("dpm-<model>[@upscale][:levels][>min height][+exact]", "inria", "voc2007",
-                 "default[@upscale]", "opencv-hog[@upscale]", "public"):  # fmt: skip
+                 "cnn, cnn-<model>[@native|@<W>x<H>]", "0202", "0200", "retail-0013",
+                 "yolox-nano", "default[@upscale]", "opencv-hog[@upscale]", "public"):  # fmt: skip
         assert form in err
 
 
 @pytest.mark.parametrize("text", ["dpm-inria@1.3:5>96+exact", "default", "default@0.5",
-                                  "opencv-hog", "opencv-hog@1", "public"])  # fmt: skip
+                                  "opencv-hog", "opencv-hog@1", "public", "cnn", "cnn-0200",
+                                  "cnn-yolox-nano@native", "cnn-0202@768x576"])  # fmt: skip
 def test_every_detector_form_is_accepted(detection, text):
     assert detection.parse_args(["--detectors", f" {text} ,public"]).detectors == [text, "public"]
+
+
+def test_cnn_threads_are_the_runtimes_choice_unless_workers(detection):
+    assert detection.parse_args([]).workers is None  # DPM: 1 level thread; CNN: OpenVINO's
+    assert detection.parse_args(["--workers", "2"]).workers == 2
 
 
 @pytest.mark.parametrize("option", ["--step", "--timing-frames", "--repeats", "--workers"])
@@ -188,8 +265,8 @@ def test_help_describes_detectors_and_step(detection, capsys, monkeypatch):
         detection.parse_args(["--help"])
     text = capsys.readouterr().out
     assert (
-        "(default: dpm-inria,dpm-inria:2,dpm-inria@1.3:5,dpm-voc2007,default,opencv-hog,public)"
-        in text
+        "(default: dpm-inria,dpm-inria:2,dpm-inria@1.3:5,dpm-voc2007,cnn,cnn-0200,cnn-retail-0013,"
+        "cnn-yolox-nano,cnn-0202@native,cnn-yolox-nano@native,default,opencv-hog,public)" in text
     )
     assert "score every N-th frame" in text
     assert "see above" not in text  # the help has no "above" to point at

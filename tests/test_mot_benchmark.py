@@ -15,8 +15,10 @@ import cv2
 import numpy as np
 import pytest
 
+from service.models.catalog import DEFAULT_DETECTOR, model_path
 from tests.conftest import benchmark_module, copy_mot_sequence, documented_commands
 from tracking.detection import DPM_TRACKING_CONFIG, make_detector
+from tracking.detection.cnn import MODEL_SUFFIXES, CnnConfig
 from tracking.people import PeopleTrackerConfig
 
 
@@ -92,6 +94,45 @@ def test_dpm_runs_at_its_tracking_operating_point(mot, tmp_path: Path) -> None:
     assert args.dpm_config == dataclasses.replace(DPM_TRACKING_CONFIG, upscale=1.3)
 
 
+def test_cnn_runs_the_product_default_model(mot, shared_data: Path, tmp_path: Path) -> None:
+    """ours_cnn is what a service job with detector 'auto' runs: the catalog's default network
+    (from the shared data's models folder) with the CnnConfig defaults."""
+    default = model_path(shared_data / "models", DEFAULT_DETECTOR)
+    assert default == mot.DEFAULT_CNN_MODEL and default.is_file()
+    assert mot.parse_args([]).cnn_model == default
+    assert mot.CNN_SUFFIXES == MODEL_SUFFIXES
+    other = tmp_path / "other.onnx"  # --cnn-model: another network; it loads on first use
+    assert mot.parse_args(["--cnn-model", str(other)]).cnn_model == other
+    ours = mot.build_ours(["ours_cnn"], tmp_path / "none.mat", 2, cnn_model=other)
+    assert list(ours) == ["ours_cnn", "ours_cnn_seed1"]
+    details = ours["ours_cnn"].details
+    assert details["detector"] == str(other) and details["detections"] == "CNN other"
+    assert details["detector_options"] == dataclasses.asdict(CnnConfig())
+    assert details["config"] == dataclasses.asdict(PeopleTrackerConfig())  # the defaults
+    recorder, replayed = (entry.detector for entry in ours.values())
+    assert isinstance(recorder, mot.RecordingDetector)
+    assert isinstance(replayed, mot.ReplayedDetector) and replayed._recorder is recorder
+
+
+def test_a_missing_cnn_model_leaves_ours_cnn_out_with_a_note(mot, tmp_path: Path) -> None:
+    """In a run of all trackers, as a missing DPM model is (named, it is refused: below)."""
+    weightless = tmp_path / "net.xml"  # an IR without its .bin
+    shutil.copyfile(mot.DEFAULT_CNN_MODEL, weightless)
+    for path, problem in [
+        (tmp_path / "none.xml", f"there is no CNN model at {tmp_path}/none.xml"),
+        (weightless, f"the CNN model {weightless} has no weights net.bin beside it"),
+    ]:
+        args = mot.parse_args(["--cnn-model", str(path)])
+        outcome = mot.Outcome(sequences=[], frames={})
+        ours = mot.make_ours(args, ["ours", "ours_cnn"], outcome)
+        assert list(ours) == ["ours", "ours_seed1", "ours_seed2", "ours_seed3"]
+        assert outcome.notes == [f"note: ours_cnn left out: {problem} (--cnn-model)"]
+        assert problem in mot.list_trackers(args)
+    listed = mot.list_trackers(mot.parse_args([]))
+    assert f"ours_cnn  CNN {mot.DEFAULT_CNN_MODEL}" in listed
+    assert "ours:  ours, ours_hog, ours_dpm, ours_cnn" in listed
+
+
 def test_config_options_are_checked(mot) -> None:
     args = mot.parse_args(["--tracker-config", '{"report_missing": 0.6, "particles": 64}'])
     assert args.tracker_config == PeopleTrackerConfig(report_missing=0.6, particles=64)
@@ -147,10 +188,16 @@ def _refused_env(folder: Path) -> Path:
          "--trackers asks for sort, which --no-peers leaves out"),
         (["--trackers", "ours_dpm", "--dpm", "{tmp}/none.mat"],
          "--trackers asks for ours_dpm but there is no DPM model at {tmp}/none.mat"),
+        (["--trackers", "ours,ours_cnn", "--cnn-model", "{tmp}/none.xml"],
+         "--trackers asks for ours_cnn but there is no CNN model at {tmp}/none.xml"),
+        (["--trackers", "ours_cnn", "--cnn-model", "{tmp}/model.mat"],
+         "--trackers asks for ours_cnn but {tmp}/model.mat is not a CNN model"),
+        (["--no-end-to-end", "--trackers", "ours_cnn"],
+         "--trackers asks for ours_cnn, which --no-end-to-end leaves out"),
         # an unknown name: the valid ones listed
         (["--trackers", "foo"],
          "unknown tracker foo; choose from sort, bytetrack, ocsort, botsort, ours, ours_hog, "
-         "ours_dpm"),
+         "ours_dpm, ours_cnn"),
         (["--trackers", ","], "--trackers names no tracker"),
         (["--seeds", "0"], "--seeds must be at least 1, got 0"),  # as --repeats 0 is
     ],
@@ -172,8 +219,13 @@ def test_bad_tracker_arguments_are_argument_errors(
     ("argv", "peers", "ours"),
     [
         (["--trackers", "ours_hog,sort"], ["sort"], ["ours_hog"]),
+        (["--trackers", "ours_cnn,ours"], [], ["ours", "ours_cnn"]),
         (["--no-peers", "--no-end-to-end"], [], ["ours"]),  # all that the options leave in
-        ([], ["sort", "bytetrack", "ocsort", "botsort"], ["ours", "ours_hog", "ours_dpm"]),
+        (
+            [],
+            ["sort", "bytetrack", "ocsort", "botsort"],
+            ["ours", "ours_hog", "ours_dpm", "ours_cnn"],
+        ),
     ],
 )
 def test_selection_runs_what_was_asked(mot, argv, peers, ours):
@@ -250,6 +302,26 @@ def test_seeded_runs_report_the_configuration_they_used(unscored_run):
     trackers = json.loads(unscored_run[1])["trackers"]
     assert trackers["ours"]["config"]["seed"] == 0 and "seed" not in trackers["ours"]
     assert trackers["ours_seed1"]["config"]["seed"] == trackers["ours_seed1"]["seed"] == 1
+
+
+def test_ours_cnn_tracks_end_to_end(mot, shared_data, tmp_path, capsys) -> None:
+    """A few frames of ours_cnn and a seeded run: tracks from the CNN's detections, and the
+    report names the model and the calibration it ran with."""
+    code = mot.main(
+        ["--data", str(shared_data / "mot"), "--sequences", "PETS09-S2L1", "--frames", "3",
+         "--trackers", "ours_cnn", "--seeds", "2", "--repeats", "1", "--no-peers",
+         "--mot-env", str(_refused_env(tmp_path / "env")), "--results", str(tmp_path / "r"),
+         "--json"]
+    )  # fmt: skip
+    assert code == 1  # tracked, but nothing could score it
+    trackers = json.loads(capsys.readouterr().out)["trackers"]
+    assert set(trackers) == {"ours_cnn", "ours_cnn_seed1"}
+    calibration = make_detector(mot.DEFAULT_CNN_MODEL).calibration  # whichever it is now
+    for entry in trackers.values():
+        assert entry["detector"] == str(mot.DEFAULT_CNN_MODEL)
+        assert entry["calibration"] == dataclasses.asdict(calibration)
+        # tracks are confirmed on their 3rd frame: the people found in frames 1-3 (3 now)
+        assert entry["sequences"]["PETS09-S2L1"]["boxes"] > 0
 
 
 def test_the_documented_commands_are_accepted(mot, drawing_packages):

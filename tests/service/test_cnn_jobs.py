@@ -13,7 +13,10 @@ import pytest
 from mcap.reader import make_reader
 
 from service.pipelines import NO_CNN_WARNING
-from tests.service.conftest import FAST_OPTIONS, submit, wait_for_state
+from service.streams.keys import StreamKeys
+from service.streams.session import ZenohOptions
+from service.streams.tools import member_session, publish_frames, video_frames
+from tests.service.conftest import FAST_OPTIONS, PETS_VIDEO, submit, wait_for, wait_for_state
 from tests.service.test_analyze_cli import vtrack
 
 DEFAULT_MODEL = Path("person-detection-0202") / "FP16"
@@ -70,6 +73,40 @@ def test_auto_runs_the_cnn_and_the_results_say_so(cnn_server, pets_cut):
 
 
 @pytest.mark.slow
+def test_a_live_stream_tracks_with_the_cnn_and_its_status_says_so(cnn_server, shared_data):
+    from tests.streams.live import Follower, all_taken, start_stream, status
+
+    session = member_session(ZenohOptions(listen=cnn_server.zenoh_listen))
+    try:
+        with cnn_server.client() as client:
+            start_stream(client, session, "cnn_gate", record=True)
+            shown = status(client, "cnn_gate")
+            assert shown["detector"]["name"] == "cnn" and shown["detector_warning"] is None
+            assert shown["detector"]["model"] == "person-detection-0202"
+            assert shown["spec"]["detector"]["name"] == "auto"  # as it was asked for
+            follower = Follower(session, StreamKeys("vtrack", "cnn_gate"))
+            frames, _ = video_frames(str(shared_data / PETS_VIDEO))
+            publish_frames(session, StreamKeys("vtrack", "cnn_gate"), frames, 10.0, limit=30)
+            all_taken(client, "cnn_gate", 30)
+            messages = wait_for(
+                lambda: len(follower.received()) >= 20 and follower.received(), 30, "the tracks"
+            )
+            assert any(m.tracks for m in messages), "nobody tracked in 3 s of PETS09-S2L1"
+            assert {m.detections for m in messages} == {"service"}
+            follower.close()
+            # the recording says what ran, as a job's results do
+            stopped = client.delete("/v1/streams/cnn_gate").json()
+            recording = wait_for(
+                lambda: status(client, "cnn_gate")["recordings"], 30, "a recording"
+            )
+            mcap = client.get(recording[0]).content
+            metadata = next(make_reader(io.BytesIO(mcap)).iter_metadata()).metadata
+            assert json.loads(metadata["options"])["detector"]["name"] == "cnn", stopped
+    finally:
+        session.close()
+
+
+@pytest.mark.slow
 def test_a_cnn_job_can_name_a_model_of_the_folder(cnn_server, pets_short):
     with cnn_server.client() as client:
         options = {
@@ -106,6 +143,12 @@ def test_without_a_model_auto_runs_the_embedded_detector_and_says_how_to_get_one
         assert NO_CNN_WARNING in status["warnings"]
         result = json.loads(_result(client, status, "json"))
         assert result["options"]["detector"]["name"] == "default"
+        # a stream says what it runs, and what that costs
+        created = client.post("/v1/streams", json={"camera": "hog_gate"})
+        assert created.status_code == 201, created.text
+        shown = client.get("/v1/streams/hog_gate").json()
+        assert shown["detector"]["name"] == "default"
+        assert shown["detector_warning"] == NO_CNN_WARNING
         # asking for the CNN by name is refused before the upload is kept
         response = submit(client, pets_short, {"detector": {"name": "cnn"}})
         assert response.status_code == 422

@@ -2,7 +2,8 @@
 
 - :class:`DpmDetector` runs voc-release5 deformable part models (``inriaperson_final.mat``...)
   and gives part boxes and dense score maps;
-- :class:`HogPeopleDetector` is the embedded default (OpenCV's HOG people detector, no file);
+- :class:`CnnDetector` runs CNN person detectors on OpenVINO (Open Model Zoo SSDs, YOLOX heads);
+- :class:`HogPeopleDetector` is the embedded fallback (OpenCV's HOG people detector, no file);
 - :class:`MotDetections` and :class:`SubmittedDetections` bring detections from outside;
 - :func:`make_detector` builds any of them from a name or a path.
 
@@ -19,6 +20,7 @@ from tracking.detection.calibration import (
     fit_logistic,
     load_calibration,
 )
+from tracking.detection.cnn import CnnConfig, CnnDetector, CnnModelError
 from tracking.detection.dpm import (
     DPM_TRACKING_CONFIG,
     DpmConfig,
@@ -46,6 +48,9 @@ __all__ = [
     "DPM_TRACKING_CONFIG",
     "HOG_PEOPLE_CALIBRATION",
     "CalibrationError",
+    "CnnConfig",
+    "CnnDetector",
+    "CnnModelError",
     "DenseScores",
     "Detections",
     "Detector",

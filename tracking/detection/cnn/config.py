@@ -111,7 +111,8 @@ class CnnConfig:
     def input_scale(self, frame_shape: tuple[int, ...]) -> float:
         """The factor a frame of shape ``(H, W, ...)`` is resized by: ``upscale`` if set, else
         1 when its shorter side is within ``input_heights``, else just enough to bring it there
-        (at most ``max_upscale``): 360 px -> 1.6, 480-1080 px -> 1, 2160 px -> 0.5."""
+        (at most ``max_upscale``): 360 px -> 1.6, 480 px -> 1.2, 576-1080 px -> 1, 2160 px ->
+        0.5."""
         if self.upscale is not None:
             return self.upscale
         side = max(min(frame_shape[:2]), 1)

@@ -29,7 +29,8 @@ def decode_ssd(
     and confidences ``(K,)``.
 
     ``label``: keep only rows of this class (``None``: every row; the person detectors have one
-    class, 1 in 0202 and 0 in retail-0013).
+    class, 0 in 0202 and 1 in retail-0013; retail-0013 pads its rows with zeros, which the
+    confidence threshold drops).
     """
     rows = np.asarray(output, dtype=np.float64).reshape(-1, 7)
     image = rows[:, 0]
