@@ -161,9 +161,14 @@ def cnn_model_file(model: str | None, resources: PipelineResources) -> Path:
                 "an .xml or .onnx file inside the service's models folder"
             )
     if not path.is_file():
+        fetch = (
+            f"run `vtrack models fetch {model} --dir {resources.models_dir}`"
+            if model in CATALOG
+            else FETCH_HINT
+        )
         raise OptionsError(
             f"detector 'cnn' needs the model {path}, which is not there: its operator can "
-            f"{FETCH_HINT}{'' if model is None else f' (with {model} among the names)'}"
+            f"{fetch}"
         )
     return path
 

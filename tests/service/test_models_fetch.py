@@ -95,7 +95,11 @@ class _Dropping(_Files):
         self.end_headers()
         self.wfile.write(data[: len(data) // 2])
         self.wfile.flush()
+        self.after_half()
         self.close_connection = True
+
+    def after_half(self) -> None:
+        """What the server does once half the file is sent: here, close at once."""
 
 
 class _Redirecting(_Files):
@@ -109,19 +113,11 @@ class _Redirecting(_Files):
         self.end_headers()
 
 
-class _Silent(_Files):
+class _Silent(_Dropping):
     """Sends half of a file, then nothing more (until the test ends)."""
 
-    def do_GET(self) -> None:
-        self.server.requests.append(self.path)
-        data = (self.server.folder / self.path.lstrip("/")).read_bytes()
-        self.send_response(200)
-        self.send_header("Content-Length", str(len(data)))
-        self.end_headers()
-        self.wfile.write(data[: len(data) // 2])
-        self.wfile.flush()
+    def after_half(self) -> None:
         self.server.release.wait(30)
-        self.close_connection = True
 
 
 @pytest.fixture

@@ -61,6 +61,16 @@ class Detections:
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
 
+    def subset(self, keep: np.ndarray) -> Detections:
+        """The detections selected by ``keep`` (a boolean mask or indices)."""
+        return replace(
+            self,
+            boxes=self.boxes[keep],
+            scores=self.scores[keep],
+            probabilities=self.probabilities[keep],
+            parts=self.parts[keep],
+        )
+
     def scaled(self, factor: float) -> Detections:
         """The same detections with boxes and parts multiplied by ``factor``: detections made
         on frames ``factor`` times as large as the ones tracked."""

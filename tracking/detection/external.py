@@ -109,14 +109,7 @@ def detections_from_arrays(
 
 def _in_region(detections: Detections, region: Box) -> Detections:
     """The detections whose box centre lies in ``region``."""
-    keep = centres_inside(detections.boxes, region)
-    return Detections(
-        boxes=detections.boxes[keep],
-        scores=detections.scores[keep],
-        probabilities=detections.probabilities[keep],
-        parts=detections.parts[keep],
-        part_names=detections.part_names,
-    )
+    return detections.subset(centres_inside(detections.boxes, region))
 
 
 @dataclass(slots=True)

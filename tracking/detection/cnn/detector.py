@@ -215,7 +215,7 @@ class CnnDetector:
                     & (boxes[:, 3] >= heights[0])
                     & (boxes[:, 3] <= heights[1])
                 )
-                out[index] = _subset(found, keep)
+                out[index] = found.subset(keep)
         return out
 
     def dense_scores(
@@ -281,16 +281,6 @@ class CnnDetector:
             parts=np.zeros((len(keep), 0, 4)),
             part_names=(),
         )
-
-
-def _subset(detections: Detections, keep: np.ndarray) -> Detections:
-    return Detections(
-        boxes=detections.boxes[keep],
-        scores=detections.scores[keep],
-        probabilities=detections.probabilities[keep],
-        parts=detections.parts[keep],
-        part_names=detections.part_names,
-    )
 
 
 def _bgr(frame: object) -> np.ndarray:
