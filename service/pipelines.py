@@ -167,8 +167,7 @@ def cnn_model_file(model: str | None, resources: PipelineResources) -> Path:
             else FETCH_HINT
         )
         raise OptionsError(
-            f"detector 'cnn' needs the model {path}, which is not there: its operator can "
-            f"{fetch}"
+            f"detector 'cnn' needs the model {path}, which is not there: its operator can {fetch}"
         )
     return path
 
