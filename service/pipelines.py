@@ -38,8 +38,8 @@ FETCH_HINT = (
 """How an operator installs the CNN detector's model."""
 
 NO_CNN_WARNING = (
-    "no CNN person model is installed, so the embedded HOG detector ran, which finds fewer "
-    "people (detection AP 0.80 / 0.64 against 0.92 / 0.89 with the CNN on PETS09-S2L1 / "
+    "no CNN person model is installed, so detector 'auto' runs the embedded HOG detector, which "
+    "finds fewer people (detection AP 0.80 / 0.64 against 0.92 / 0.89 with the CNN on PETS09-S2L1 / "
     f"TUD-Stadtmitte): to install it, {FETCH_HINT}"
 )
 """The warning of a job whose detector 'auto' fell back to the embedded one."""
