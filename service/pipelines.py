@@ -39,8 +39,8 @@ FETCH_HINT = (
 
 NO_CNN_WARNING = (
     "no CNN person model is installed, so detector 'auto' runs the embedded HOG detector, which "
-    "finds fewer people (detection AP 0.80 / 0.64 against 0.92 / 0.89 with the CNN on PETS09-S2L1 / "
-    f"TUD-Stadtmitte): to install it, {FETCH_HINT}"
+    "finds fewer people (detection AP 0.80 / 0.64 against 0.92 / 0.89 with the CNN on "
+    f"PETS09-S2L1 / TUD-Stadtmitte): to install it, {FETCH_HINT}"
 )
 """The warning of a job whose detector 'auto' fell back to the embedded one."""
 

@@ -3,6 +3,7 @@
 - :class:`DpmDetector` runs voc-release5 deformable part models (``inriaperson_final.mat``...)
   and gives part boxes and dense score maps;
 - :class:`CnnDetector` runs CNN person detectors on OpenVINO (Open Model Zoo SSDs, YOLOX heads);
+- :class:`PoseEstimator` finds body keypoints with an OpenPose-style network;
 - :class:`HogPeopleDetector` is the embedded fallback (OpenCV's HOG people detector, no file);
 - :class:`MotDetections` and :class:`SubmittedDetections` bring detections from outside;
 - :func:`make_detector` builds any of them from a name or a path.
@@ -41,6 +42,7 @@ from tracking.detection.hog_people import (
     HogPeopleDetector,
 )
 from tracking.detection.nms import box_iou, nms
+from tracking.detection.pose import PoseConfig, PoseEstimator, Poses
 from tracking.detection.sequences import MotFormatError, MotSequence
 
 __all__ = [
@@ -64,6 +66,9 @@ __all__ = [
     "MotDetections",
     "MotFormatError",
     "MotSequence",
+    "PoseConfig",
+    "PoseEstimator",
+    "Poses",
     "SubmittedDetections",
     "box_iou",
     "calibration_path",

@@ -30,7 +30,7 @@ class CnnModelError(ValueError):
 
 @dataclass(slots=True)
 class Network:
-    """One model file on the CPU: its single image input and first output, compiled per shape.
+    """One model file on the CPU: its single image input and its outputs, compiled per shape.
 
     Attributes
     ----------
@@ -40,8 +40,9 @@ class Network:
         Inference threads (OpenVINO's ``INFERENCE_NUM_THREADS``); 0: the runtime's choice.
     input_shape:
         The model's own input shape ``(N, C, H, W)``.
-    output_rank:
-        Dimensions of its first output (4 for SSD's ``[1, 1, N, 7]``, 3 for YOLOX's head).
+    output_shapes:
+        The shape of each output, -1 for a dimension that follows the input (SSD's
+        ``[1, 1, N, 7]``, YOLOX's head ``[1, A, 5 + classes]``, OpenPose's heatmaps and PAFs).
     reshapeable:
         Whether the model compiles at other input sizes and batch sizes.
     """
@@ -49,7 +50,7 @@ class Network:
     path: Path
     threads: int
     input_shape: tuple[int, int, int, int]
-    output_rank: int
+    output_shapes: tuple[tuple[int, ...], ...]
     reshapeable: bool
     _model: object = field(repr=False)
     _compiled: OrderedDict = field(default_factory=OrderedDict, repr=False)
@@ -60,16 +61,29 @@ class Network:
         """The model's name: its file's stem (``person-detection-0202``)."""
         return self.path.stem
 
+    @property
+    def output_rank(self) -> int:
+        """Dimensions of the first output (4 for SSD's, 3 for YOLOX's head)."""
+        return len(self.output_shapes[0])
+
     def infer(self, batch: np.ndarray) -> np.ndarray:
-        """The first output for ``batch`` ``(N, 3, H, W)`` float32; compiles the shape on first
-        use (a non-reshapeable model takes its own shape only)."""
+        """The first output for ``batch`` (:meth:`infer_all`)."""
+        return self.infer_all(batch)[0]
+
+    def infer_all(self, batch: np.ndarray) -> list[np.ndarray]:
+        """Every output, in the model's order, for ``batch`` ``(N, 3, H, W)`` float32; compiles
+        the shape on first use (a non-reshapeable model takes its own shape only). Each call
+        makes its own inference request (a few microseconds), so threads may share a model."""
         shape = tuple(int(n) for n in batch.shape)
         if not self.reshapeable and shape != self.input_shape:
             raise ValueError(f"{self.path.name} takes input {self.input_shape} only, got {shape}")
         compiled = self._compiled_for(shape)
         request = compiled.create_infer_request()
         request.infer({0: batch})
-        return np.array(request.get_output_tensor(0).data, copy=True)
+        return [
+            np.array(request.get_output_tensor(i).data, copy=True)
+            for i in range(len(compiled.outputs))
+        ]
 
     def _compiled_for(self, shape: tuple[int, ...]):
         with self._lock:
@@ -149,8 +163,11 @@ def _read(path: Path, threads: int) -> Network:
     input_shape = tuple(int(d.get_length()) for d in shape)
     if input_shape[1] != 3:
         raise CnnModelError(f"{path.name}'s input is {shape}, not a 3-channel image (N, 3, H, W)")
-    rank = model.outputs[0].get_partial_shape().rank.get_length()
-    network = Network(path, threads, input_shape, rank, reshapeable=True, _model=model)
+    outputs = tuple(
+        tuple(d.get_length() if d.is_static else -1 for d in output.get_partial_shape())
+        for output in model.outputs
+    )
+    network = Network(path, threads, input_shape, outputs, reshapeable=True, _model=model)
     # Compile the model's own shape now, so that a file OpenVINO reads but cannot run fails
     # here, at load, and not on a job's first frame; then try another size.
     try:

@@ -1,0 +1,597 @@
+"""Multi-person 2D body keypoints with an OpenPose-style network (Open Model Zoo's
+``human-pose-estimation-0001``) on OpenVINO, decoded bottom-up with part affinity fields.
+
+The network gives, at stride 8 of its input, 19 heatmaps (18 keypoints and the background) and 38
+part affinity fields (PAFs): for each of 19 limbs a 2D vector field pointing from the limb's
+first keypoint to its second along the limb. Decoding follows Cao et al., *Realtime Multi-Person
+2D Pose Estimation using Part Affinity Fields*, CVPR 2017, as Open Model Zoo's demos implement it
+(``demos/common/python/model_zoo/model_api/models/open_pose.py``,
+``demos/common/cpp/models/src/openpose_decoder.cpp``), in vectorized numpy:
+
+1. the heatmaps are enlarged 4 times (bicubic), so keypoints are placed at 2 input pixels, not 8
+   (the PAFs are not: they are read between their pixels, bilinearly, where the reference
+   enlarges them too and reads the nearest pixel);
+2. :func:`find_peaks`: keypoint candidates are the local maxima of each heatmap above a threshold
+   (non-maximum suppression, Cao et al. sec. 2.2);
+3. :func:`group_people`: each candidate limb (every pair of candidates of its two keypoint types)
+   is scored by the line integral of its PAF along the segment between them (eq. 10-11, sampled
+   at 10 points); the pairs are matched greedily by score, one limb per keypoint (the bipartite
+   matching of eq. 12-13 relaxed as in the paper), and limbs sharing keypoints are joined into
+   skeletons, tree edge by tree edge from the neck;
+4. :func:`decode_openpose` maps the keypoints back to frame pixels.
+
+:class:`PoseEstimator` feeds whole frames at their aspect, the shorter side kept in 576-1080
+pixels like the CNN person detector: on PETS09-S2L1 the model placed a skeleton on 229 of 232
+people at 576x768 but on 154 at its native 256x456 (``../shared/data/models/README.md``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from tracking.detection.cnn.runtime import CnnModelError, Network, load_network
+from tracking.types import is_int, validate_uint8_frame
+
+__all__ = [
+    "KEYPOINT_NAMES",
+    "LIMBS",
+    "PoseConfig",
+    "PoseEstimator",
+    "Poses",
+    "decode_openpose",
+    "find_peaks",
+    "group_people",
+]
+
+KEYPOINT_NAMES = (
+    "nose",
+    "neck",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "right_hip",
+    "right_knee",
+    "right_ankle",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "right_eye",
+    "left_eye",
+    "right_ear",
+    "left_ear",
+)
+"""The network's 18 keypoints in its heatmap order (OpenPose's COCO order, with a neck; Open
+Model Zoo's demo maps them to COCO's 17 by ``reorder_map``); heatmap 18 is the background."""
+
+LIMBS = (
+    # (first keypoint, second keypoint, PAF channel of x; y is the next channel), in the order
+    # the skeletons are grown: the neck's limbs first, so that each later limb meets a skeleton.
+    (1, 2, 12),
+    (1, 5, 20),
+    (2, 3, 14),
+    (3, 4, 16),
+    (5, 6, 22),
+    (6, 7, 24),
+    (1, 8, 0),
+    (8, 9, 2),
+    (9, 10, 4),
+    (1, 11, 6),
+    (11, 12, 8),
+    (12, 13, 10),
+    (1, 0, 28),
+    (0, 14, 30),
+    (14, 16, 34),
+    (0, 15, 32),
+    (15, 17, 36),
+    (2, 16, 18),
+    (5, 17, 26),
+)
+"""The 19 limbs (Open Model Zoo's ``BODY_PARTS_KPT_IDS`` and ``BODY_PARTS_PAF_IDS``); the last
+two (shoulder-ear) are the redundant connections OpenPose adds for robustness."""
+
+_SAMPLES = 10  # points of the PAF line integral (eq. 11), the reference's
+
+
+@dataclass(frozen=True)
+class Poses:
+    """Skeletons found in one frame.
+
+    Attributes
+    ----------
+    keypoints:
+        ``(N, 18, 2)`` float64 ``x, y`` in frame pixels (0-based, pixel centres at integers), in
+        :data:`KEYPOINT_NAMES` order; NaN where a keypoint was not found.
+    scores:
+        ``(N, 18)`` the heatmap's value at each keypoint (about ``[0, 1]``); 0 where missing.
+    person_scores:
+        ``(N,)`` each skeleton's score as in the reference: the sum of its keypoints' heatmap
+        values and of its limbs' PAF scores (eq. 11), so more complete skeletons score higher.
+    """
+
+    keypoints: np.ndarray
+    scores: np.ndarray
+    person_scores: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.person_scores)
+
+    @classmethod
+    def empty(cls) -> Poses:
+        """No skeleton."""
+        k = len(KEYPOINT_NAMES)
+        return cls(np.zeros((0, k, 2)), np.zeros((0, k)), np.zeros(0))
+
+    def found(self) -> np.ndarray:
+        """``(N, 18)`` bool: which keypoints each skeleton has."""
+        return ~np.isnan(self.keypoints[..., 0])
+
+    def boxes(self) -> np.ndarray:
+        """``(N, 4)`` ``x, y, w, h``: the tight box of each skeleton's found keypoints (NaN for
+        a skeleton with none). The keypoints are joints, not the body's outline: the box
+        misses the top of the head, the feet and the arms' width, so it is smaller than a
+        person box."""
+        if len(self) == 0:
+            return np.zeros((0, 4))
+        found = self.found()
+        points = self.keypoints
+        with np.errstate(invalid="ignore"):
+            low = np.where(found[..., None], points, np.inf).min(axis=1)
+            high = np.where(found[..., None], points, -np.inf).max(axis=1)
+        boxes = np.concatenate([low, high - low], axis=1)
+        boxes[~found.any(axis=1)] = np.nan
+        return boxes
+
+
+def find_peaks(
+    heatmaps: np.ndarray, threshold: float = 0.1, radius: int = 3, max_peaks: int = 100
+) -> list[np.ndarray]:
+    """Keypoint candidates: the local maxima of each heatmap (Cao et al. sec. 2.2, non-maximum
+    suppression of the confidence maps).
+
+    A pixel is a peak if it is above ``threshold`` and the largest in the ``(2 radius + 1)``
+    square around it (a grey dilation of each map, OpenCV's, 10 times scipy's maximum filter
+    here; Open Model Zoo's demo puts this max pooling, 7x7 at 4 times enlarged maps, into the
+    network). Of equal maxima closer than the window (a plateau), the first in raster order
+    stays.
+
+    Parameters
+    ----------
+    heatmaps:
+        ``(K, H, W)`` (or ``(1, K, H, W)``) one confidence map per keypoint type.
+
+    Returns
+    -------
+    list of (P, 3) float64 arrays
+        Per keypoint type, its peaks ``x, y, score`` in map pixels, the best first (at most
+        ``max_peaks``).
+    """
+    maps = np.asarray(heatmaps, dtype=np.float32)
+    if maps.ndim == 4 and maps.shape[0] == 1:
+        maps = maps[0]
+    if maps.ndim != 3:
+        raise ValueError(f"heatmaps must be (K, H, W), got shape {np.shape(heatmaps)}")
+    size = 2 * radius + 1
+    # -inf outside: a peak at the border is compared with its inside neighbours only
+    kernel = np.ones((size, size), dtype=np.uint8)
+    # dilation's border is -inf: a peak at the edge is compared with its inside neighbours only
+    largest = np.stack([cv2.dilate(np.ascontiguousarray(m), kernel) for m in maps])
+    kinds, ys, xs = np.nonzero((maps == largest) & (maps > threshold))
+    values = maps[kinds, ys, xs]
+    peaks = []
+    for kind in range(len(maps)):
+        mine = kinds == kind
+        x, y, v = xs[mine], ys[mine], values[mine]
+        if len(v) > 1:
+            # a maximum has no larger value in its window, only equal ones (a plateau): drop
+            # each that has an equal, earlier (raster order) peak within the window
+            near = (np.abs(x[:, None] - x[None]) <= radius) & (
+                np.abs(y[:, None] - y[None]) <= radius
+            )
+            earlier = np.tri(len(v), k=-1, dtype=bool)  # [i, j]: j before i
+            keep = ~(near & earlier).any(axis=1)
+            x, y, v = x[keep], y[keep], v[keep]
+        order = np.argsort(-v, kind="stable")[:max_peaks]
+        peaks.append(np.column_stack([x[order], y[order], v[order]]).astype(np.float64))
+    return peaks
+
+
+def limb_scores(
+    starts: np.ndarray, ends: np.ndarray, paf: np.ndarray, min_paf_score: float = 0.05
+) -> tuple[np.ndarray, np.ndarray]:
+    """The PAF score of every candidate limb from ``starts`` ``(n, 2)`` to ``ends`` ``(m, 2)``.
+
+    Cao et al. eq. 10-11: the line integral of the field ``paf`` ``(2, H, W)`` along the
+    segment, projected on its direction, sampled at 10 evenly spaced points (the field read
+    bilinearly between its pixels: the reference reads the nearest pixel of 4 times enlarged
+    fields, which costs a bicubic enlargement of 38 maps). As in the reference, the mean is
+    over the samples that agree with the direction (projection > ``min_paf_score``), and the
+    fraction of those is returned beside it; the paper's prior against limbs longer than half
+    the map's height is added (``min(H / (2 length) - 1, 0)``, Open Model Zoo's C++ decoder
+    and the original code).
+
+    Returns
+    -------
+    scores, agreeing:
+        ``(n, m)`` each, the mean agreeing projection (plus the length prior) and the fraction
+        of agreeing samples.
+    """
+    height = paf.shape[1]
+    vectors = ends[None, :, :] - starts[:, None, :]  # (n, m, 2)
+    lengths = np.linalg.norm(vectors, axis=-1)
+    units = vectors / np.maximum(lengths, 1e-6)[..., None]  # a zero-length limb scores 0
+    steps = np.linspace(0.0, 1.0, _SAMPLES)
+    points = starts[:, None, None, :] + steps[None, None, :, None] * vectors[:, :, None, :]
+    field = _bilinear(paf, points[..., 0], points[..., 1])  # (2, n, m, samples)
+    projection = field[0] * units[..., 0, None] + field[1] * units[..., 1, None]
+    agree = projection > min_paf_score
+    count = agree.sum(axis=-1)
+    mean = np.where(agree, projection, 0.0).sum(axis=-1) / np.maximum(count, 1)
+    prior = np.minimum(0.5 * height / np.maximum(lengths, 1e-6) - 1.0, 0.0)
+    return mean + prior, count / _SAMPLES
+
+
+def _bilinear(maps: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``maps`` ``(C, H, W)`` read at points ``x, y`` (any shape, clamped to the maps) by
+    bilinear interpolation: ``(C, *x.shape)``."""
+    height, width = maps.shape[1:]
+    x = np.clip(x, 0.0, width - 1.0)
+    y = np.clip(y, 0.0, height - 1.0)
+    x0 = np.minimum(np.floor(x).astype(np.intp), width - 2) if width > 1 else np.zeros_like(x, int)
+    y0 = (
+        np.minimum(np.floor(y).astype(np.intp), height - 2) if height > 1 else np.zeros_like(y, int)
+    )
+    x1 = np.minimum(x0 + 1, width - 1)
+    y1 = np.minimum(y0 + 1, height - 1)
+    fx, fy = x - x0, y - y0
+    top = maps[:, y0, x0] * (1 - fx) + maps[:, y0, x1] * fx
+    bottom = maps[:, y1, x0] * (1 - fx) + maps[:, y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def group_people(
+    peaks: list[np.ndarray],
+    pafs: np.ndarray,
+    *,
+    min_paf_score: float = 0.05,
+    min_agreeing: float = 0.8,
+    min_keypoints: int = 3,
+    min_mean_score: float = 0.2,
+) -> Poses:
+    """Skeletons from keypoint candidates and part affinity fields (Cao et al. sec. 2.4).
+
+    For each limb of :data:`LIMBS` in turn, every pair of candidates of its two keypoint types
+    is scored (:func:`limb_scores`, eq. 10-11); pairs with a positive score and more than
+    ``min_agreeing`` of their samples along the field are limbs, chosen greedily best first,
+    each candidate in one limb at most (the paper's relaxation of the matching, eq. 13). A limb
+    extends the skeleton that holds one of its ends, starts a skeleton if neither is held, and
+    merges the two skeletons holding its ends if they share no keypoint type (Open Model Zoo's
+    ``update_poses``). Skeletons with fewer than ``min_keypoints`` keypoints, or a score per
+    keypoint under ``min_mean_score`` (the C++ demo's ``minSubsetScore``), are dropped.
+
+    Parameters
+    ----------
+    peaks:
+        Per keypoint type (18), its candidates ``(P, 3)`` ``x, y, score`` (:func:`find_peaks`).
+    pafs:
+        ``(38, H, W)`` (or ``(1, 38, H, W)``) the fields, in the peaks' pixel grid.
+
+    Returns
+    -------
+    Poses
+        In the maps' pixels, the best scoring skeleton first.
+    """
+    fields = np.asarray(pafs, dtype=np.float32)
+    if fields.ndim == 4 and fields.shape[0] == 1:
+        fields = fields[0]
+    kinds = len(KEYPOINT_NAMES)
+    if len(peaks) < kinds or fields.ndim != 3 or fields.shape[0] < 2 * len(LIMBS):
+        raise ValueError(
+            f"need {kinds} peak lists and (38, H, W) fields, got {len(peaks)} lists and "
+            f"fields of shape {np.shape(pafs)}"
+        )
+    # skeletons as rows: which candidate (index into its type's list, -1: none) per type
+    members = np.zeros((0, kinds), dtype=np.intp)
+    totals: list[float] = []
+    for first, second, channel in LIMBS:
+        a, b = peaks[first], peaks[second]
+        if len(a) == 0 or len(b) == 0:
+            continue
+        scores, agreeing = limb_scores(
+            a[:, :2], b[:, :2], fields[channel : channel + 2], min_paf_score
+        )
+        ia, ib = np.nonzero((scores > 0) & (agreeing > min_agreeing))
+        if len(ia) == 0:
+            continue
+        order = np.argsort(-scores[ia, ib], kind="stable")
+        used_a, used_b = set(), set()
+        for i, j in zip(ia[order].tolist(), ib[order].tolist(), strict=True):
+            if i in used_a or j in used_b:
+                continue
+            used_a.add(i)
+            used_b.add(j)
+            members, totals = _join(
+                members, totals, first, i, second, j, a[i, 2], b[j, 2], float(scores[i, j])
+            )
+    if len(members) == 0:
+        return Poses.empty()
+    totals_array = np.asarray(totals)
+    counts = (members >= 0).sum(axis=1)
+    keep = (counts >= min_keypoints) & (totals_array / np.maximum(counts, 1) >= min_mean_score)
+    members, totals_array = members[keep], totals_array[keep]
+    order = np.argsort(-totals_array, kind="stable")
+    members, totals_array = members[order], totals_array[order]
+    keypoints = np.full((len(members), kinds, 2), np.nan)
+    confidences = np.zeros((len(members), kinds))
+    for kind in range(kinds):
+        held = members[:, kind] >= 0
+        chosen = peaks[kind][members[held, kind]]
+        keypoints[held, kind] = chosen[:, :2]
+        confidences[held, kind] = chosen[:, 2]
+    return Poses(keypoints, confidences, totals_array)
+
+
+def _join(
+    members: np.ndarray,
+    totals: list[float],
+    first: int,
+    i: int,
+    second: int,
+    j: int,
+    score_i: float,
+    score_j: float,
+    limb: float,
+) -> tuple[np.ndarray, list[float]]:
+    """Add the limb (candidate ``i`` of type ``first``, ``j`` of type ``second``) to the
+    skeletons: Open Model Zoo's ``update_poses``."""
+    holds_i = np.flatnonzero(members[:, first] == i)
+    holds_j = np.flatnonzero(members[:, second] == j)
+    if len(holds_i) == 0 and len(holds_j) == 0:
+        row = np.full((1, members.shape[1]), -1, dtype=np.intp)
+        row[0, first], row[0, second] = i, j
+        return np.vstack([members, row]), [*totals, score_i + score_j + limb]
+    if len(holds_i) and len(holds_j):
+        p, q = int(holds_i[0]), int(holds_j[0])
+        if p == q:  # both ends already in one skeleton (a redundant limb): it only adds score
+            totals[p] += limb
+        elif not ((members[p] >= 0) & (members[q] >= 0)).any():
+            # two pieces of one person (e.g. head and legs met through the neck's limbs late)
+            members[p] = np.where(members[q] >= 0, members[q], members[p])
+            totals[p] += totals[q] + limb
+            members = np.delete(members, q, axis=0)
+            del totals[q]
+        return members, totals
+    # one end held: the other joins its skeleton, unless that skeleton has another candidate
+    # of the type already (the reference overwrote it; keeping the first keeps the better one,
+    # found through a better-scored limb)
+    p, kind, candidate, score = (
+        (int(holds_i[0]), second, j, score_j)
+        if len(holds_i)
+        else (int(holds_j[0]), first, i, score_i)
+    )
+    if members[p, kind] < 0:
+        members[p, kind] = candidate
+        totals[p] += score + limb
+    return members, totals
+
+
+@dataclass(frozen=True, slots=True)
+class PoseConfig:
+    """Options of :class:`PoseEstimator`.
+
+    Attributes
+    ----------
+    input_size:
+        ``(width, height)`` the frame is resized to; ``None`` (default): the frame's aspect,
+        its shorter side kept in ``input_heights`` (as :class:`~tracking.detection.cnn.
+        config.CnnConfig` does: small people need the larger input).
+    input_heights, max_upscale, stride:
+        The shorter side's range (a frame inside is fed at its size), the largest enlargement,
+        and the multiple the input's sides are rounded to (the network's output stride is 8;
+        32 as for the detectors).
+    upsample:
+        The maps are enlarged by this factor before peaks are found (the reference's 4).
+    peak_threshold:
+        Heatmap value a keypoint candidate must exceed (the reference's 0.1).
+    max_peaks:
+        Candidates kept per keypoint type (the reference's 100).
+    min_paf_score, min_agreeing:
+        A sample of a limb's line integral agrees if its projection exceeds ``min_paf_score``
+        (0.05); a limb needs more than ``min_agreeing`` (0.8) of its 10 samples agreeing.
+    min_keypoints, min_mean_score:
+        A skeleton needs this many keypoints (3) and this score per keypoint (0.2).
+    threads:
+        Inference threads; 0: OpenVINO's choice.
+    """
+
+    input_size: tuple[int, int] | None = None
+    input_heights: tuple[float, float] = (576.0, 1080.0)
+    max_upscale: float = 2.0
+    stride: int = 32
+    upsample: int = 4
+    peak_threshold: float = 0.1
+    max_peaks: int = 100
+    min_paf_score: float = 0.05
+    min_agreeing: float = 0.8
+    min_keypoints: int = 3
+    min_mean_score: float = 0.2
+    threads: int = 0
+
+    def __post_init__(self) -> None:
+        if self.input_size is not None and not (
+            len(self.input_size) == 2 and all(is_int(v) and v >= 32 for v in self.input_size)
+        ):
+            raise ValueError(f"input_size must be (width, height) >= 32, got {self.input_size}")
+        low, high = self.input_heights
+        if not (0 < low <= high < math.inf):
+            raise ValueError(f"input_heights must be 0 < low <= high, got {self.input_heights}")
+        if not (math.isfinite(self.max_upscale) and self.max_upscale >= 1.0):
+            raise ValueError(f"max_upscale must be >= 1, got {self.max_upscale}")
+        for name in ("stride", "upsample", "max_peaks", "min_keypoints"):
+            if not is_int(getattr(self, name)) or getattr(self, name) < 1:
+                raise ValueError(f"{name} must be a positive int, got {getattr(self, name)}")
+        if self.stride % 8:
+            raise ValueError(f"stride must be a multiple of 8 (the network's), got {self.stride}")
+        for name in ("peak_threshold", "min_paf_score", "min_agreeing", "min_mean_score"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name} must be finite, got {getattr(self, name)}")
+        if not is_int(self.threads) or self.threads < 0:
+            raise ValueError(f"threads must be an int >= 0, got {self.threads}")
+
+    def input_for(self, frame_shape: tuple[int, ...]) -> tuple[int, int]:
+        """``(width, height)`` of the network input for a frame of shape ``(H, W, ...)``:
+        576-1080 px frames at their size (rounded to ``stride``), smaller ones enlarged (at
+        most ``max_upscale``), larger ones shrunk."""
+        if self.input_size is not None:
+            return self.input_size
+        height, width = frame_shape[:2]
+        side = max(min(height, width), 1)
+        low, high = self.input_heights
+        scale = min(max(1.0, low / side), high / side, self.max_upscale)
+        return (_multiple(width * scale, self.stride), _multiple(height * scale, self.stride))
+
+
+def _multiple(value: float, stride: int) -> int:
+    return max(stride, math.floor(value / stride + 0.5) * stride)
+
+
+def decode_openpose(
+    heatmaps: np.ndarray,
+    pafs: np.ndarray,
+    scale: float | tuple[float, float],
+    stride: int = 8,
+    config: PoseConfig | None = None,
+) -> Poses:
+    """Skeletons in frame pixels from the network's outputs.
+
+    Parameters
+    ----------
+    heatmaps, pafs:
+        ``(19, h, w)`` and ``(38, h, w)`` (or with a batch axis of 1), at ``stride`` input
+        pixels per map pixel.
+    scale:
+        Input pixels per frame pixel, ``(x, y)`` or one for both (the resize of the frame).
+    config:
+        The decoding options (``upsample``, thresholds); the defaults if None.
+
+    The heatmaps are enlarged ``upsample`` times (bicubic, as the reference) and their peaks
+    found (:func:`find_peaks`); enlargement puts pixel ``u`` at map cell ``(u + 0.5) /
+    upsample - 0.5``, where the peaks are grouped with the PAFs (:func:`group_people`). Map cell
+    ``f`` is input pixel ``stride f + stride / 2 - 0.5`` (OpenPose's label grid: cell ``i`` at
+    stride 8 is trained on pixel ``8 i + 3.5``), and that is frame pixel ``(input + 0.5) /
+    scale - 0.5``.
+    """
+    config = PoseConfig() if config is None else config
+    heat = np.asarray(heatmaps, dtype=np.float32)
+    fields = np.asarray(pafs, dtype=np.float32)
+    heat = heat[0] if heat.ndim == 4 else heat
+    fields = fields[0] if fields.ndim == 4 else fields
+    kinds = len(KEYPOINT_NAMES)
+    if heat.ndim != 3 or heat.shape[0] < kinds or fields.shape[1:] != heat.shape[1:]:
+        raise ValueError(
+            f"heatmaps (19, h, w) and pafs (38, h, w), got {heat.shape}, {fields.shape}"
+        )
+    up = config.upsample
+    # the reference's window: 7x7 at 4 times enlarged maps (p = round(6/7 upsample))
+    radius = max(1, round(6 / 7 * up))
+    peaks = find_peaks(_enlarge(heat[:kinds], up), config.peak_threshold, radius, config.max_peaks)
+    for found in peaks:
+        found[:, :2] = (found[:, :2] + 0.5) / up - 0.5
+    poses = group_people(
+        peaks,
+        fields,
+        min_paf_score=config.min_paf_score,
+        min_agreeing=config.min_agreeing,
+        min_keypoints=config.min_keypoints,
+        min_mean_score=config.min_mean_score,
+    )
+    sx, sy = (scale, scale) if np.isscalar(scale) else scale
+    keypoints = poses.keypoints.copy()
+    keypoints[..., 0] = (stride * keypoints[..., 0] + stride / 2) / sx - 0.5
+    keypoints[..., 1] = (stride * keypoints[..., 1] + stride / 2) / sy - 0.5
+    return Poses(keypoints, poses.scores, poses.person_scores)
+
+
+def _enlarge(maps: np.ndarray, factor: int) -> np.ndarray:
+    """``(C, H, W)`` maps resized ``factor`` times, bicubic (map by map: OpenCV's many-channel
+    resize is 4 times slower)."""
+    if factor == 1:
+        return maps
+    height, width = maps.shape[1:]
+    size = (width * factor, height * factor)
+    return np.stack([cv2.resize(m, size, interpolation=cv2.INTER_CUBIC) for m in maps])
+
+
+class PoseEstimator:
+    """Body keypoints of every person in a frame (Open Model Zoo's human-pose-estimation-0001
+    or another OpenPose network with 19 heatmaps and 38 PAFs).
+
+    Not thread-safe to construct, safe to call from several threads (each call makes its own
+    inference request).
+    """
+
+    def __init__(self, network: Network, config: PoseConfig | None = None) -> None:
+        self.network = network
+        self.config = PoseConfig() if config is None else config
+        self._heatmap_output, self._paf_output = _output_indices(network)
+
+    @classmethod
+    def from_file(
+        cls, path: str | os.PathLike[str], config: PoseConfig | None = None
+    ) -> PoseEstimator:
+        """The network at ``path`` (an OpenVINO IR ``.xml`` with its ``.bin``, or ONNX), read
+        once per process (:func:`~tracking.detection.cnn.runtime.load_network`).
+
+        Raises
+        ------
+        CnnModelError
+            A file that is not a model, or a model without the heatmap and PAF outputs.
+        """
+        config = PoseConfig() if config is None else config
+        return cls(load_network(Path(path), config.threads), config)
+
+    @property
+    def model_name(self) -> str:
+        """The model's name (its file's stem)."""
+        return self.network.name
+
+    def estimate(self, frame: np.ndarray) -> Poses:
+        """The skeletons in ``frame`` (RGB ``(H, W, 3)`` or greyscale ``(H, W)`` uint8), in its
+        pixels."""
+        image = validate_uint8_frame(frame, "the pose estimator")
+        code = cv2.COLOR_GRAY2BGR if image.ndim == 2 else cv2.COLOR_RGB2BGR
+        image = cv2.cvtColor(image, code)  # the network takes BGR, 0-255 (normalised inside)
+        if self.network.reshapeable:
+            size = self.config.input_for(image.shape)
+        else:
+            size = (self.network.input_shape[3], self.network.input_shape[2])
+        shrink = size[0] < image.shape[1]
+        blob = cv2.resize(image, size, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        batch = np.ascontiguousarray(blob.transpose(2, 0, 1)[None], dtype=np.float32)
+        outputs = self.network.infer_all(batch)
+        heatmaps, pafs = outputs[self._heatmap_output], outputs[self._paf_output]
+        stride = size[1] / heatmaps.shape[2]
+        scale = (size[0] / image.shape[1], size[1] / image.shape[0])
+        return decode_openpose(heatmaps, pafs, scale, stride, self.config)
+
+
+def _output_indices(network: Network) -> tuple[int, int]:
+    """Which outputs are the heatmaps (``K + 1`` channels) and the PAFs (``2 x 19``)."""
+    shapes = network.output_shapes
+    channels = [shape[1] if len(shape) == 4 else -1 for shape in shapes]
+    heat = [i for i, c in enumerate(channels) if c == len(KEYPOINT_NAMES) + 1]
+    paf = [i for i, c in enumerate(channels) if c == 2 * len(LIMBS)]
+    if len(shapes) != 2 or len(heat) != 1 or len(paf) != 1:
+        raise CnnModelError(
+            f"{network.path.name} is not an OpenPose network: it needs two outputs, 19 heatmaps "
+            f"and 38 part affinity fields (N, C, H, W), got channels {channels}"
+        )
+    return heat[0], paf[0]
