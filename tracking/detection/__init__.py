@@ -3,7 +3,8 @@
 - :class:`DpmDetector` runs voc-release5 deformable part models (``inriaperson_final.mat``...)
   and gives part boxes and dense score maps;
 - :class:`CnnDetector` runs CNN person detectors on OpenVINO (Open Model Zoo SSDs, YOLOX heads);
-- :class:`PoseEstimator` finds body keypoints with an OpenPose-style network;
+- :class:`PoseEstimator` finds body keypoints with an OpenPose-style network, and
+  :class:`ReidEmbedder` embeds people's crops for re-identification;
 - :class:`HogPeopleDetector` is the embedded fallback (OpenCV's HOG people detector, no file);
 - :class:`MotDetections` and :class:`SubmittedDetections` bring detections from outside;
 - :func:`make_detector` builds any of them from a name or a path.
@@ -43,6 +44,7 @@ from tracking.detection.hog_people import (
 )
 from tracking.detection.nms import box_iou, nms
 from tracking.detection.pose import PoseConfig, PoseEstimator, Poses
+from tracking.detection.reid import ReidConfig, ReidEmbedder, cosine_similarity
 from tracking.detection.sequences import MotFormatError, MotSequence
 
 __all__ = [
@@ -69,9 +71,12 @@ __all__ = [
     "PoseConfig",
     "PoseEstimator",
     "Poses",
+    "ReidConfig",
+    "ReidEmbedder",
     "SubmittedDetections",
     "box_iou",
     "calibration_path",
+    "cosine_similarity",
     "detections_from_arrays",
     "fit_logistic",
     "load_calibration",
