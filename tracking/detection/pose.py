@@ -35,6 +35,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.detection.cnn.config import check_input_rule, input_scale_for, input_size_for
 from tracking.detection.cnn.runtime import CnnModelError, Network, load_network
 from tracking.types import is_int, validate_uint8_frame
 
@@ -426,15 +427,7 @@ class PoseConfig:
     threads: int = 0
 
     def __post_init__(self) -> None:
-        if self.input_size is not None and not (
-            len(self.input_size) == 2 and all(is_int(v) and v >= 32 for v in self.input_size)
-        ):
-            raise ValueError(f"input_size must be (width, height) >= 32, got {self.input_size}")
-        low, high = self.input_heights
-        if not (0 < low <= high < math.inf):
-            raise ValueError(f"input_heights must be 0 < low <= high, got {self.input_heights}")
-        if not (math.isfinite(self.max_upscale) and self.max_upscale >= 1.0):
-            raise ValueError(f"max_upscale must be >= 1, got {self.max_upscale}")
+        check_input_rule(self.input_size, self.input_heights, self.max_upscale)
         for name in ("stride", "upsample", "max_peaks", "min_keypoints"):
             if not is_int(getattr(self, name)) or getattr(self, name) < 1:
                 raise ValueError(f"{name} must be a positive int, got {getattr(self, name)}")
@@ -452,15 +445,8 @@ class PoseConfig:
         most ``max_upscale``), larger ones shrunk."""
         if self.input_size is not None:
             return self.input_size
-        height, width = frame_shape[:2]
-        side = max(min(height, width), 1)
-        low, high = self.input_heights
-        scale = min(max(1.0, low / side), high / side, self.max_upscale)
-        return (_multiple(width * scale, self.stride), _multiple(height * scale, self.stride))
-
-
-def _multiple(value: float, stride: int) -> int:
-    return max(stride, math.floor(value / stride + 0.5) * stride)
+        scale = input_scale_for(frame_shape, self.input_heights, self.max_upscale)
+        return input_size_for(frame_shape, scale, self.stride)
 
 
 def decode_openpose(

@@ -10,7 +10,7 @@ from typing import Literal
 from tracking.detection.nms import NmsCriterion, check_nms_options
 from tracking.types import is_int
 
-__all__ = ["CnnConfig", "ModelFamily"]
+__all__ = ["CnnConfig", "ModelFamily", "check_input_rule", "input_scale_for", "input_size_for"]
 
 ModelFamily = Literal["auto", "ssd", "yolox"]
 """How a model's output is decoded; "auto" tells them by the output's rank (SSD 4, YOLOX 3)."""
@@ -90,15 +90,7 @@ class CnnConfig:
         check_nms_options(self.nms_overlap, self.nms_criterion, prefix="nms_")
         if self.upscale is not None and not (math.isfinite(self.upscale) and self.upscale > 0):
             raise ValueError(f"upscale must be a positive number, got {self.upscale}")
-        if self.input_size is not None and not (
-            len(self.input_size) == 2 and all(is_int(v) and v >= 32 for v in self.input_size)
-        ):
-            raise ValueError(f"input_size must be (width, height) >= 32, got {self.input_size}")
-        low, high = self.input_heights
-        if not (0 < low <= high < math.inf):
-            raise ValueError(f"input_heights must be 0 < low <= high, got {self.input_heights}")
-        if not (math.isfinite(self.max_upscale) and self.max_upscale >= 1.0):
-            raise ValueError(f"max_upscale must be >= 1, got {self.max_upscale}")
+        check_input_rule(self.input_size, self.input_heights, self.max_upscale)
         for name in ("stride", "region_input"):
             if not is_int(getattr(self, name)) or getattr(self, name) < 1:
                 raise ValueError(f"{name} must be a positive int, got {getattr(self, name)}")
@@ -115,18 +107,50 @@ class CnnConfig:
         0.5."""
         if self.upscale is not None:
             return self.upscale
-        side = max(min(frame_shape[:2]), 1)
-        low, high = self.input_heights
-        return min(max(1.0, low / side), high / side, self.max_upscale)
+        return input_scale_for(frame_shape, self.input_heights, self.max_upscale)
 
     def input_for(self, frame_shape: tuple[int, ...]) -> tuple[int, int]:
         """``(width, height)`` of the network input for a frame (a multiple of ``stride``)."""
         if self.input_size is not None:
             return self.input_size
-        scale = self.input_scale(frame_shape)
-        height, width = frame_shape[:2]
-        return (_multiple(width * scale, self.stride), _multiple(height * scale, self.stride))
+        return input_size_for(frame_shape, self.input_scale(frame_shape), self.stride)
 
 
-def _multiple(value: float, stride: int) -> int:
-    return max(stride, math.floor(value / stride + 0.5) * stride)  # halves up, not to even
+# The input rule the CNN networks share (the person detectors, the pose network): a frame at its
+# own aspect, its shorter side brought into a range of heights.
+
+
+def check_input_rule(
+    input_size: tuple[int, int] | None, heights: tuple[float, float], max_upscale: float
+) -> None:
+    """Raise ``ValueError`` for a fixed ``input_size`` under 32 px, a ``heights`` range that is
+    none, or a ``max_upscale`` under 1."""
+    if input_size is not None and not (
+        len(input_size) == 2 and all(is_int(v) and v >= 32 for v in input_size)
+    ):
+        raise ValueError(f"input_size must be (width, height) >= 32, got {input_size}")
+    low, high = heights
+    if not (0 < low <= high < math.inf):
+        raise ValueError(f"input_heights must be 0 < low <= high, got {heights}")
+    if not (math.isfinite(max_upscale) and max_upscale >= 1.0):
+        raise ValueError(f"max_upscale must be >= 1, got {max_upscale}")
+
+
+def input_scale_for(
+    frame_shape: tuple[int, ...], heights: tuple[float, float], max_upscale: float
+) -> float:
+    """1 when the frame's shorter side is within ``heights``, else the factor that brings it
+    to the nearer end, at most ``max_upscale``."""
+    side = max(min(frame_shape[:2]), 1)
+    low, high = heights
+    return min(max(1.0, low / side), high / side, max_upscale)
+
+
+def input_size_for(frame_shape: tuple[int, ...], scale: float, stride: int) -> tuple[int, int]:
+    """``(width, height)`` of a frame of shape ``(H, W, ...)`` scaled by ``scale``, each side
+    rounded to a multiple of ``stride`` (halves up, not to even)."""
+    height, width = frame_shape[:2]
+    return (
+        max(stride, math.floor(width * scale / stride + 0.5) * stride),
+        max(stride, math.floor(height * scale / stride + 0.5) * stride),
+    )
