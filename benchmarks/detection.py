@@ -68,8 +68,14 @@ with a model of ``CNN_MODELS`` under ``<--data>/models`` (``0202``, ``0200``, ``
 ``yolox-nano``): by default the input has the frame's aspect at the size ``CnnConfig`` gives
 (the frame's own when its shorter side is 576-1080 px, else scaled into that range, enlarged at
 most 2x); ``@native`` feeds the model's own input size (512x512 for 0202, 416x416 for
-yolox-nano), ``@<W>x<H>`` a fixed one (multiples of 32). ``cnn`` is the product's default,
-person-detection-0202 at the frame's aspect (``cnn-0202``).
+yolox-nano), ``@<W>x<H>`` a fixed one (multiples of 32), ``@<H>p`` the frame-aspect rule with
+``H`` instead of 576 as the lower bound of the shorter side (``cnn-0202@480p``).
+
+``--held-out OTB,...`` checks the CNN detectors on people of OTB sequences that no choice was
+made on (``held_out`` in the report): the frames, of every 3rd, where a detection of calibrated
+probability 0.5 or more covers the one annotated person (IoU 0.5). OTB annotates one person per
+sequence, so this is a recall at the tracker's operating point, not an AP. ``cnn`` is the
+product's default, person-detection-0202 at the frame's aspect (``cnn-0202``).
 ``default`` is the embedded detector with its enlargement chosen by the frame's height,
 ``default@<upscale>`` the same at a fixed enlargement. ``opencv-hog`` runs OpenCV's HOG at 1.5x,
 ``opencv-hog@<upscale>`` at another scale.
@@ -114,6 +120,8 @@ from tracking.detection.metrics import (
     detection_curve,
     log_average_miss_rate,
 )
+from tracking.detection.nms import box_iou
+from tracking.evaluation.otb import load_otb_sequence, read_frame
 from tracking.types import Box
 
 try:  # run as a script: benchmarks/ is on sys.path
@@ -246,7 +254,7 @@ CNN_MODELS = {  # under <--data>/models
     "yolox-nano": "yolox-nano/yolox_nano.onnx",
 }
 CNN_DEFAULT_MODEL = "0202"  # ``cnn``: the product's default network
-CNN_FORM = "cnn-<model>[@native|@<W>x<H>]"
+CNN_FORM = "cnn-<model>[@native|@<W>x<H>|@<H>p]"
 DETECTOR_FORMS = (
     f"{DPM_FORM} with model {' or '.join(DPM_MODELS)}, cnn, {CNN_FORM} with model "
     f"{', '.join(CNN_MODELS)}, default[@upscale], opencv-hog[@upscale] or public"
@@ -285,16 +293,18 @@ def parse_dpm_name(name: str) -> tuple[str, dict[str, object]]:
 
 
 _CNN_NAME = re.compile(
-    r"cnn-(?P<model>[a-z0-9-]+?)(@(?:(?P<native>native)|(?P<width>[0-9]+)x(?P<height>[0-9]+)))?"
+    r"cnn-(?P<model>[a-z0-9-]+?)"
+    r"(@(?:(?P<native>native)|(?P<width>[0-9]+)x(?P<height>[0-9]+)|(?P<low>[0-9]+)p))?"
 )
 
 
-def parse_cnn_name(name: str) -> tuple[str, tuple[int, int] | str | None]:
-    """``cnn`` or ``cnn-<model>[@native|@<W>x<H>]`` -> model file under ``models/``, input.
+def parse_cnn_name(name: str) -> tuple[str, tuple[int, int] | str | float | None]:
+    """``cnn`` or ``cnn-<model>[@native|@<W>x<H>|@<H>p]`` -> model file under ``models/``, input.
 
     The input is ``None`` (the frame's aspect, ``CnnConfig``'s rule), ``"native"`` (the
-    model's own size, known once it is loaded) or ``(width, height)``, multiples of the
-    networks' stride (32).
+    model's own size, known once it is loaded), ``(width, height)``, multiples of the
+    networks' stride (32), or a number: the rule with that lower bound on the shorter side
+    instead of 576 (``@480p``: frames of 480-1080 px at their size).
     """
     if name == "cnn":
         return CNN_MODELS[CNN_DEFAULT_MODEL], None
@@ -306,6 +316,11 @@ def parse_cnn_name(name: str) -> tuple[str, tuple[int, int] | str | None]:
     model = CNN_MODELS[match["model"]]
     if match["native"]:
         return model, "native"
+    if match["low"]:
+        low = int(match["low"])
+        if not 32 <= low <= CnnConfig().input_heights[1]:
+            raise DetectorNameError(f"bad CNN detector name {name!r}: @<H>p with 32 <= H <= 1080")
+        return model, float(low)
     if match["width"] is None:
         return model, None
     stride = CnnConfig().stride
@@ -434,6 +449,10 @@ def cnn_entry(name: str, data: Path, threads: int = 0) -> Entry:
             detector.network, dataclasses.replace(config, input_size=(width, height))
         )
         shown = f"{width}x{height} (native)"
+    elif isinstance(size, float):
+        config = dataclasses.replace(config, input_heights=(size, config.input_heights[1]))
+        detector = CnnDetector(detector.network, config)
+        shown = f"frame aspect (shorter side {size:g}-{config.input_heights[1]:g} px)"
     elif size is not None:
         detector = CnnDetector(detector.network, dataclasses.replace(config, input_size=size))
         shown = f"{size[0]}x{size[1]}"
@@ -797,6 +816,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "path (default: no picture)",
     )
     parser.add_argument("--plot", type=Path, metavar="PNG", help="miss rate / FPPI plot (PNG)")
+    parser.add_argument(
+        "--held-out",
+        type=lambda text: [n.strip() for n in text.split(",") if n.strip()],
+        metavar="OTB,...",
+        help="also count, for each CNN detector, the frames of these OTB people sequences "
+        "(under <--data>/otb, every 3rd frame) where a detection of probability >= 0.5 covers "
+        "the annotated person (IoU 0.5): a check on data that chose nothing",
+    )
     parser.add_argument("--no-timing", action="store_true", help="skip the speed section")
     parser.add_argument("--no-accuracy", action="store_true", help="skip the AP section")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -847,6 +874,7 @@ def run(args: argparse.Namespace) -> dict:
             sequence.load_public()
     results, curves = ({}, {}) if args.no_accuracy else accuracy(entries, sequences, args)
     speed = {} if args.no_timing else timing(entries, sequences, args.timing_frames, args.repeats)
+    held_out = held_out_found(entries, args.data, args.held_out) if args.held_out else {}
     dpm = next((e.dpm for e in entries.values() if e.dpm is not None), None)
     if dpm is not None and args.picture:
         save_picture(dpm, sequences[0], 0, args.picture)
@@ -869,7 +897,39 @@ def run(args: argparse.Namespace) -> dict:
         "speed_fps": speed,
         "speed_ratio_to_default": ratios_to_default(speed),
     }
+    if held_out:
+        report["held_out"] = held_out
     return report
+
+
+HELD_OUT_STEP = 3  # every 3rd frame of an OTB sequence
+HELD_OUT_PROBABILITY = 0.5  # a detection the tracker would take as a person
+
+
+def held_out_found(
+    entries: dict[str, Entry], data: Path, names: list[str]
+) -> dict[str, dict[str, list[int]]]:
+    """Per CNN detector and OTB sequence, ``[found, frames]``: the frames (every
+    :data:`HELD_OUT_STEP`-th) where a detection of calibrated probability at least
+    :data:`HELD_OUT_PROBABILITY` covers the sequence's one annotated person with IoU 0.5. The
+    OTB sequences annotate one person and no other, so AP cannot be scored on them; this asks
+    whether the person a user points at would be detected, on data no choice was made on."""
+    sequences = [load_otb_sequence(data / "otb" / name) for name in names]
+    out: dict[str, dict[str, list[int]]] = {}
+    for name, entry in entries.items():
+        if entry.cnn is None:
+            continue
+        out[name] = {}
+        for sequence in sequences:
+            frames = range(0, len(sequence.frame_paths), HELD_OUT_STEP)
+            found = 0
+            for index in frames:
+                detections = entry.cnn.detect(read_frame(sequence.frame_paths[index]))
+                boxes = detections.boxes[detections.probabilities >= HELD_OUT_PROBABILITY]
+                person = sequence.ground_truth[index][None]
+                found += int(len(boxes) > 0 and box_iou(person, boxes).max() >= 0.5)
+            out[name][sequence.name] = [found, len(frames)]
+    return out
 
 
 def accuracy(
@@ -927,6 +987,10 @@ def print_table(report: dict) -> None:
         for sequence, rows in report["speed_fps"].items():
             for what, fps in rows.items():
                 print(f"{sequence:16s} {what:40s} {fps:8.2f}")
+    for name, rows in report.get("held_out", {}).items():
+        found = sum(f for f, _ in rows.values())
+        frames = sum(n for _, n in rows.values())
+        print(f"held out (OTB people found): {name:22s} {found} of {frames}")
     if report["speed_ratio_to_default"]:
         print()
         print(f"{'sequence':16s} {'full frame, speed / embedded default':40s} {'ratio':>8s}")

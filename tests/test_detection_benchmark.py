@@ -1,7 +1,7 @@
 """The detection benchmark's detector names (``dpm-<model>[@upscale][:levels][>min][+exact]``,
-``cnn-<model>[@native|@<W>x<H>]``, ``opencv-hog@<upscale>``, ``default@<upscale>``), its resized
-sequences (``--height``), a quick run of the CNN, and how its command line reports bad arguments
-and bad input files."""
+``cnn-<model>[@native|@<W>x<H>|@<H>p]``, ``opencv-hog@<upscale>``, ``default@<upscale>``), its
+resized sequences (``--height``), a quick run of the CNN, the held-out check, and how its command
+line reports bad arguments and bad input files."""
 
 from __future__ import annotations
 
@@ -60,6 +60,7 @@ def test_bad_dpm_names_are_refused(detection, name):
         ("cnn-0202@native", "person-detection-0202.xml", "native"),
         ("cnn-yolox-nano@native", "yolox_nano.onnx", "native"),
         ("cnn-retail-0013@544x320", "person-detection-retail-0013.xml", (544, 320)),
+        ("cnn-0202@480p", "person-detection-0202.xml", 480.0),
     ],
 )
 def test_cnn_names_give_model_and_input(detection, name, model, size):
@@ -71,7 +72,8 @@ def test_cnn_names_give_model_and_input(detection, name, model, size):
 @pytest.mark.parametrize(
     "name",
     ["cnn-", "cnn-0201", "cnn-yolox", "cnn-0202@", "cnn-0202@big", "cnn-0202@512",
-     "cnn-0202@500x500", "cnn-0202@0x0", "cnn-0202@512x512x3", "cnn-yolox-nano@native@native"],
+     "cnn-0202@500x500", "cnn-0202@0x0", "cnn-0202@512x512x3", "cnn-yolox-nano@native@native",
+     "cnn-0202@16p", "cnn-0202@2000p"],
 )  # fmt: skip
 def test_bad_cnn_names_are_refused(detection, name):
     with pytest.raises(detection.DetectorNameError, match="bad CNN detector name"):
@@ -234,7 +236,7 @@ def test_an_unknown_detector_lists_the_valid_forms(detection, capsys):
     err = capsys.readouterr().err
     assert "unknown detector 'foo'; the detectors are " in err
     for form in ("dpm-<model>[@upscale][:levels][>min height][+exact]", "inria", "voc2007",
-                 "cnn, cnn-<model>[@native|@<W>x<H>]", "0202", "0200", "retail-0013",
+                 "cnn, cnn-<model>[@native|@<W>x<H>|@<H>p]", "0202", "0200", "retail-0013",
                  "yolox-nano", "default[@upscale]", "opencv-hog[@upscale]", "public"):  # fmt: skip
         assert form in err
 
@@ -321,3 +323,20 @@ def test_the_documented_commands_are_accepted(detection, drawing_packages):
     assert len(commands) >= 10
     for argv in commands:
         detection.parse_args(argv)
+
+
+@pytest.mark.slow
+def test_the_held_out_check_counts_the_otb_person_found(detection, shared_data, capsys):
+    """``--held-out``: per CNN detector and OTB sequence, the frames (every 3rd) where the
+    annotated person is detected at probability 0.5; the lower bound of ``@480p`` reaches the
+    input (TUD-Stadtmitte's 640x480 frames go in at their size)."""
+    code = detection.main(
+        ["--data", str(shared_data), "--sequences", "TUD-Stadtmitte", "--step", "90",
+         "--detectors", "cnn-0202@480p", "--no-timing", "--held-out", "Crossing", "--json"]
+    )  # fmt: skip
+    assert code == 0
+    report = json.loads(capsys.readouterr().out, parse_constant=_strict)
+    assert report["accuracy"]["TUD-Stadtmitte"]["cnn-0202@480p"]["input"] == "640x480"
+    found, frames = report["held_out"]["cnn-0202@480p"]["Crossing"]
+    assert frames == 40  # 120 frames, every 3rd
+    assert 0.5 * frames <= found <= frames  # a person walking across, 50-70 px tall

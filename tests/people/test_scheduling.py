@@ -153,3 +153,37 @@ def test_detections_from_a_file_as_the_detector_follow_the_frames(shared_data):
         theirs = handed_in.update(frame, t, public.for_frame(index))
         assert [(k.track_id, k.box) for k in ours] == [(k.track_id, k.box) for k in theirs]
     assert theirs  # people were tracked
+
+
+@pytest.mark.slow
+def test_a_detector_that_batches_gets_the_regions_of_a_frame_in_one_call(shared_data):
+    """The CNN searches a frame's regions in one inference (``detect_regions``): the scheduler
+    hands it every region at once instead of one ``detect_region`` call per region."""
+    from tracking.detection.cnn import CnnConfig, CnnDetector
+    from tracking.detection.cnn.runtime import load_network
+
+    class Counting(CnnDetector):
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            self.batches: list[int] = []
+
+        def detect_regions(self, frame, regions):
+            self.batches.append(len(regions))
+            return super().detect_regions(frame, regions)
+
+        def detect_region(self, frame, region, heights=None):
+            raise AssertionError("the scheduler called detect_region one region at a time")
+
+    model = shared_data / "models/person-detection-0202/FP16/person-detection-0202.xml"
+    sequence = MotSequence.open(shared_data / "mot" / "PETS09-S2L1")
+    detector = Counting(load_network(model, 1), CnnConfig(threads=1))
+    scheduler = DetectionScheduler(detector, PeopleTrackerConfig(full_detection_interval=10.0))
+    frame = sequence.read_frame(100)
+    full = scheduler.detect(frame, 0.0, np.zeros((0, 4)))
+    assert detector.batches == [] and len(full) >= 5  # the first search is the whole frame
+    found = scheduler.detect(sequence.read_frame(101), 0.14, full.boxes)
+    assert len(detector.batches) == 1 and detector.batches[0] >= 2
+    # the regions keep the people the full search found (IoU 0.5)
+    from tracking.detection.nms import box_iou
+
+    assert (box_iou(full.boxes, found.boxes).max(axis=1) >= 0.5).sum() >= len(full) - 1

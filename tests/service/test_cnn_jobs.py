@@ -230,3 +230,28 @@ def test_analyze_runs_the_cnn_of_the_models_folder_or_of_its_flag(
     broken.write_bytes(b"not a network")
     result = vtrack("analyze", pets_short, "--out-dir", tmp_path / "bad", "--cnn-model", broken)
     assert result.returncode == 2 and "--cnn-model" in result.stderr, result.stderr
+
+
+def test_the_settings_name_the_cnn_by_model_name_or_by_path(shared_data, tmp_path):
+    from service.pipelines import PipelineResources
+    from service.settings import Settings
+
+    models = models_folder(shared_data, tmp_path / "models")
+    default = models / DEFAULT_MODEL / "person-detection-0202.xml"
+    assert Settings(models_dir=models).cnn_model_path == default
+    assert Settings(models_dir=models, cnn_model="person-detection-0202").cnn_model_path == default
+    yolox = shared_data / "models" / "yolox-nano" / "yolox_nano.onnx"
+    assert Settings(cnn_model=str(yolox)).cnn_model_path == yolox
+    assert Settings().cnn_model_path is None
+    # a folder without the model is no error: 'auto' falls back and says so
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert not Settings(models_dir=empty).cnn_model_path.is_file()
+    with pytest.raises(ValueError, match="VTRACK_CNN_MODEL 'person-detection-0200'"):
+        Settings(models_dir=models, cnn_model="person-detection-0200")  # not fetched
+    with pytest.raises(ValueError, match="not a folder"):
+        Settings(models_dir=tmp_path / "missing")
+    # the inference threads reach what the workers build their detectors from
+    resources = PipelineResources.from_settings(Settings(models_dir=models, inference_threads=1))
+    assert (resources.cnn_model, resources.inference_threads) == (default, 1)
+    assert PipelineResources.from_settings(Settings(models_dir=models)).inference_threads >= 1
