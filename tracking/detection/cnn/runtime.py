@@ -92,12 +92,18 @@ class Network:
                 self._compiled.move_to_end(shape)
                 return compiled
             model = self._model.clone()
-            if shape != self.input_shape:
-                model.reshape({model.inputs[0]: list(shape)})
             config = {"PERFORMANCE_HINT": "LATENCY"}
             if self.threads:
                 config["INFERENCE_NUM_THREADS"] = self.threads
-            compiled = _core().compile_model(model, "CPU", config)
+            try:
+                if shape != self.input_shape:
+                    model.reshape(list(shape))
+                compiled = _core().compile_model(model, "CPU", config)
+            except Exception as error:  # a job is told which model and size, not a C++ trace
+                raise CnnModelError(
+                    f"{self.path.name} does not compile on the CPU for input {shape} "
+                    f"({_first_line(error)})"
+                ) from None
             self._compiled[shape] = compiled
             if len(self._compiled) > _MAX_SHAPES:
                 self._compiled.popitem(last=False)
@@ -150,8 +156,9 @@ def _read(path: Path, threads: int) -> Network:
     try:
         model = _core().read_model(str(path))
     except Exception as error:  # OpenVINO raises RuntimeError subclasses with long C++ traces
-        first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise CnnModelError(f"{path} is not a model OpenVINO can read ({first[:300]})") from None
+        raise CnnModelError(
+            f"{path} is not a model OpenVINO can read ({_first_line(error)})"
+        ) from None
     if len(model.inputs) != 1 or not model.outputs:
         raise CnnModelError(
             f"{path.name} has {len(model.inputs)} inputs: the CNN detector runs models with one "
@@ -167,17 +174,22 @@ def _read(path: Path, threads: int) -> Network:
         tuple(d.get_length() if d.is_static else -1 for d in output.get_partial_shape())
         for output in model.outputs
     )
-    network = Network(path, threads, input_shape, outputs, reshapeable=True, _model=model)
-    # Compile the model's own shape now, so that a file OpenVINO reads but cannot run fails
-    # here, at load, and not on a job's first frame; then try another size.
-    try:
-        network._compiled_for(input_shape)
-    except Exception as error:
-        first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise CnnModelError(f"{path.name} does not compile on the CPU ({first[:300]})") from None
+    # Whether the graph takes another size: its shapes re-inferred for one (a few ms; the
+    # compile that follows a real size costs a tenth of a second or more, so it is not tried).
     n, c, h, w = input_shape
     try:
-        network._compiled_for((n, c, h + 32, w + 32))
+        model.clone().reshape([n, c, h + 32, w + 32])  # the one input
+        reshapeable = True
     except Exception:
-        network.reshapeable = False
+        reshapeable = False
+    network = Network(path, threads, input_shape, outputs, reshapeable, _model=model)
+    # Compile the model's own shape now, so that a file OpenVINO reads but cannot run fails
+    # here, at load, and not on a job's first frame.
+    network._compiled_for(input_shape)
     return network
+
+
+def _first_line(error: Exception) -> str:
+    """The first line of an OpenVINO error (they carry long C++ traces), at most 300 chars."""
+    text = str(error).strip()
+    return text.splitlines()[0][:300] if text else type(error).__name__
