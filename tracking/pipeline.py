@@ -9,7 +9,7 @@ business: a single object from a first box (thesis Part I), or every person in v
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -18,6 +18,10 @@ from tracking.detection.base import Detections, Detector
 from tracking.people import MultiPersonTracker, PeopleTrackerConfig
 from tracking.tracks import FrameTracks, TrackEstimate
 from tracking.types import Box, as_box, checked_timestamp
+
+if TYPE_CHECKING:
+    from tracking.detection.pose import PoseEstimator
+    from tracking.detection.reid import ReidEmbedder
 
 __all__ = ["FramePipeline", "PeoplePipeline", "SingleTargetPipeline"]
 
@@ -29,6 +33,11 @@ class FramePipeline(Protocol):
     @property
     def part_names(self) -> tuple[str, ...]:
         """Names of the body parts the tracks carry (empty when they carry none)."""
+        ...
+
+    @property
+    def skeleton(self) -> tuple[tuple[str, str], ...]:
+        """Pairs of :attr:`part_names` joined by a limb, for drawing (empty: none)."""
         ...
 
     def process(
@@ -68,6 +77,10 @@ class SingleTargetPipeline:
     def part_names(self) -> tuple[str, ...]:
         return ()
 
+    @property
+    def skeleton(self) -> tuple[tuple[str, str], ...]:
+        return ()
+
     def process(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
     ) -> FrameTracks:
@@ -95,17 +108,31 @@ class PeoplePipeline:
         Runs when a frame comes without detections; ``None`` requires detections every frame.
     config:
         The multi-person tracker's parameters.
+    pose:
+        A body-keypoint network whose keypoints measure every person's parts (the parts are
+        then its 18 keypoints); ``None``: parts from the detector or the body model.
+    reid:
+        A re-identification network that tells people apart and recognises them when they
+        come back; ``None``: clothing colours do.
     """
 
     def __init__(
-        self, detector: Detector | None = None, config: PeopleTrackerConfig | None = None
+        self,
+        detector: Detector | None = None,
+        config: PeopleTrackerConfig | None = None,
+        pose: PoseEstimator | None = None,
+        reid: ReidEmbedder | None = None,
     ) -> None:
-        self._tracker = MultiPersonTracker(config, detector=detector)
+        self._tracker = MultiPersonTracker(config, detector=detector, pose=pose, reid=reid)
         self._index = 0
 
     @property
     def part_names(self) -> tuple[str, ...]:
         return self._tracker.part_names
+
+    @property
+    def skeleton(self) -> tuple[tuple[str, str], ...]:
+        return self._tracker.skeleton
 
     def process(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None

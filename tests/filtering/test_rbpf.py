@@ -138,6 +138,27 @@ def test_infinite_noise_marks_a_padding_measurement():
     assert np.all(out.mean[:, 0] > 0.4)  # block 0 moved towards its measurement
 
 
+def test_evidence_weight_tempers_what_block_measurements_do_to_the_weights():
+    # particles with different Kalman means: the measurement favours the first
+    state = RbpfState.from_prior(np.zeros((2, 1)), np.zeros((1, 2)), np.eye(2)[None])
+    state = RbpfState(
+        state.particles, state.weights, np.array([[[0.0, 0.0]], [[3.0, 3.0]]]), state.cov
+    )
+    measured = dict(
+        blocks=np.array([0]),
+        measurement=np.array([[0.0, 0.0]]),
+        observation=np.eye(2),
+        noise=np.eye(2)[None],
+    )
+    full = update(state, **measured)
+    none = update(state, evidence_weight=0.0, **measured)
+    half = update(state, evidence_weight=0.5, **measured)
+    assert full.weights[0] > half.weights[0] > none.weights[0] == pytest.approx(0.5)
+    # the Kalman filters are updated all the same
+    np.testing.assert_allclose(none.mean, full.mean)
+    np.testing.assert_allclose(none.cov, full.cov)
+
+
 def test_batched_people_filter_independently():
     rng = np.random.default_rng(4)
     people, n = 3, 50

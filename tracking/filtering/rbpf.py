@@ -99,6 +99,7 @@ def update(
     observation: np.ndarray | None = None,
     offset: np.ndarray | float = 0.0,
     noise: np.ndarray | None = None,
+    evidence_weight: float = 1.0,
 ) -> RbpfState:
     """Measurement update: weigh the particles, then Kalman-update the measured blocks.
 
@@ -122,6 +123,11 @@ def update(
         ``c`` broadcastable to ``(..., N, M, m)``.
     noise:
         ``R`` broadcastable to ``(..., N, M, m, m)``.
+    evidence_weight:
+        Exponent on the block measurements' marginal likelihoods in the weights: 1 (default)
+        is the Rao-Blackwellized update; 0 updates each particle's Kalman filters without
+        letting those measurements move the particles' weights (the root is then weighed by
+        ``log_likelihood`` alone); values between temper the evidence.
     """
     log_w = np.log(np.maximum(state.weights, 1e-300))
     if log_likelihood is not None:
@@ -138,7 +144,7 @@ def update(
             picked_mean, picked_cov, z, observation, safe_noise, offset
         )
         informative = np.broadcast_to(informative, log_evidence.shape)
-        log_w = log_w + np.sum(np.where(informative, log_evidence, 0.0), axis=-1)
+        log_w = log_w + evidence_weight * np.sum(np.where(informative, log_evidence, 0.0), axis=-1)
         new_mean = np.where(informative[..., None], new_mean, picked_mean)
         new_cov = np.where(informative[..., None, None], new_cov, picked_cov)
         mean, cov = mean.copy(), cov.copy()

@@ -95,17 +95,19 @@ def filter_arguments(
 
     The measurement of part ``p`` is ``z = centre + h mu_p + h delta_p + e``: linear in the
     deviation ``delta_p`` with ``H = h I`` and offset ``centre + h mu_p`` per particle, noise
-    ``e`` with a standard deviation of ``sigma`` ``(T,)`` heights (per person). Every person has
-    one slot per part; slots without a measurement carry infinite noise, which the filter skips.
+    ``e`` with a standard deviation of ``sigma`` heights, per person ``(T,)`` or per person and
+    part ``(T, P)``. Every person has one slot per part; slots without a measurement carry
+    infinite noise, which the filter skips.
     """
     if not np.any(found):
         return {}
     people, parts = found.shape
     roots = np.einsum("tn,tnd->td", state.weights, state.particles)
-    variance = (np.asarray(sigma) * np.exp(roots[:, LOG_H])) ** 2  # (T,)
+    sigma = np.broadcast_to(np.asarray(sigma, dtype=np.float64).reshape(people, -1), found.shape)
+    variance = (sigma * np.exp(roots[:, LOG_H])[:, None]) ** 2  # (T, P)
     height = np.exp(state.particles[..., LOG_H])  # (T, N)
     r = np.zeros((people, 1, parts, 2, 2))
-    r[..., 0, 0] = r[..., 1, 1] = variance[:, None, None]
+    r[..., 0, 0] = r[..., 1, 1] = variance[:, None, :]
     r[~found[:, None, :]] = np.inf
     return {
         "blocks": np.broadcast_to(np.arange(parts), (people, parts)),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,9 +17,10 @@ from tracking.features.maps import FeatureMap
 from tracking.filtering import RbpfState, estimate, predict, resample, update
 from tracking.people import parts as part_model
 from tracking.people.association import assign
-from tracking.people.body import EMBEDDED_BODY, BodyModel
+from tracking.people.body import EMBEDDED_BODY, POSE_BODY, BodyModel
 from tracking.people.config import PeopleTrackerConfig
 from tracking.people.identity import colour_signatures, signature_similarity
+from tracking.people.keypoints import assign_skeletons, keypoint_measurements
 from tracking.people.likelihoods import (
     dense_score_log_likelihood,
     detection_log_likelihood,
@@ -30,6 +32,10 @@ from tracking.people.part_trackers import PartTrackers
 from tracking.people.scheduling import DetectionScheduler, widened
 from tracking.tracks import PartEstimate, TrackEstimate
 from tracking.types import Box, checked_timestamp, validate_uint8_frame
+
+if TYPE_CHECKING:
+    from tracking.detection.pose import PoseEstimator
+    from tracking.detection.reid import ReidEmbedder
 
 logger = logging.getLogger(__name__)
 
@@ -53,6 +59,9 @@ class _Track:
     parts: PartTrackers | None = None  # per-part appearance, for detectors without parts
     signature: np.ndarray | None = None  # clothing colours, for recognising the person
     parts_measured: np.ndarray | None = None  # (P,) which parts this frame's image placed
+    parts_seen: np.ndarray | None = None  # (P,) keypoints found, when a skeleton was assigned
+    gallery: np.ndarray | None = None  # (G, D) re-identification embeddings, NaN rows unused
+    gallery_next: int = 0  # the gallery row the next embedding replaces
 
 
 @dataclass(slots=True)
@@ -75,6 +84,7 @@ class _Frame:
     roots: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))  # estimates, likewise
     responses: list[ResponseMap] = field(default_factory=list)  # each person's appearance
     signatures: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # the detections'
+    embeddings: np.ndarray | None = None  # (D, E) the detections' re-identification embeddings
     boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))  # after the update
 
 
@@ -95,10 +105,19 @@ class MultiPersonTracker:
         Runs when :meth:`update` gets no detections (full frame or regions of interest, on the
         configured schedule). ``None``: detections must be handed in every frame.
     body:
-        The body model; by default the embedded one (:data:`EMBEDDED_BODY`: head, shoulders,
-        hips, knees and feet of an upright adult). A detector's part boxes are measurements
-        of the body model's parts of the same name; parts of other names (another model's)
-        are not used.
+        The body model; by default the pose network's keypoints (:data:`POSE_BODY`) with a
+        ``pose`` estimator, else the embedded one (:data:`EMBEDDED_BODY`: head, shoulders,
+        hips, knees and feet of an upright adult). A detector's part boxes and a pose
+        network's keypoints are measurements of the body model's parts of the same name;
+        parts of other names (another model's) are not used.
+    pose:
+        A body-keypoint network (:class:`~tracking.detection.pose.PoseEstimator`), run on
+        every frame with people in it: each person's skeleton measures its parts (issue 76).
+    reid:
+        A re-identification network (:class:`~tracking.detection.reid.ReidEmbedder`): the
+        detections' embeddings, against each person's gallery, are the identity term of the
+        association and of the particles' weights, and recognise people who come back; it
+        replaces the clothing colours.
     """
 
     def __init__(
@@ -106,11 +125,15 @@ class MultiPersonTracker:
         config: PeopleTrackerConfig | None = None,
         detector: Detector | None = None,
         body: BodyModel | None = None,
+        pose: PoseEstimator | None = None,
+        reid: ReidEmbedder | None = None,
     ) -> None:
         _check_arguments(config, detector)
         self.config = config or PeopleTrackerConfig()
         self._detector = detector
-        self._body = body or EMBEDDED_BODY
+        self._pose = pose
+        self._reid = reid
+        self._body = body or (POSE_BODY if pose is not None else EMBEDDED_BODY)
         self._features = FeatureMap.from_config(self.config.appearance)
         part_config = self.config.part_appearance
         self._part_features = FeatureMap.from_config(part_config) if part_config else None
@@ -121,6 +144,11 @@ class MultiPersonTracker:
     @property
     def part_names(self) -> tuple[str, ...]:
         return self._body.names
+
+    @property
+    def skeleton(self) -> tuple[tuple[str, str], ...]:
+        """Pairs of :attr:`part_names` joined by a limb (the body model's, for drawing)."""
+        return self._body.skeleton
 
     def reset(self) -> None:
         """Forget every person; ids start again at 1."""
@@ -195,6 +223,9 @@ class MultiPersonTracker:
             detections = self._scheduler.detect(frame, timestamp, predicted)
         current = _Frame(frame, timestamp, detections, predicted)
         current.signatures = colour_signatures(frame, detections.boxes)
+        if self._reid is not None:
+            # one batched inference for the frame's detections
+            current.embeddings = self._reid.embed(frame, detections.boxes)
         if self._state is not None:
             current.roots, _ = estimate(self._state)
             current.responses = [
@@ -267,12 +298,18 @@ class MultiPersonTracker:
         )
         centres = dets.boxes[:, :2] + dets.boxes[:, 2:] / 2
         look = np.array([r.at(centres) for r in current.responses]).reshape(fit.shape)
+        allowed = (overlap >= c.match_iou) & (fit >= -0.5 * c.association_gate)
+        score = fit + c.appearance_weight * look
         colour = signature_similarity(
             np.array([t.signature for t in self._tracks]), current.signatures
         )
-        allowed = (overlap >= c.match_iou) & (fit >= -0.5 * c.association_gate)
         allowed &= colour >= c.identity_gate
-        score = fit + c.appearance_weight * look + c.identity_weight * colour
+        score += c.identity_weight * colour
+        if current.embeddings is not None:
+            # a detection without an embedding (too small a crop) is judged without one
+            log_odds = np.nan_to_num(self._identity_log_odds(self._tracks, current), nan=0.0)
+            allowed &= log_odds >= _logit(c.reid_gate)
+            score += c.reid_weight * log_odds
         similarity = np.where(allowed, score, -np.inf)
         for track in self._tracks:
             track.measured, track.detection = False, -1
@@ -320,6 +357,15 @@ class MultiPersonTracker:
         dets = current.detections
         log_lik = np.zeros(state.weights.shape)
         roots = current.roots
+        # The probability that the associated detection is the person at all (its embedding
+        # against the person's): a doubtful identity pulls the particles less.
+        same = np.ones(len(self._tracks))
+        if current.embeddings is not None and len(dets):
+            columns = [max(t.detection, 0) for t in self._tracks]
+            log_odds = self._identity_log_odds(self._tracks, current)[
+                np.arange(len(self._tracks)), columns
+            ]
+            same = np.where(np.isnan(log_odds), 1.0, _sigmoid(log_odds))
         for i, track in enumerate(self._tracks):
             particles = state.particles[i]
             # Appearance: the person's RCSK response, read at every particle.
@@ -328,14 +374,15 @@ class MultiPersonTracker:
                 log_lik[i] += detection_log_likelihood(
                     particles,
                     dets.boxes[track.detection],
-                    float(dets.probabilities[track.detection]),
+                    float(dets.probabilities[track.detection] * same[i]),
                     sigma=c.detection_sigma,
                     log_height_sigma=c.detection_log_height_sigma,
                     clutter=c.clutter,
                 )
         log_lik += self._dense_log_likelihood(current, state)
         measurement = self._part_measurements(current, state, roots)
-        state = update(state, log_lik, **measurement)
+        evidence = c.keypoint_evidence if self._pose is not None else 1.0
+        state = update(state, log_lik, evidence_weight=evidence, **measurement)
         self._state = resample(state, self._rng)
         for track in self._tracks:
             if track.measured:
@@ -382,6 +429,8 @@ class MultiPersonTracker:
         """Part measurements: a DPM detection's part placements where the person's detection
         has them, else the peaks of the person's part trackers; none for covered parts."""
         c = self.config
+        if self._pose is not None:
+            return self._keypoint_measurements(current, state)
         z, found = part_model.from_detections(self._body, self._tracks, current.detections)
         heights = np.exp(roots[:, LOG_H])
         expected = part_model.positions(self._body, state)
@@ -395,6 +444,49 @@ class MultiPersonTracker:
         for track, placed in zip(self._tracks, found, strict=True):
             track.parts_measured = placed
         return part_model.filter_arguments(self._body, state, z, found, sigma)
+
+    def _keypoint_measurements(self, current: _Frame, state: RbpfState) -> dict[str, np.ndarray]:
+        """Part measurements from the pose network: the frame's skeletons assigned to the
+        people (each person's associated detection box, else its predicted box), each keypoint
+        measuring the part of its name with a noise from its heatmap value. The grouping of
+        keypoints into skeletons decides whose a keypoint is, so a keypoint inside a nearer
+        person's box still counts (a head above the shoulder of someone in front)."""
+        from tracking.detection.pose import KEYPOINT_NAMES
+
+        c = self.config
+        poses = self._pose.estimate(current.image)
+        boxes = current.predicted.copy()
+        for i, track in enumerate(self._tracks):
+            if track.measured:
+                boxes[i] = current.detections.boxes[track.detection]
+        skeleton_of = assign_skeletons(poses.keypoints, KEYPOINT_NAMES, boxes, c.skeleton_min_share)
+        z, found, sigma = keypoint_measurements(
+            self._body,
+            KEYPOINT_NAMES,
+            poses.keypoints,
+            poses.scores,
+            skeleton_of,
+            c.keypoint_sigma,
+        )
+        for track, placed, has in zip(self._tracks, found, skeleton_of >= 0, strict=True):
+            track.parts_measured = placed
+            track.parts_seen = placed if has else None
+        return part_model.filter_arguments(self._body, state, z, found, sigma)
+
+    def _identity_log_odds(self, tracks: list[_Track], current: _Frame) -> np.ndarray:
+        """``(T, D)`` log odds that each detection shows each person, from the cosine of its
+        embedding to the most similar of the person's gallery (the network's calibration);
+        NaN where either has no embedding."""
+        embeddings = current.embeddings
+        if not tracks or len(embeddings) == 0:
+            return np.zeros((len(tracks), len(embeddings)))
+        galleries = np.stack([t.gallery for t in tracks])  # (T, G, E)
+        with np.errstate(invalid="ignore"):
+            cosine = np.einsum("tge,de->tgd", galleries, embeddings)
+            best = np.max(np.where(np.isnan(cosine), -np.inf, cosine), axis=1)
+        best[~np.isfinite(best)] = np.nan
+        calibration = self._reid.calibration
+        return calibration.a * best + calibration.b
 
     def _learn(self, current: _Frame) -> None:
         """Appearance learning at the estimate, only where a detection confirms the person and
@@ -410,6 +502,11 @@ class MultiPersonTracker:
             rate = self.config.signature_learning_rate
             seen = current.signatures[track.detection]
             track.signature = (1 - rate) * track.signature + rate * seen
+            confident = current.detections.probabilities[track.detection] >= (
+                self.config.low_confidence
+            )
+            if current.embeddings is not None and confident:
+                self._remember(track, current.embeddings[track.detection])
             track.appearance.learn(
                 current.image,
                 (float(root[CX]), float(root[CY])),
@@ -459,7 +556,8 @@ class MultiPersonTracker:
                 younger = i if self._tracks[i].born > self._tracks[j].born else j
                 keep[younger] = False
         self._remove(~keep)
-        self._lost = [lost for lost in self._lost if t - lost.time <= c.reid_memory]
+        memory = c.reid_memory if self._reid is None else c.embedding_memory
+        self._lost = [lost for lost in self._lost if t - lost.time <= memory]
         self._start_tracks(current)
 
     def _start_tracks(self, current: _Frame) -> None:
@@ -531,6 +629,9 @@ class MultiPersonTracker:
             measured=True,
             signature=current.signatures[index].copy(),
         )
+        if current.embeddings is not None:
+            track.gallery = np.full((c.reid_gallery, current.embeddings.shape[1]), np.nan)
+            self._remember(track, current.embeddings[index])
         if c.part_appearance is not None and current.detections.parts.shape[1] == 0:
             track.parts = PartTrackers(
                 c.part_appearance, self._body, self._part_features, c.part_min_peak
@@ -543,6 +644,14 @@ class MultiPersonTracker:
         elif c.confirm_hits <= 1:
             self._confirm(track)
         self._tracks.append(track)
+
+    @staticmethod
+    def _remember(track: _Track, embedding: np.ndarray) -> None:
+        """Put an embedding in the person's gallery in place of its oldest."""
+        if track.gallery is None or not np.all(np.isfinite(embedding)):
+            return
+        track.gallery[track.gallery_next] = embedding
+        track.gallery_next = (track.gallery_next + 1) % len(track.gallery)
 
     def _confirm(self, track: _Track) -> None:
         """Make a tentative track a person, with the next id."""
@@ -567,6 +676,9 @@ class MultiPersonTracker:
         detected at time ``since``: the similarity of their clothing colours
         (:mod:`tracking.people.identity`) minus the distance between detection and ``box`` in
         heights; ``-inf`` when the person cannot have walked there or is of another size.
+        With a re-identification network, the calibrated probability that the embeddings show
+        the same person minus the distance as a share of how far the person can have walked
+        (a person may come back far from where it was lost, after a long time).
 
         Measured on PETS09-S2L1's re-appearances, the same person is a median 0.42 heights from
         where it was lost, another 0.70; colour similarities are 0.80 against 0.39.
@@ -580,6 +692,9 @@ class MultiPersonTracker:
         reach = c.reid_max_speed * max(gap, 0.1) + 0.5
         if distance > reach or abs(math.log(found[3] / box[3])) > 0.4:
             return -math.inf
+        if current.embeddings is not None:
+            log_odds = self._identity_log_odds([track], current)[0, index]
+            return -math.inf if np.isnan(log_odds) else _sigmoid(log_odds) - distance / reach
         colour = signature_similarity(track.signature, current.signatures[index])[0, 0]
         return float(colour) - distance
 
@@ -631,7 +746,9 @@ class MultiPersonTracker:
                         float(self._body.size[p, 0] * h),
                         float(self._body.size[p, 1] * h),
                     ),
-                    visible=not (hidden[i, p] or outside[i, p]),
+                    visible=not (hidden[i, p] or outside[i, p])
+                    if track.parts_seen is None
+                    else bool(track.parts_seen[p] and not outside[i, p]),
                     measured=track.parts_measured is not None and bool(track.parts_measured[p]),
                 )
                 for p, name in enumerate(self._body.names)
@@ -653,6 +770,14 @@ def _normalised(boxes: np.ndarray, aspect: float = 0.41) -> np.ndarray:
     return np.stack(
         [boxes[:, 0] + (boxes[:, 2] - width) / 2, boxes[:, 1], width, boxes[:, 3]], axis=1
     )
+
+
+def _sigmoid(x: np.ndarray | float) -> np.ndarray | float:
+    return 1.0 / (1.0 + np.exp(-x))
+
+
+def _logit(p: float) -> float:
+    return -math.inf if p <= 0 else math.log(p / (1.0 - p))
 
 
 def _check_arguments(config: object, detector: object) -> None:

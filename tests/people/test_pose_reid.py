@@ -1,0 +1,85 @@
+"""Body keypoints in the people tracker: skeletons assigned to people, keypoints as part
+measurements (issue 76)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracking.detection import MotSequence, make_detector
+from tracking.detection.pose import KEYPOINT_NAMES, PoseEstimator
+from tracking.people import POSE_BODY, MultiPersonTracker
+from tracking.people.keypoints import assign_skeletons, keypoint_measurements
+
+MODELS = "models"
+DETECTOR = "person-detection-0202/FP16/person-detection-0202.xml"
+POSE = "human-pose-estimation-0001/FP16-INT8/human-pose-estimation-0001.xml"
+FPS = 7.0  # PETS09-S2L1
+HEAD = ("nose", "eye", "ear")
+
+
+def _skeleton(box: tuple[float, float, float, float]) -> np.ndarray:
+    """A skeleton where the pose body model puts the keypoints of a person in ``box``."""
+    x, y, w, h = box
+    centre = np.array([x + w / 2, y + h / 2])
+    return centre + h * POSE_BODY.mean
+
+
+def test_each_skeleton_goes_to_the_person_whose_box_it_fills():
+    left, right = (100.0, 50.0, 40.0, 100.0), (125.0, 60.0, 40.0, 100.0)  # overlapping people
+    skeletons = np.stack([_skeleton(right), _skeleton(left), _skeleton((400, 50, 40, 100))])
+    skeletons[0, 5:] = np.nan  # a skeleton with only some keypoints still counts
+    owner = assign_skeletons(skeletons, KEYPOINT_NAMES, np.array([left, right]), 0.6)
+    assert owner.tolist() == [1, 0]  # the third skeleton is nobody's
+    assert assign_skeletons(skeletons[:0], KEYPOINT_NAMES, np.array([left]), 0.6).tolist() == [-1]
+
+
+def test_keypoints_measure_the_parts_of_their_names_with_noise_from_their_score():
+    keypoints = _skeleton((100, 50, 40, 100))[None]
+    keypoints[0, KEYPOINT_NAMES.index("left_ankle")] = np.nan
+    scores = np.full((1, len(KEYPOINT_NAMES)), 0.5)
+    z, found, sigma = keypoint_measurements(
+        POSE_BODY, KEYPOINT_NAMES, keypoints, scores, np.array([-1, 0]), 0.02
+    )
+    assert not found[0].any()  # the first person has no skeleton
+    assert found[1].sum() == len(KEYPOINT_NAMES) - 1
+    assert not found[1, POSE_BODY.names.index("left_ankle")]
+    assert np.allclose(z[1][found[1]], keypoints[0][found[1]])
+    assert np.allclose(sigma[1], 0.04)
+
+
+@pytest.fixture(scope="module")
+def pets(shared_data):
+    return MotSequence.open(shared_data / "mot" / "PETS09-S2L1")
+
+
+@pytest.mark.slow
+def test_the_pose_network_measures_every_confirmed_persons_parts(shared_data, pets):
+    """On 40 frames of PETS09-S2L1, with the CNN detector: the parts are the keypoints, placed
+    inside the person's box, head above ankles, and the head, shoulders, hips and ankles of the
+    unoccluded people are measured in most frames."""
+    models = shared_data / MODELS
+    tracker = MultiPersonTracker(
+        detector=make_detector(models / DETECTOR),
+        pose=PoseEstimator.from_file(models / POSE),
+    )
+    assert tracker.part_names == KEYPOINT_NAMES
+    measured, seen = [], 0
+    for index in range(40):
+        for track in tracker.update(pets.read_frame(index), index / FPS):
+            parts = {p.name: p for p in track.parts}
+            assert parts["nose"].y < parts["neck"].y < parts["left_hip"].y < parts["left_ankle"].y
+            if track.occluded:
+                continue
+            seen += 1
+            box = track.box
+            for name in ("neck", "left_hip", "right_hip"):
+                assert box.x - 0.5 * box.h < parts[name].x < box.x + box.w + 0.5 * box.h
+                assert box.y - 0.1 * box.h < parts[name].y < box.y + 1.1 * box.h
+            # the head: any of its keypoints (the nose is not seen from behind)
+            head = any(parts[n].measured for n in KEYPOINT_NAMES if n.endswith(HEAD))
+            body = [parts[n].measured for n in ("left_shoulder", "right_hip", "left_ankle")]
+            measured.append([head, *body])
+    assert seen > 100
+    # measured in at least 80% of the unoccluded people's frames (tracking starts in frame 3)
+    assert np.mean(measured, axis=0).min() > 0.8, np.mean(measured, axis=0)
