@@ -1,5 +1,5 @@
-"""Body keypoints in the people tracker: skeletons assigned to people, keypoints as part
-measurements (issue 76)."""
+"""Body keypoints and re-identification in the people tracker: skeletons assigned to people,
+keypoints as part measurements, people hidden for 2 s who keep their ids (issue 76)."""
 
 from __future__ import annotations
 
@@ -7,13 +7,17 @@ import numpy as np
 import pytest
 
 from tracking.detection import MotSequence, make_detector
+from tracking.detection.nms import box_iou
 from tracking.detection.pose import KEYPOINT_NAMES, PoseEstimator
+from tracking.detection.reid import ReidEmbedder
+from tracking.detection.sequences import read_mot_rows
 from tracking.people import POSE_BODY, MultiPersonTracker
 from tracking.people.keypoints import assign_skeletons, keypoint_measurements
 
 MODELS = "models"
 DETECTOR = "person-detection-0202/FP16/person-detection-0202.xml"
 POSE = "human-pose-estimation-0001/FP16-INT8/human-pose-estimation-0001.xml"
+REID = "person-reidentification-retail-0287/FP16/person-reidentification-retail-0287.xml"
 FPS = 7.0  # PETS09-S2L1
 HEAD = ("nose", "eye", "ear")
 
@@ -83,3 +87,50 @@ def test_the_pose_network_measures_every_confirmed_persons_parts(shared_data, pe
     assert seen > 100
     # measured in at least 80% of the unoccluded people's frames (tracking starts in frame 3)
     assert np.mean(measured, axis=0).min() > 0.8, np.mean(measured, axis=0)
+
+
+def _track_on(tracks, box) -> int:
+    """The id of the track on the person of ground-truth ``box`` (0-based x, y, w, h): the
+    best overlap with the box brought to the tracker's aspect (0.41), at least 0.5; 0 for
+    none."""
+    x, y, w, h = box
+    boxes = np.array([[t.box.x, t.box.y, t.box.w, t.box.h] for t in tracks]).reshape(-1, 4)
+    overlap = box_iou(boxes, np.array([[x + w / 2 - 0.205 * h, y, 0.41 * h, h]]))[:, 0]
+    return tracks[int(overlap.argmax())].track_id if len(tracks) and overlap.max() >= 0.5 else 0
+
+
+@pytest.mark.slow
+def test_people_hidden_for_two_seconds_keep_their_ids(shared_data, pets):
+    """Each of the five people of PETS09-S2L1's ground truth in view from frame 20 to 62 is
+    covered, in turn, by a grey board a tenth larger than them for 2 s (frames 30-43): the
+    detector finds nothing there and the track ends. With re-identification, the person who
+    comes out gets the id of frames 20-29 back in 4 of the 5 runs (person 11, seen for 2 s
+    before, gets a new one); with the clothing colours alone, in 2 of 5."""
+    models = shared_data / MODELS
+    truth = read_mot_rows(pets.path / "gt" / "gt.txt")
+    frames = [pets.read_frame(index) for index in range(62)]
+    detector = make_detector(models / DETECTOR)
+    reid = ReidEmbedder.from_file(models / REID)
+    kept = {}
+    for person in (9, 11, 12, 15, 19):
+        rows = truth[truth[:, 1] == person]
+        boxes = {int(r[0]) - 1: (r[2] - 1, r[3] - 1, r[4], r[5]) for r in rows}  # 0-based
+        tracker = MultiPersonTracker(detector=detector, reid=reid)
+        ids = []
+        for index, frame in enumerate(frames):
+            x, y, w, h = boxes.get(index, (0, 0, 0, 0))
+            if 30 <= index < 44:
+                frame = frame.copy()
+                top, left = int(max(y - 0.1 * h, 0)), int(max(x - 0.1 * w, 0))
+                frame[top : int(y + 1.1 * h), left : int(x + 1.1 * w)] = 128
+            tracks = tracker.update(frame, index / FPS)
+            ids.append(_track_on(tracks, boxes[index]) if index in boxes else 0)
+        assert not any(ids[34:44]), ids  # the board hides the person
+        before, after = _most_common(ids[20:30]), _most_common(ids[48:62])
+        kept[person] = before == after != 0
+    assert sum(kept.values()) >= 4, kept
+
+
+def _most_common(ids: list[int]) -> int:
+    values, counts = np.unique([i for i in ids if i], return_counts=True)
+    return int(values[counts.argmax()]) if len(values) else 0
