@@ -54,6 +54,16 @@ class JobState(StrEnum):
         return self in (JobState.succeeded, JobState.failed, JobState.cancelled)
 
 
+MODEL_FILE_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$"
+"""A model of the service's models folder, by catalog name or as a path inside the folder."""
+
+
+def _inside_the_folder(value: str | None) -> str | None:
+    if value is not None and ".." in value.split("/"):
+        raise ValueError("must name a file inside the models folder, without '..'")
+    return value
+
+
 class DetectorOptions(BaseModel):
     """The person detector of a people-tracking job.
 
@@ -77,7 +87,7 @@ class DetectorOptions(BaseModel):
         default=None,
         min_length=1,
         max_length=200,
-        pattern=r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$",
+        pattern=MODEL_FILE_PATTERN,
         description="'cnn' only: a model of the service's models folder (VTRACK_MODELS_DIR), by "
         "name as `vtrack models list` shows it (person-detection-0202, person-detection-0200, "
         "person-detection-retail-0013) or as a path inside that folder to an OpenVINO .xml or "
@@ -137,9 +147,7 @@ class DetectorOptions(BaseModel):
                 f"only for detector 'cnn': detector '{name}' takes no model"
                 + (" (set name to 'cnn' to choose the CNN's model)" if name == "auto" else "")
             )
-        if value is not None and ".." in value.split("/"):
-            raise ValueError("must name a file inside the models folder, without '..'")
-        return value
+        return _inside_the_folder(value)
 
 
 class PeopleTrackerOptions(BaseModel):
@@ -209,6 +217,69 @@ class PeopleTrackerOptions(BaseModel):
     seed: int | None = Field(
         strict=True, default=None, ge=0, description="Seed of the particle filter."
     )
+    pose: bool | None = Field(
+        strict=True,
+        default=None,
+        description="Body keypoints: a pose network (Open Model Zoo's "
+        "human-pose-estimation-0001) finds the 18 keypoints of every person in every frame "
+        "(nose, neck, shoulders, elbows, wrists, hips, knees, ankles, eyes, ears), and the "
+        "tracks' parts are those keypoints, named after them and measured where the frame "
+        "showed them; off, the parts are the body model's (head, shoulders, hips, knees, feet), "
+        "predicted from the box unless the 'dpm' detector or part_appearance places them. "
+        "None (default): on when the service has the model (VTRACK_POSE_MODEL; /readyz says), "
+        "off otherwise. true: required (a service without the model refuses the job). false: "
+        "off. Costs about 40 ms per frame (measured at 768x576 on 2 cores; a 360 px video is "
+        "fed at 576 px). Results say whether it ran and which model.",
+    )
+    pose_model: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=200,
+        pattern=MODEL_FILE_PATTERN,
+        description="With pose true only: a model of the service's models folder "
+        "(VTRACK_MODELS_DIR), by name (human-pose-estimation-0001) or as a path inside that "
+        "folder to an OpenVINO .xml or an .onnx file (an OpenPose network: 19 heatmaps and 38 "
+        "part affinity fields). None: the service's model (VTRACK_POSE_MODEL, by default "
+        "human-pose-estimation-0001).",
+        examples=["human-pose-estimation-0001"],
+    )
+    reid: bool | None = Field(
+        strict=True,
+        default=None,
+        description="Re-identification: a network turns each detected person's crop into an "
+        "appearance embedding, which tells people apart where they cross or meet (in place of "
+        "clothing colours) and recognises a person who comes back after an occlusion or after "
+        "leaving the view (remembered 30 s), so they keep their id. None (default): on when the "
+        "service has the model (VTRACK_REID_MODEL; /readyz says), off otherwise. true: required "
+        "(a service without the model refuses the job). false: off. Costs about 2 ms per "
+        "person per frame (measured on 2 cores). Results say whether it ran and which model.",
+    )
+    reid_model: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=200,
+        pattern=MODEL_FILE_PATTERN,
+        description="With reid true only: a model of the service's models folder "
+        "(VTRACK_MODELS_DIR), by name (person-reidentification-retail-0287; -0277, the most "
+        "accurate and slowest; -0288, the smallest and fastest) or as a path inside that "
+        "folder to an OpenVINO .xml or an .onnx file (one person crop in, one embedding out). "
+        "None: the service's model (VTRACK_REID_MODEL, by default "
+        "person-reidentification-retail-0287).",
+        examples=["person-reidentification-retail-0287"],
+    )
+
+    @field_validator("pose_model", "reid_model")
+    @classmethod
+    def _with_its_network(cls, value: str | None, info: ValidationInfo) -> str | None:
+        # as detector.model with 'cnn' only: a model asked for runs, or the job is refused
+        network = info.field_name.removesuffix("_model")
+        given = info.data.get(network, True)  # not there: its own error is enough
+        if value is not None and given is not True and not stored(info):
+            raise ValueError(
+                f"only with {network} true, not {'unset' if given is None else 'false'}: "
+                f"set {network} to true to run this model"
+            )
+        return _inside_the_folder(value)
 
 
 DEFAULT_PRESET = "hog_cn_scale"

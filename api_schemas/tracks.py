@@ -189,5 +189,10 @@ class Trajectories(BaseModel):
     mode: Literal["people", "single_target"]
     video: VideoInfo
     part_names: list[str] = Field(description="Names of the parts the tracks carry.")
+    skeleton: list[tuple[str, str]] = Field(
+        default_factory=list,
+        description="Pairs of part names joined by a limb, for drawing (e.g. ['neck', "
+        "'right_shoulder']); empty when the tracks carry no parts.",
+    )
     frames_processed: int = Field(ge=0, description="Frames the tracker saw.")
     tracks: list[Trajectory]

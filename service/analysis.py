@@ -34,13 +34,12 @@ from service.pipelines import (
     build_pipeline,
     check_options,
     choose_detector,
-    people_config,
+    choose_networks,
 )
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detections
 from tracking.gap_filling import GapFiller
 from tracking.people import PeopleTrackerConfig
-from tracking.pipeline import PeoplePipeline
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +61,8 @@ class AnalysisResult:
     frames_processed: int
     seconds: float
     options: JobOptions
-    """The options that ran: detector 'auto' resolved, the CNN's model named."""
+    """The options that ran: detector 'auto' resolved, the CNN's model named, tracker.pose and
+    tracker.reid true or false with their models named."""
     warnings: list[str] = field(default_factory=list)
 
 
@@ -104,16 +104,18 @@ def analyze(
     source = video if isinstance(video, FrameSource) else open_frames(video)
     check_options(options, resources, source)
     choice = None
+    if detections is not None and options.mode != "people":
+        raise OptionsError("detections are for tracking people, not a single target")
+    if options.mode == "people":
+        # the results name what ran: the pose and re-identification networks (true or false,
+        # their models), and the detector ('auto' resolved, the CNN's model named) unless the
+        # detections are handed in
+        networks = choose_networks(options.tracker, resources)
+        options = options.model_copy(update={"tracker": networks.tracker})
     if detections is None and options.mode == "people":
-        # the results name the detector that ran: 'auto' resolved, the CNN's model named
         choice = choose_detector(options.detector, resources)
         options = options.model_copy(update={"detector": choice.options})
-    if detections is None:
-        pipeline = build_pipeline(options, resources)
-    elif options.mode == "people":
-        pipeline = PeoplePipeline(None, people_config(options, resources))
-    else:
-        raise OptionsError("detections are for tracking people, not a single target")
+    pipeline = build_pipeline(options, resources, detect=detections is None)
     log.debug(
         "job %s: %dx%d video, %.3f frames per second, %s frames announced; options %s",
         job_id,
@@ -132,6 +134,7 @@ def analyze(
         fps=source.timing_fps,
         frame_step=options.frame_step,
         part_names=tuple(pipeline.part_names),
+        skeleton=tuple(pipeline.skeleton),
         mode=options.mode,
         options=options,
         job_id=job_id,

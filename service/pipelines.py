@@ -1,5 +1,6 @@
-"""Job options to a tracking pipeline: what the service was configured with, which detector a
-job runs, the checks that refuse options that could not run, and the pipeline built from them.
+"""Job options to a tracking pipeline: what the service was configured with, which detector and
+which networks (pose, re-identification) a job runs, the checks that refuse options that could
+not run, and the pipeline built from them.
 
 Both the upload jobs (:mod:`service.analysis`) and the live streams (:mod:`service.streams`)
 build their pipelines here.
@@ -13,9 +14,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from api_schemas.jobs import DetectorOptions, JobOptions
+from api_schemas.jobs import DetectorOptions, JobOptions, PeopleTrackerOptions
 from service.frames import FrameSource, frame_size_problem
 from service.models.catalog import CATALOG, model_path
+from service.models.resolve import CNN_SETTING, POSE_SETTING, REID_SETTING, ModelSetting
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detector
 from tracking.detection.cnn import MODEL_SUFFIXES, CnnConfig, CnnDetector
@@ -23,6 +25,8 @@ from tracking.detection.dpm import DpmDetector
 from tracking.detection.dpm.config import DPM_TRACKING_CONFIG
 from tracking.detection.factory import make_detector
 from tracking.detection.hog_people import HogPeopleConfig
+from tracking.detection.pose import PoseConfig, PoseEstimator
+from tracking.detection.reid import ReidConfig, ReidEmbedder
 from tracking.people import PeopleTrackerConfig
 from tracking.people.config import default_part_appearance
 from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
@@ -32,8 +36,8 @@ if TYPE_CHECKING:
     from service.settings import Settings
 
 FETCH_HINT = (
-    "run `vtrack models fetch --dir DIR` (it downloads Open Model Zoo's person-detection-0202, "
-    "4 MB) and set VTRACK_MODELS_DIR=DIR"
+    "run `vtrack models fetch --dir DIR` (it downloads Open Model Zoo's person-detection-0202 "
+    "and the pose and re-identification networks, about 10 MB) and set VTRACK_MODELS_DIR=DIR"
 )
 """How an operator installs the CNN detector's model."""
 
@@ -63,14 +67,24 @@ class PipelineResources:
         The folder of CNN models (VTRACK_MODELS_DIR) that a job's ``detector.model`` names.
     cnn_model:
         The network of detectors 'cnn' and 'auto' (VTRACK_CNN_MODEL resolved); None: none.
+    pose_model:
+        The body-keypoint network of ``tracker.pose`` (VTRACK_POSE_MODEL resolved); None: none.
+    reid_model:
+        The re-identification network of ``tracker.reid`` (VTRACK_REID_MODEL resolved); None:
+        none.
     inference_threads:
         Threads of each CNN inference (0: OpenVINO's choice).
+
+    A network file may be missing (a models folder without the default model): the options
+    that ask for it are refused, those that leave it to the service run without it.
     """
 
     dpm_model: Path | None = None
     color_names: Path | None = None
     models_dir: Path | None = None
     cnn_model: Path | None = None
+    pose_model: Path | None = None
+    reid_model: Path | None = None
     inference_threads: int = 0
 
     @classmethod
@@ -80,8 +94,14 @@ class PipelineResources:
             color_names=settings.color_names,
             models_dir=settings.models_dir,
             cnn_model=settings.cnn_model_path,
+            pose_model=settings.pose_model_path,
+            reid_model=settings.reid_model_path,
             inference_threads=settings.cnn_threads,
         )
+
+
+NETWORK_OPTIONS = frozenset({"pose", "pose_model", "reid", "reid_model"})
+"""Tracker options that choose networks (:func:`choose_networks`), not tracker parameters."""
 
 
 def people_config(options: JobOptions, resources: PipelineResources) -> PeopleTrackerConfig:
@@ -91,7 +111,7 @@ def people_config(options: JobOptions, resources: PipelineResources) -> PeopleTr
             base.appearance, color_names_path=str(resources.color_names)
         )
         base = dataclasses.replace(base, appearance=appearance)
-    overrides = options.tracker.model_dump(exclude_none=True)
+    overrides = options.tracker.model_dump(exclude_none=True, exclude=NETWORK_OPTIONS)
     if "part_appearance" in overrides:  # the option switches the tracker's part trackers
         overrides["part_appearance"] = (
             default_part_appearance() if overrides["part_appearance"] else None
@@ -132,44 +152,144 @@ def choose_detector(options: DetectorOptions, resources: PipelineResources) -> D
     return DetectorChoice(options.model_copy(update={"model": options.model or path.stem}), path)
 
 
+@dataclass(frozen=True, slots=True)
+class ModelOption:
+    """A job option that runs a network of the service: what asks for it, its model option,
+    the setting behind it, and what a job can do instead when the service has no model."""
+
+    asks: str  # "detector 'cnn'", "tracker.pose true"
+    option: str  # "detector.model"
+    setting: ModelSetting
+    instead: str  # "use detector 'default'"
+
+
+CNN_OPTION = ModelOption("detector 'cnn'", "detector.model", CNN_SETTING, "use detector 'default'")
+POSE_OPTION = ModelOption(
+    "tracker.pose true", "tracker.pose_model", POSE_SETTING, "leave tracker.pose unset or false"
+)
+REID_OPTION = ModelOption(
+    "tracker.reid true", "tracker.reid_model", REID_SETTING, "leave tracker.reid unset or false"
+)
+
+
 def cnn_model_file(model: str | None, resources: PipelineResources) -> Path:
     """The network file of a 'cnn' job: ``model`` in the models folder (a catalog name or a
     path inside it), or the service's own model. Raises :class:`OptionsError` saying how to
     get it."""
-    service_model = resources.cnn_model
+    return model_file(CNN_OPTION, model, resources)
+
+
+def model_file(kind: ModelOption, model: str | None, resources: PipelineResources) -> Path:
+    """The network file a job option asks for: ``model`` in the models folder (a catalog name
+    of the option's task or a path inside the folder), or, ``model`` None, the service's own
+    model (the setting's). Cheap: the file is not read. Raises :class:`OptionsError` saying
+    how to get it."""
+    setting = kind.setting
+    service_model = getattr(resources, setting.field)
+    folder = resources.models_dir
     if model is None or (service_model is not None and model == service_model.stem):
         # the service's own model, also by the name the results give it (its file's stem)
-        if resources.cnn_model is None:
+        if service_model is None:
+            if setting is CNN_SETTING:
+                fix = FETCH_HINT
+            else:
+                fix = (
+                    f"run `vtrack models fetch {setting.default} --dir DIR` and set "
+                    f"VTRACK_MODELS_DIR=DIR (or {setting.variable} to the model's file)"
+                )
             raise OptionsError(
-                f"detector 'cnn' needs a CNN model, and this service has none: its operator can "
-                f"{FETCH_HINT}; or use detector 'default'"
+                f"{kind.asks} needs {setting.what} model, and this service has none: its "
+                f"operator can {fix}; or {kind.instead}"
             )
-        path = resources.cnn_model
+        path = service_model
     else:
-        folder = resources.models_dir
         if folder is None:
             raise OptionsError(
-                f"detector.model {model!r} names a file of the service's models folder, and "
+                f"{kind.option} {model!r} names a file of the service's models folder, and "
                 "this service has none: its operator can set VTRACK_MODELS_DIR (`vtrack models "
                 "fetch --dir DIR` fills one)"
+            )
+        names = ", ".join(setting.catalog_names)
+        if model in CATALOG and CATALOG[model].task != setting.task:
+            raise OptionsError(
+                f"{kind.option} {model!r} is a {CATALOG[model].task} model: {kind.asks} runs "
+                f"{setting.what} model ({names})"
             )
         path = model_path(folder, model) if model in CATALOG else folder / model
         inside = path.resolve().is_relative_to(folder.resolve())
         if not inside or path.suffix.lower() not in MODEL_SUFFIXES:
             raise OptionsError(
-                f"detector.model {model!r} is neither a model name ({', '.join(CATALOG)}) nor "
-                "an .xml or .onnx file inside the service's models folder"
+                f"{kind.option} {model!r} is neither a model name ({names}) nor an .xml or "
+                ".onnx file inside the service's models folder"
             )
     if not path.is_file():
-        fetch = (
-            f"run `vtrack models fetch {model} --dir {resources.models_dir}`"
-            if model in CATALOG
-            else FETCH_HINT
-        )
+        # the catalog name of the missing file, if it is a catalog model of the folder
+        name = model if model in CATALOG else None
+        if name is None and folder is not None:
+            name = next((n for n in CATALOG if model_path(folder, n) == path), None)
+        if name is not None and folder is not None:
+            fetch = f"run `vtrack models fetch {name} --dir {folder}`"
+        elif setting is CNN_SETTING:
+            fetch = FETCH_HINT
+        else:
+            fetch = f"put it back ({setting.variable})"
+        setting_named = "" if model is not None else f" ({setting.variable})"
         raise OptionsError(
-            f"detector 'cnn' needs the model {path}, which is not there: its operator can {fetch}"
+            f"{kind.asks} needs the model {path}{setting_named}, which is not there: its "
+            f"operator can {fetch}"
         )
     return path
+
+
+# -- the pose and re-identification networks --------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class NetworksChoice:
+    """The networks a people job runs beside its detector: its tracker options with ``pose``
+    and ``reid`` resolved (None -> true when the service has the model, else false) and the
+    models that run named, and their files (None: off)."""
+
+    tracker: PeopleTrackerOptions
+    pose_file: Path | None = None
+    reid_file: Path | None = None
+
+
+def choose_networks(options: PeopleTrackerOptions, resources: PipelineResources) -> NetworksChoice:
+    """Resolve ``options.pose`` and ``options.reid``: None runs the service's model when its
+    file is there (else nothing, without a warning: the tracker does without), true runs it
+    or the option's model, false nothing. Raises :class:`OptionsError` for a network asked for
+    whose model is not there. Cheap (the files are not read)."""
+    update: dict[str, object] = {}
+    files: dict[str, Path | None] = {}
+    for network, kind in (("pose", POSE_OPTION), ("reid", REID_OPTION)):
+        wanted, model = getattr(options, network), getattr(options, f"{network}_model")
+        if wanted is None and model is None:
+            service_model = getattr(resources, kind.setting.field)
+            wanted = service_model is not None and service_model.is_file()
+        if wanted is False:
+            update |= {network: False, f"{network}_model": None}
+            files[network] = None
+            continue
+        path = model_file(kind, model, resources)
+        update |= {network: True, f"{network}_model": model or path.stem}
+        files[network] = path
+    return NetworksChoice(options.model_copy(update=update), files["pose"], files["reid"])
+
+
+def resolved_options(options: JobOptions, resources: PipelineResources) -> JobOptions:
+    """``options`` as a people job runs them, for its results to say what ran: detector 'auto'
+    resolved and the CNN's model named (:func:`choose_detector`), ``tracker.pose`` and
+    ``tracker.reid`` true or false with their models named (:func:`choose_networks`).
+    Single-target options are returned as they are."""
+    if options.mode != "people":
+        return options
+    return options.model_copy(
+        update={
+            "detector": choose_detector(options.detector, resources).options,
+            "tracker": choose_networks(options.tracker, resources).tracker,
+        }
+    )
 
 
 def job_detector(options: DetectorOptions, resources: PipelineResources) -> Detector:
@@ -240,6 +360,7 @@ def check_options(
                 raise OptionsError(f"first_box {problem}")
         return
     people_config(options, resources)
+    choose_networks(options.tracker, resources)
     if frame_size is not None and (
         problem := enlargement_problem(options.detector.upscale, frame_size)
     ):
@@ -259,8 +380,11 @@ def check_options(
         )
 
 
-def build_pipeline(options: JobOptions, resources: PipelineResources) -> FramePipeline:
-    """The pipeline the options ask for."""
+def build_pipeline(
+    options: JobOptions, resources: PipelineResources, *, detect: bool = True
+) -> FramePipeline:
+    """The pipeline the options ask for; ``detect`` False, for people, one without a detector
+    (it takes each frame's detections: public detections, an upstream detector's)."""
     check_options(options, resources)
     if options.mode == "single_target":
         config = PRESETS[options.preset]
@@ -269,6 +393,16 @@ def build_pipeline(options: JobOptions, resources: PipelineResources) -> FramePi
         b = options.first_box
         assert b is not None  # JobOptions guarantees it in this mode
         return SingleTargetPipeline(Box(b.x, b.y, b.w, b.h), config)
+    networks = choose_networks(options.tracker, resources)
+    threads = resources.inference_threads
+    pose = reid = None
+    if networks.pose_file is not None:
+        pose = PoseEstimator.from_file(networks.pose_file, PoseConfig(threads=threads))
+    if networks.reid_file is not None:
+        reid = ReidEmbedder.from_file(networks.reid_file, ReidConfig(threads=threads))
     return PeoplePipeline(
-        job_detector(options.detector, resources), people_config(options, resources)
+        job_detector(options.detector, resources) if detect else None,
+        people_config(options, resources),
+        pose=pose,
+        reid=reid,
     )

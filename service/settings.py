@@ -16,7 +16,16 @@ from pydantic_settings import BaseSettings, SettingsConfigDict, SettingsError
 
 from api_schemas.common import error_message
 from api_schemas.streams import PREFIX_PATTERN, StreamSpec
-from service.models.catalog import CATALOG, DEFAULT_DETECTOR, model_path
+from service.models.catalog import DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID
+from service.models.resolve import (
+    CNN_SETTING,
+    MODEL_SETTINGS,
+    POSE_SETTING,
+    REID_SETTING,
+    ModelSetting,
+    check_model_setting,
+    model_setting_path,
+)
 from service.streams.session import (
     DEFAULT_LISTEN,
     ZenohOptions,
@@ -39,6 +48,9 @@ _WITHOUT = {
     "color_names": "the embedded colour naming, or give the w2c.mat path",
     "models_dir": "no CNN models folder (the embedded detector), or give the folder",
     "cnn_model": "the default model of VTRACK_MODELS_DIR, or give a model name or file",
+    "pose_model": "the default pose model of VTRACK_MODELS_DIR, or give a model name or file",
+    "reid_model": "the default re-identification model of VTRACK_MODELS_DIR, or give a model "
+    "name or file",
 }
 """What an optional setting means when unset, for the message about an empty one."""
 
@@ -145,19 +157,35 @@ class Settings(BaseSettings):
     models_dir: Path | None = Field(
         default=None,
         description="Folder of CNN model files as `vtrack models fetch --dir` lays them out: "
-        "detector 'auto' runs the CNN when its model (VTRACK_CNN_MODEL) is there.",
+        "detector 'auto' runs the CNN when its model (VTRACK_CNN_MODEL) is there, and people "
+        "jobs the pose and re-identification networks when theirs are (VTRACK_POSE_MODEL, "
+        "VTRACK_REID_MODEL).",
     )
     cnn_model: str | None = Field(
         default=None,
         description="The CNN person detector's network: a model name of VTRACK_MODELS_DIR "
         f"(default: {DEFAULT_DETECTOR}) or the path of an OpenVINO .xml or an .onnx file.",
     )
+    pose_model: str | None = Field(
+        default=None,
+        description="The body-keypoint network people jobs run when it is there (job option "
+        f"tracker.pose): a model name of VTRACK_MODELS_DIR (default: {DEFAULT_POSE}) or the "
+        "path of an OpenVINO .xml or an .onnx file.",
+    )
+    reid_model: str | None = Field(
+        default=None,
+        description="The re-identification network people jobs run when it is there (job "
+        "option tracker.reid): a model name of VTRACK_MODELS_DIR (default: "
+        f"{DEFAULT_REID}; also person-reidentification-retail-0277 and -0288) or the path of "
+        "an OpenVINO .xml or an .onnx file.",
+    )
     inference_threads: int = Field(
         default=0,
         ge=0,
         le=64,
-        description="Threads of each CNN inference; 0: every core, as the other detectors "
-        "use (two jobs at once on 2 cores ran faster with 2 threads each than with 1).",
+        description="Threads of each CNN inference (the detector, the pose and the "
+        "re-identification networks); 0: every core, as the other detectors use (two jobs at "
+        "once on 2 cores ran faster with 2 threads each than with 1).",
     )
     poll_interval: float = Field(
         default=0.2, gt=0, le=5, description="Seconds an idle worker waits between job checks."
@@ -219,27 +247,13 @@ class Settings(BaseSettings):
         return value
 
     @model_validator(mode="after")
-    def _cnn_loadable(self) -> Settings:
+    def _networks_loadable(self) -> Settings:
         # A network that is not one stops the service when it starts, rather than failing
-        # every job; a models folder without the default model is not an error (detector
-        # 'auto' falls back to the embedded one and /readyz says so).
-        path = self.cnn_model_path
-        if self.cnn_model is not None and (path is None or not path.is_file()):
-            where = "" if path is None else f" ({path} is not a file)"
-            raise ValueError(
-                f"VTRACK_CNN_MODEL {self.cnn_model!r} is neither a model of VTRACK_MODELS_DIR "
-                f"nor an .xml or .onnx file{where}: `vtrack models fetch` downloads the models"
-            )
-        if path is not None and path.is_file():
-            from tracking.detection.cnn import CnnDetector
-
-            setting = "VTRACK_CNN_MODEL" if self.cnn_model else "VTRACK_MODELS_DIR"
-            try:
-                CnnDetector.from_file(path)
-            except ValueError as error:  # CnnModelError: what is wrong with the file
-                raise ValueError(
-                    f"{setting}: {error}; `vtrack models fetch` downloads it again"
-                ) from None
+        # every job; a models folder without a default model is not an error (detector 'auto'
+        # falls back to the embedded one, tracker.pose and tracker.reid to none, and /readyz
+        # says so). The three settings are checked alike (the message names the setting).
+        for setting in MODEL_SETTINGS:
+            check_model_setting(setting, getattr(self, setting.field), self.models_dir)
         return self
 
     @field_validator("dpm_model", "color_names")
@@ -295,7 +309,14 @@ class Settings(BaseSettings):
         return value
 
     @field_validator(
-        "retention_hours", "dpm_model", "color_names", "models_dir", "cnn_model", mode="before"
+        "retention_hours",
+        "dpm_model",
+        "color_names",
+        "models_dir",
+        "cnn_model",
+        "pose_model",
+        "reid_model",
+        mode="before",
     )
     @classmethod
     def _not_empty(cls, value: object, info) -> object:
@@ -325,19 +346,28 @@ class Settings(BaseSettings):
             config_file=self.zenoh_config,
         )
 
+    def _network_path(self, setting: ModelSetting) -> Path | None:
+        return model_setting_path(getattr(self, setting.field), self.models_dir, setting.default)
+
     @property
     def cnn_model_path(self) -> Path | None:
         """The CNN network file detectors 'cnn' and 'auto' run: VTRACK_CNN_MODEL as a model
         name in VTRACK_MODELS_DIR or as a path, else the default model in VTRACK_MODELS_DIR;
         None without either (it may not exist: see :attr:`cnn_model`)."""
-        name = self.cnn_model
-        if name is not None and Path(name).suffix.lower() in (".xml", ".onnx"):
-            return Path(name)
-        if self.models_dir is None:
-            return None
-        if name is not None and name not in CATALOG:
-            return None
-        return model_path(self.models_dir, name or DEFAULT_DETECTOR)
+        return self._network_path(CNN_SETTING)
+
+    @property
+    def pose_model_path(self) -> Path | None:
+        """The body-keypoint network of tracker.pose, found as :attr:`cnn_model_path` is
+        (VTRACK_POSE_MODEL, default human-pose-estimation-0001 of VTRACK_MODELS_DIR)."""
+        return self._network_path(POSE_SETTING)
+
+    @property
+    def reid_model_path(self) -> Path | None:
+        """The re-identification network of tracker.reid, found as :attr:`cnn_model_path` is
+        (VTRACK_REID_MODEL, default person-reidentification-retail-0287 of
+        VTRACK_MODELS_DIR)."""
+        return self._network_path(REID_SETTING)
 
     @property
     def cnn_threads(self) -> int:

@@ -17,11 +17,12 @@ from service.argument_types import number_type
 from service.cli.common import (
     QUIET_HELP,
     W2C_HELP,
+    NetworkFiles,
     add_fps_argument,
     add_range_arguments,
-    cnn_models,
     color_names_file,
     dpm_model_file,
+    network_files,
     open_source,
     parse_box,
     progress_bar,
@@ -76,6 +77,27 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         help="detect with this CNN network (an OpenVINO .xml or an .onnx file); by default the "
         "CNN of VTRACK_CNN_MODEL or VTRACK_MODELS_DIR runs when there is one (`vtrack models "
         "fetch`), else the embedded detector",
+    )
+    analyze.add_argument(
+        "--pose-model",
+        type=Path,
+        metavar="PATH",
+        help="measure every person's 18 body keypoints with this pose network (an OpenVINO "
+        ".xml or an .onnx file; the parts are then the keypoints); by default the network of "
+        "VTRACK_POSE_MODEL or VTRACK_MODELS_DIR (human-pose-estimation-0001) runs when there "
+        "is one, else none (about 40 ms per 768x576 frame on 2 cores; --options "
+        '\'{"tracker": {"pose": false}}\' turns it off)',
+    )
+    analyze.add_argument(
+        "--reid-model",
+        type=Path,
+        metavar="PATH",
+        help="tell people apart and recognise those who come back by appearance embeddings "
+        "of this re-identification network (an OpenVINO .xml or an .onnx file); by default "
+        "the network of VTRACK_REID_MODEL or VTRACK_MODELS_DIR "
+        "(person-reidentification-retail-0287) runs when there is one, else none (about 2 ms "
+        'per person on 2 cores; --options \'{"tracker": {"reid": false}}\' turns it '
+        "off)",
     )
     analyze.add_argument(
         "--upscale",
@@ -183,6 +205,8 @@ def _analyze_options(args: argparse.Namespace) -> tuple[dict, dict[tuple[str, ..
         if args.cnn_model is None
         else ("--cnn-model", "cnn"),
         ("detector", "upscale"): ("--upscale", args.upscale),
+        ("tracker", "pose"): ("--pose-model", True if args.pose_model is not None else None),
+        ("tracker", "reid"): ("--reid-model", True if args.reid_model is not None else None),
         ("tracker", "full_detection_interval"): ("--detection-interval", args.detection_interval),
     }
     raw = copy.deepcopy(args.options or {})
@@ -304,16 +328,25 @@ def _public_detections(args: argparse.Namespace, source: FrameSource) -> _Public
 
 def _tracked_with(options: JobOptions, dpm_model: Path | None, detections: Path | None) -> str:
     """What found and followed the tracks, for the closing line: the detector in particular,
-    since a DPM set in VTRACK_DPM_MODEL is used only when the options ask for it."""
+    since a DPM set in VTRACK_DPM_MODEL is used only when the options ask for it, and the pose
+    and re-identification networks that ran (the models folder's run unless told not to)."""
     if options.mode == "single_target":
         return f"the {options.preset} tracker"
     if detections is not None:
-        return f"the detections of {detections}"
-    if options.detector.name == "dpm" and dpm_model is not None:
-        return f"the DPM {dpm_model.name}"
-    if options.detector.name == "cnn":
-        return f"the CNN detector {options.detector.model}"
-    return "the embedded detector (OpenCV's HOG people detector)"
+        found = f"the detections of {detections}"
+    elif options.detector.name == "dpm" and dpm_model is not None:
+        found = f"the DPM {dpm_model.name}"
+    elif options.detector.name == "cnn":
+        found = f"the CNN detector {options.detector.model}"
+    else:
+        found = "the embedded detector (OpenCV's HOG people detector)"
+    tracker = options.tracker
+    networks = [
+        f"the pose network {tracker.pose_model}" if tracker.pose else "",
+        f"the re-identification network {tracker.reid_model}" if tracker.reid else "",
+    ]
+    named = [found, *filter(None, networks)]
+    return named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"
 
 
 def _lock_out_dir(folder: Path) -> None:
@@ -382,14 +415,16 @@ def _analyze(args: argparse.Namespace) -> int:
                 "detector 'dpm' needs a voc-release5 model: give --dpm-model MODEL.mat or set "
                 "VTRACK_DPM_MODEL"
             )
-        cnn_model, models_dir = (
-            cnn_models(args.cnn_model) if options.mode == "people" else (None, None)
-        )
+        networks = NetworkFiles(None, None, None, None)  # a single target runs none
+        if options.mode == "people":
+            networks = network_files(args.cnn_model, args.pose_model, args.reid_model)
         resources = PipelineResources(
             dpm_model=dpm_model,
             color_names=color_names_file(args.w2c),
-            models_dir=models_dir,
-            cnn_model=cnn_model,
+            models_dir=networks.models_dir,
+            cnn_model=networks.cnn,
+            pose_model=networks.pose,
+            reid_model=networks.reid,
         )
         if options.mode == "single_target":
             warn_unused_table(args.w2c, options.preset)

@@ -7,6 +7,7 @@ import argparse
 import os
 import signal
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 from tqdm import tqdm
@@ -103,36 +104,54 @@ def warn_unused_table(w2c: Path | None, preset: str) -> None:
         )
 
 
-def cnn_models(given: Path | None) -> tuple[Path | None, Path | None]:
-    """The CNN network of ``--cnn-model``, else of ``VTRACK_CNN_MODEL`` and
-    ``VTRACK_MODELS_DIR`` as ``vtrack serve`` reads them, and the models folder; an explicitly
-    named network is loaded once to check it (the default model of a folder may be missing:
-    detector 'auto' then runs the embedded detector and says so).
+@dataclass(frozen=True, slots=True)
+class NetworkFiles:
+    """The networks of ``vtrack analyze``: the models folder, and the file of the CNN
+    detector, the pose and the re-identification network (each None: none; a default model of
+    the folder may be missing: what would run it then goes without, as in the service)."""
+
+    models_dir: Path | None
+    cnn: Path | None
+    pose: Path | None
+    reid: Path | None
+
+
+def network_files(cnn: Path | None, pose: Path | None, reid: Path | None) -> NetworkFiles:
+    """The networks of ``--cnn-model``, ``--pose-model`` and ``--reid-model``, else of
+    ``VTRACK_CNN_MODEL``, ``VTRACK_POSE_MODEL``, ``VTRACK_REID_MODEL`` and
+    ``VTRACK_MODELS_DIR`` as ``vtrack serve`` reads them (:mod:`service.models.resolve`: a
+    model name of the folder or a file; unset, the task's default model of the folder). Each
+    file that is there is loaded once to check it.
 
     Raises
     ------
     ValueError
-        A network named but missing or unreadable, a models folder that is none; the message
-        names the flag or variable.
+        A network named but missing or unreadable, one of another task, a models folder that
+        is none; the message names the flag or variable.
     """
-    from service.models.catalog import CATALOG, DEFAULT_DETECTOR, model_path
-    from tracking.detection.cnn import CnnDetector
+    from service.models.resolve import (
+        CNN_SETTING,
+        POSE_SETTING,
+        REID_SETTING,
+        check_model_setting,
+    )
 
-    folder = Path(os.environ["VTRACK_MODELS_DIR"]) if os.environ.get("VTRACK_MODELS_DIR") else None
+    value = os.environ.get("VTRACK_MODELS_DIR", "")
+    folder = Path(value) if value else None
     if folder is not None and not folder.is_dir():
         raise ValueError(f"VTRACK_MODELS_DIR: {folder} is not a folder")
-    path, origin = _model_file(given, "--cnn-model", "VTRACK_CNN_MODEL")
-    if path is not None and given is None and str(path) in CATALOG:
-        if folder is None:
-            raise ValueError(f"VTRACK_CNN_MODEL names {path}, which needs VTRACK_MODELS_DIR")
-        path = model_path(folder, str(path))
-    if path is None:
-        return (None if folder is None else model_path(folder, DEFAULT_DETECTOR)), folder
-    try:
-        CnnDetector.from_file(path)
-    except ValueError as error:  # CnnModelError: what is wrong with the file
-        raise ValueError(f"{origin}: {error}") from None
-    return path, folder
+    found = []
+    for given, flag, setting in (
+        (cnn, "--cnn-model", CNN_SETTING),
+        (pose, "--pose-model", POSE_SETTING),
+        (reid, "--reid-model", REID_SETTING),
+    ):
+        if given is not None:
+            found.append(check_model_setting(setting, str(given), folder, flag))
+        else:
+            named = os.environ.get(setting.variable, "") or None  # empty: unset, as elsewhere
+            found.append(check_model_setting(setting, named, folder))
+    return NetworkFiles(folder, *found)
 
 
 def dpm_model_file(given: Path | None) -> Path | None:

@@ -13,6 +13,9 @@ from service.argument_types import number_type
 from service.models.catalog import (
     CATALOG,
     DEFAULT_DETECTOR,
+    DEFAULT_MODELS,
+    DEFAULT_POSE,
+    DEFAULT_REID,
     OMZ_HUMAN_RIGHTS_NOTICE,
     OMZ_LICENCE,
     check_name,
@@ -54,8 +57,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "names",
         nargs="*",
         metavar="NAME",
-        help=f"catalog models (default: {DEFAULT_DETECTOR}, the default detector; "
-        "'vtrack models list' shows the catalog)",
+        help=f"catalog models (default: {', '.join(DEFAULT_MODELS)}, the networks a job runs "
+        "by default; 'vtrack models list' shows the catalog)",
     )
     fetch.add_argument("--all", action="store_true", help="every model of the catalog")
     _add_dir_argument(fetch)
@@ -112,7 +115,7 @@ def _fetch(args: argparse.Namespace) -> int:
     if args.all and args.names:
         print("vtrack: give model names or --all, not both", file=sys.stderr)
         return 2
-    names = list(CATALOG) if args.all else args.names or [DEFAULT_DETECTOR]
+    names = list(CATALOG) if args.all else args.names or list(DEFAULT_MODELS)
     try:
         for name in names:  # every name checked before anything is downloaded
             check_name(name)
@@ -161,7 +164,7 @@ def _list(args: argparse.Namespace) -> int:
     for name, model in CATALOG.items():
         state = model_state(models_dir, name)
         present += state == "present"
-        default = "  (default detector)" if name == DEFAULT_DETECTOR else ""
+        default = _DEFAULT_ROLES.get(name, "")
         print(
             f"{name:<{name_width}}  {model.task:<{task_width}}  "
             f"{model.size / 1e6:4.1f} MB  {state}{default}"
@@ -169,3 +172,10 @@ def _list(args: argparse.Namespace) -> int:
     where = models_dir if models_dir.is_dir() else f"{models_dir} (no such folder)"
     print(f"{present} of {len(CATALOG)} present and verified in {where}")
     return 0
+
+
+_DEFAULT_ROLES = {
+    DEFAULT_DETECTOR: "  (default detector)",
+    DEFAULT_POSE: "  (default pose)",
+    DEFAULT_REID: "  (default re-identification)",
+}

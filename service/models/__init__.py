@@ -8,6 +8,9 @@ folder from its settings and never imports this package.
 from service.models.catalog import (
     CATALOG,
     DEFAULT_DETECTOR,
+    DEFAULT_MODELS,
+    DEFAULT_POSE,
+    DEFAULT_REID,
     OMZ_HUMAN_RIGHTS_NOTICE,
     OMZ_LICENCE,
     CatalogModel,
@@ -29,6 +32,9 @@ from service.models.fetch import (
 __all__ = [
     "CATALOG",
     "DEFAULT_DETECTOR",
+    "DEFAULT_MODELS",
+    "DEFAULT_POSE",
+    "DEFAULT_REID",
     "OMZ_HUMAN_RIGHTS_NOTICE",
     "OMZ_LICENCE",
     "CatalogModel",

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Literal, Protocol
 
 from api_schemas.jobs import JobOptions, OutputFormat
-from api_schemas.tracks import FrameTracksMessage, VideoInfo
+from api_schemas.tracks import FrameTracksMessage, TrackState, VideoInfo
 from service.frames import TimedFrame
 
 RESULT_FILES: dict[OutputFormat, str] = {
@@ -43,6 +43,21 @@ class StreamInfo:
     filename: str | None = None
     mcap_images: Literal["h264", "jpeg"] = "h264"
     pixel_aspect: float = 1.0
+    skeleton: tuple[tuple[str, str], ...] = ()
+    """Pairs of :attr:`part_names` joined by a limb, for drawing (empty: none)."""
+
+
+def limbs(
+    track: TrackState, skeleton: tuple[tuple[str, str], ...]
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    """The ends (x, y) of each ``skeleton`` edge of a track whose two parts are both visible,
+    in skeleton order: what the MCAP and the MP4 draw as the track's limbs."""
+    parts = {part.name: part for part in track.parts if part.visible}
+    return [
+        ((parts[a].x, parts[a].y), (parts[b].x, parts[b].y))
+        for a, b in skeleton
+        if a in parts and b in parts
+    ]
 
 
 @dataclass(slots=True)

@@ -15,6 +15,8 @@ POINTS = 1
 """``PointsAnnotationType.POINTS``: individual points."""
 LINE_LOOP = 2
 """``PointsAnnotationType.LINE_LOOP``: a closed polygon."""
+LINE_LIST = 4
+"""``PointsAnnotationType.LINE_LIST``: a segment per pair of points."""
 
 _TYPE_NAMES = ("UNKNOWN", "POINTS", "LINE_LOOP", "LINE_STRIP", "LINE_LIST")
 

@@ -65,6 +65,7 @@ class JsonWriter:
             mode=self._info.mode,  # type: ignore[arg-type]
             video=summary.video,
             part_names=list(self._info.part_names),
+            skeleton=list(self._info.skeleton),
             frames_processed=summary.frames_processed,
             tracks=[],
         ).model_dump(mode="json", exclude={"tracks"})

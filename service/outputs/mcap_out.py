@@ -8,8 +8,8 @@ Channels (JSON message encoding, JSON Schema schemas):
   each frame as JPEG, five to ten times the bytes;
 - ``/camera/annotations`` - ``foxglove.ImageAnnotations``: per track, the box as a
   ``LINE_LOOP``, the parts as ``POINTS`` (parts the frame placed solid; predicted ones, covered or
-  not measured, faded) and the track
-  id as text;
+  not measured, faded), the skeleton's limbs between two visible parts as a ``LINE_LIST`` and
+  the track id as text;
 - ``/tracks`` - ``vtrack.FrameTracks``: our own per-frame message
   (:class:`api_schemas.tracks.FrameTracksMessage`) with its JSON Schema.
 
@@ -38,7 +38,7 @@ from api_schemas.tracks import FrameTracksMessage
 from service import __version__
 from service.frames import TimedFrame
 from service.outputs import foxglove, h264
-from service.outputs.base import RunSummary, StreamInfo
+from service.outputs.base import RunSummary, StreamInfo, limbs
 from service.outputs.h264 import AccessUnitEncoder
 from service.outputs.palette import track_colour
 
@@ -57,8 +57,11 @@ def nanoseconds(timestamp: float) -> int:
     return round(timestamp * 1e9)
 
 
-def annotations(message: FrameTracksMessage, stamp: int) -> dict[str, Any]:
-    """The ``foxglove.ImageAnnotations`` of one frame."""
+def annotations(
+    message: FrameTracksMessage, stamp: int, skeleton: tuple[tuple[str, str], ...] = ()
+) -> dict[str, Any]:
+    """The ``foxglove.ImageAnnotations`` of one frame; ``skeleton`` the pairs of part names
+    drawn as limbs."""
     time = foxglove.time_of(stamp)
     points, texts = [], []
     for track in message.tracks:
@@ -89,6 +92,18 @@ def annotations(message: FrameTracksMessage, stamp: int) -> dict[str, Any]:
                     ],
                     "fill_color": foxglove.color(rgb),
                     "thickness": 4.0,
+                }
+            )
+        if segments := limbs(track, skeleton):
+            points.append(
+                {
+                    "timestamp": time,
+                    "type": foxglove.LINE_LIST,
+                    "points": [{"x": x, "y": y} for ends in segments for x, y in ends],
+                    "outline_color": foxglove.color(rgb),
+                    "outline_colors": [],
+                    "fill_color": foxglove.color(rgb, 0.0),
+                    "thickness": 1.5,
                 }
             )
         texts.append(
@@ -170,7 +185,7 @@ class McapWriter:
             self._add(
                 IMAGE_TOPIC, stamp, foxglove.compressed_image(stamp, jpeg.tobytes(), FRAME_ID)
             )
-        self._add(ANNOTATIONS_TOPIC, stamp, annotations(message, stamp))
+        self._add(ANNOTATIONS_TOPIC, stamp, annotations(message, stamp, self._info.skeleton))
         self._add(TRACKS_TOPIC, stamp, message.model_dump(mode="json"))
 
     def _add_video(self, units: list[tuple[int, bytes]]) -> None:
@@ -205,6 +220,7 @@ class McapWriter:
             "frames_read": str(summary.video.frames_read),
             "frame_step": str(self._info.frame_step),
             "part_names": ",".join(self._info.part_names),
+            "skeleton": ",".join(f"{a}-{b}" for a, b in self._info.skeleton),
         }
         if summary.video.fps:
             info["fps"] = str(summary.video.fps)

@@ -1,8 +1,9 @@
-"""Annotated MP4: the tracked frames with each person's box, id, parts and trail.
+"""Annotated MP4: the tracked frames with each person's box, id, parts, limbs and trail.
 
 Boxes are solid for visible people and thin for occluded ones; parts the frame placed (visible
-and measured) are filled dots, predicted ones (covered, or not measured) open circles; the trail
-is the box's bottom centre over the last :data:`TRAIL_SECONDS`.
+and measured) are filled dots, predicted ones (covered, or not measured) open circles; the
+skeleton's limbs are thin lines between two visible parts, under the dots; the trail is the
+box's bottom centre over the last :data:`TRAIL_SECONDS`.
 
 The video is H.264 (:mod:`service.outputs.h264`), 4:2:0, with its index at the front of the
 file, so browsers and phones play it and start before the download ends; each frame keeps its
@@ -26,7 +27,7 @@ from api_schemas.tracks import FrameTracksMessage
 from service.ffmpeg_paths import FfmpegPath
 from service.frames import TimedFrame
 from service.outputs import h264
-from service.outputs.base import RunSummary, StreamInfo
+from service.outputs.base import RunSummary, StreamInfo, limbs
 from service.outputs.h264 import H264_OPTIONS, FrameStamper, configure
 from service.outputs.palette import track_colour
 
@@ -41,10 +42,16 @@ def _bgr(track_id: int) -> tuple[int, int, int]:
 
 
 class TrackDrawer:
-    """Draws tracks on frames, remembering each track's recent path for its trail."""
+    """Draws tracks on frames, remembering each track's recent path for its trail;
+    ``skeleton`` the pairs of part names drawn as limbs."""
 
-    def __init__(self, trail_seconds: float = TRAIL_SECONDS) -> None:
+    def __init__(
+        self,
+        trail_seconds: float = TRAIL_SECONDS,
+        skeleton: tuple[tuple[str, str], ...] = (),
+    ) -> None:
         self._trail_seconds = trail_seconds
+        self._skeleton = skeleton
         self._trails: dict[int, deque[tuple[float, int, int]]] = {}
 
     def draw(self, image_bgr: np.ndarray, message: FrameTracksMessage) -> np.ndarray:
@@ -69,6 +76,9 @@ class TrackDrawer:
             top_left = (round(b.x), round(b.y))
             bottom_right = (round(b.x + b.w), round(b.y + b.h))
             cv2.rectangle(canvas, top_left, bottom_right, colour, 1 if track.occluded else 2)
+            for (x0, y0), (x1, y1) in limbs(track, self._skeleton):
+                ends = (round(x0), round(y0)), (round(x1), round(y1))
+                cv2.line(canvas, *ends, colour, 1, cv2.LINE_AA)
             for part in track.parts:
                 centre = (round(part.x), round(part.y))
                 filled = -1 if part.visible and part.measured else 1
@@ -169,7 +179,7 @@ class VideoWriter:
         fps = max(info.fps / info.frame_step, 1.0)
         self._size = (info.width, info.height)
         self._encoder = open_encoder(path, info.width, info.height, fps, info.pixel_aspect)
-        self._drawer = TrackDrawer()
+        self._drawer = TrackDrawer(skeleton=info.skeleton)
         self._origin: float | None = None
 
     def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:

@@ -7,9 +7,9 @@ import os
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from api_schemas.jobs import DetectorOptions
+from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions
 from service.deps import PoolDep, SettingsDep, StoreDep, StreamsDep
-from service.pipelines import PipelineResources, choose_detector
+from service.pipelines import PipelineResources, choose_detector, choose_networks
 from service.settings import Settings
 from service.storage import FREE_SPACE, free_bytes, writable_remedy
 
@@ -52,6 +52,7 @@ def readyz(
         "streams": streams.counts(),
         "zenoh": streams.unavailable or "ok",
         "detector": _default_detector(settings),
+        **_default_networks(settings),
     }
     if unwritable is not None:
         body["status"] = "unwritable"
@@ -72,6 +73,20 @@ def _default_detector(settings: Settings) -> dict[str, str | None]:
         "name": choice.options.name,
         "model": choice.options.model,
         "warning": choice.warning,
+    }
+
+
+def _default_networks(settings: Settings) -> dict[str, dict[str, str] | None]:
+    """What a people job's tracker.pose and tracker.reid left unset run now: ``{"model":
+    name}`` when the service has the network's model, else None (the tracker goes without)."""
+    tracker = choose_networks(
+        PeopleTrackerOptions(), PipelineResources.from_settings(settings)
+    ).tracker
+    return {
+        network: {"model": getattr(tracker, f"{network}_model")}
+        if getattr(tracker, network)
+        else None
+        for network in ("pose", "reid")
     }
 
 

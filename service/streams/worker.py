@@ -45,8 +45,8 @@ from service.outputs.mcap_out import McapWriter, salvage
 from service.pipelines import (
     PipelineResources,
     build_pipeline,
-    choose_detector,
     enlargement_problem,
+    resolved_options,
 )
 from service.storage import storage_problem
 from service.streams.keys import StreamKeys
@@ -641,6 +641,7 @@ class StreamWorker:
                 fps=0.0,
                 frame_step=1,
                 part_names=tuple(self._pipeline.part_names) if self._pipeline else (),
+                skeleton=tuple(self._pipeline.skeleton) if self._pipeline else (),
                 mode="people",
                 options=self._options,
                 mcap_images=self.spec.record_images,
@@ -766,13 +767,13 @@ def _recording_name(folder: Path, camera: str) -> Path:
 
 def job_options(spec: StreamSpec, resources: PipelineResources | None = None) -> JobOptions:
     """The options of a job that tracks as the stream ``spec`` asks (its detector, its
-    tracker); with ``resources``, its detector resolved as it runs ('auto' -> 'cnn' or
-    'default', the CNN's model named: recordings say what ran)."""
+    tracker); with ``resources``, resolved as they run (:func:`~service.pipelines.
+    resolved_options`: detector 'auto' -> 'cnn' or 'default', the CNN's model named,
+    tracker.pose and tracker.reid true or false with their models: recordings say what ran)."""
     options = JobOptions(detector=spec.detector, tracker=spec.tracker)
     if resources is None:
         return options
-    detector = choose_detector(spec.detector, resources).options
-    return options.model_copy(update={"detector": detector})
+    return resolved_options(options, resources)
 
 
 def stream_main(context: StreamContext, service_pid: int, stop, reports: Connection) -> None:

@@ -31,7 +31,14 @@ EMBEDDED = ("--options", json.dumps({"detector": {"name": "default"}}))
 
 def vtrack(*args, env=None):
     """``vtrack ARGS`` with ``env`` over this environment (without its model variables)."""
-    models = ("VTRACK_DPM_MODEL", "VTRACK_COLOR_NAMES", "VTRACK_MODELS_DIR", "VTRACK_CNN_MODEL")
+    models = (
+        "VTRACK_DPM_MODEL",
+        "VTRACK_COLOR_NAMES",
+        "VTRACK_MODELS_DIR",
+        "VTRACK_CNN_MODEL",
+        "VTRACK_POSE_MODEL",
+        "VTRACK_REID_MODEL",
+    )
     base = {k: v for k, v in os.environ.items() if k not in models}
     return subprocess.run(
         [sys.executable, "-m", "service.cli", *map(str, args)],

@@ -116,8 +116,12 @@ def test_json_result_matches_the_schema(client, finished_job):
     # what a pipeline needs to join and trace the result, without the job (deleted by then)
     assert document["vtrack_version"] == importlib.metadata.version("visual-tracking")
     # the options as given, but for the detector: the one that ran ('auto' without a CNN model
-    # in this service: the embedded one)
-    ran = {**status["options"], "detector": {**status["options"]["detector"], "name": "default"}}
+    # in this service: the embedded one), and the pose and re-identification networks: none
+    ran = {
+        **status["options"],
+        "detector": {**status["options"]["detector"], "name": "default"},
+        "tracker": {**status["options"]["tracker"], "pose": False, "reid": False},
+    }
     assert status["options"]["detector"]["name"] == "auto"
     assert document["options"] == ran and status["options"]["labels"] == LABELS
     assert document["warnings"] == status["warnings"]

@@ -188,16 +188,17 @@ _SHIPPED_CASCADES = (
 @pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path, shared_data):
-    from service.models import DEFAULT_DETECTOR, model_state
+    from service.models import DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID, model_state
 
     build, env_dir = tmp_path / "app", tmp_path / "env"
     build.mkdir()
     mirror = {"VTRACK_MODELS_MIRROR": str(shared_data / "models")}  # no internet here
     image_env = _replay(dockerfile, build, env_dir, build_args=mirror)
-    # the default CNN detector in the image, verified, inside the build (not a mounted volume)
+    # the default networks in the image, verified, inside the build (not a mounted volume)
     models_dir = Path(image_env["VTRACK_MODELS_DIR"])
     assert models_dir.is_relative_to(build)
-    assert model_state(models_dir, DEFAULT_DETECTOR) == "present"
+    for name in (DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID):
+        assert model_state(models_dir, name) == "present", name
     bindir = env_dir / "bin"
     elsewhere = tmp_path / "elsewhere"  # not the build folder: import the installed package
     elsewhere.mkdir()
@@ -239,6 +240,10 @@ def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path, s
             return response is not None and response.status_code == 200
 
         wait_for(up, 60, "the installed service")
+        # jobs run the image's networks
+        ready = json.loads(try_get(f"http://127.0.0.1:{port}/readyz").text)
+        assert ready["detector"]["model"] == DEFAULT_DETECTOR
+        assert (ready["pose"], ready["reid"]) == ({"model": DEFAULT_POSE}, {"model": DEFAULT_REID})
         healthcheck = json.loads(dict(dockerfile)["HEALTHCHECK"].split("CMD", 1)[1])
         healthcheck[0] = str(bindir / healthcheck[0])
         assert subprocess.run(healthcheck, env=env, cwd=elsewhere).returncode == 0

@@ -3,6 +3,7 @@ video."""
 
 from __future__ import annotations
 
+import json
 import tracemalloc
 
 import pytest
@@ -30,9 +31,10 @@ def _track(track_id: int, frame: int) -> TrackState:
     return TrackState(track_id=track_id, box=box, score=0.5, occluded=frame % 2 == 1, parts=parts)
 
 
-def _run(path, frames: list[list[int]]) -> JsonWriter:
+def _run(path, frames: list[list[int]], skeleton: tuple[tuple[str, str], ...] = ()) -> JsonWriter:
     """A writer fed one message per frame with the given track ids, left open."""
-    writer = JsonWriter(path, StreamInfo(640, 480, 25.0, 1, PARTS, "people", job_id="job1"))
+    info = StreamInfo(640, 480, 25.0, 1, PARTS, "people", job_id="job1", skeleton=skeleton)
+    writer = JsonWriter(path, info)
     for index, ids in enumerate(frames):
         tracks = [_track(i, index) for i in ids]
         writer.write(
@@ -70,6 +72,22 @@ def test_frames_are_grouped_into_trajectories_by_id(tmp_path):
                 track.parts,
             )
     assert [p.name for p in tmp_path.iterdir()] == ["trajectories.json"]  # no scratch left
+
+
+def test_the_document_names_the_skeleton(tmp_path):
+    path = tmp_path / "trajectories.json"
+    skeleton = (("head", "left_shoulder"), ("head", "right_shoulder"))
+    _run(path, [[1]], skeleton).close(_summary(1))
+    assert json.loads(path.read_text())["skeleton"] == [list(edge) for edge in skeleton]
+    assert read_trajectories(path).skeleton == list(skeleton)
+
+
+def test_results_written_before_the_skeleton_still_load(tmp_path):
+    path = tmp_path / "trajectories.json"
+    _run(path, [[1]]).close(_summary(1))
+    document = json.loads(path.read_text())
+    assert document.pop("skeleton") == []  # nothing to draw
+    assert Trajectories.model_validate(document).skeleton == []
 
 
 def test_a_video_without_tracks_gives_an_empty_list(tmp_path):

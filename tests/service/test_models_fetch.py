@@ -29,6 +29,9 @@ import pytest
 from service.models import (
     CATALOG,
     DEFAULT_DETECTOR,
+    DEFAULT_MODELS,
+    DEFAULT_POSE,
+    DEFAULT_REID,
     OMZ_HUMAN_RIGHTS_NOTICE,
     ModelFetchError,
     UnknownModelError,
@@ -361,21 +364,23 @@ def test_vtrack_models_fetch_from_a_mirror(mirror, tmp_path):
     assert "Apache-2.0" in lines[0]
     assert OMZ_HUMAN_RIGHTS_NOTICE in " ".join(result.stdout.split())  # quoted whole, wrapped
     assert result.stdout.count("human right.") == 1
-    assert lines[-3:] == [
-        f"{WEIGHTS.path}: downloaded {WEIGHTS.size} bytes",
-        f"{DETECTOR.graph}: downloaded {(target / DETECTOR.graph).stat().st_size} bytes",
-        f"models in {target}; the service finds them with VTRACK_MODELS_DIR={target}",
-    ]
-    assert model_state(target, DEFAULT_DETECTOR) == "present"
+    # no names: the three networks a job runs by default, each file downloaded
+    assert f"{WEIGHTS.path}: downloaded {WEIGHTS.size} bytes" in lines
+    assert f"{DETECTOR.graph}: downloaded {(target / DETECTOR.graph).stat().st_size} bytes" in lines
+    found = f"the service finds them with VTRACK_MODELS_DIR={target}"
+    assert lines[-1] == f"models in {target}; {found}"
+    assert [model_state(target, name) for name in DEFAULT_MODELS] == ["present"] * 3
+    files = sum(len(CATALOG[name].files) for name in DEFAULT_MODELS)
+    assert len(mirror.requests) == files
 
     (target / WEIGHTS.path).write_bytes(b"damaged")
     again = vtrack("models", "fetch", "--mirror", mirror.url, env={"VTRACK_MODELS_DIR": target})
     assert again.returncode == 0, again.stderr
-    assert again.stdout.splitlines()[-3:-1] == [
-        f"{WEIGHTS.path}: replaced a corrupt copy (downloaded {WEIGHTS.size} bytes)",
-        f"{DETECTOR.graph}: already present (size and sha256 verified)",
-    ]
-    assert len(mirror.requests) == 3
+    assert f"{WEIGHTS.path}: replaced a corrupt copy (downloaded {WEIGHTS.size} bytes)" in (
+        again.stdout.splitlines()
+    )
+    assert again.stdout.count("already present (size and sha256 verified)") == files - 1
+    assert len(mirror.requests) == files + 1
 
 
 def test_vtrack_models_fetch_refuses_an_unknown_name_before_fetching(tmp_path):
@@ -418,7 +423,14 @@ def test_vtrack_models_list_shows_what_the_folder_holds(shared_data, tmp_path):
     ]
     assert rows[SMALL] == ["reidentification", "1.0", "MB", "present"]
     assert rows["person-detection-0200"][-1] == "corrupt"
-    assert rows["human-pose-estimation-0001"] == ["pose", "4.6", "MB", "missing"]
+    assert rows["human-pose-estimation-0001"] == [
+        "pose",
+        "4.6",
+        "MB",
+        "missing",
+        "(default",
+        "pose)",
+    ]
     assert result.stdout.splitlines()[-1] == f"2 of 7 present and verified in {target}"
 
     elsewhere = vtrack("models", "list", env={"VTRACK_MODELS_DIR": tmp_path / "none"})
@@ -429,7 +441,7 @@ def test_vtrack_models_list_shows_what_the_folder_holds(shared_data, tmp_path):
 # --- the image -----------------------------------------------------------------------------
 
 
-def test_the_image_build_fetches_the_default_detector_outside_the_models_volume(mirror, tmp_path):
+def test_the_image_build_fetches_the_default_networks_outside_the_models_volume(mirror, tmp_path):
     steps = instructions(REPO_ROOT / "docker" / "Dockerfile")
     (index,) = [i for i, (k, a) in enumerate(steps) if k == "RUN" and "vtrack models fetch" in a]
     settings = {}
@@ -453,5 +465,7 @@ def test_the_image_build_fetches_the_default_detector_outside_the_models_volume(
         ["sh", "-c", steps[index][1]], env=environment, capture_output=True, text=True, timeout=120
     )
     assert result.returncode == 0, result.stderr
-    assert model_state(tmp_path / models_dir.lstrip("/"), DEFAULT_DETECTOR) == "present"
-    assert len(mirror.requests) == 2
+    # the detector, the pose and the re-identification networks jobs run by default
+    for name in (DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID):
+        assert model_state(tmp_path / models_dir.lstrip("/"), name) == "present", name
+    assert len(mirror.requests) == 6

@@ -21,10 +21,12 @@ def test_debug_adds_each_jobs_video_and_options_and_ffmpegs_own_errors(
         job_id = submit(client, truncated, FAST_OPTIONS).json()["id"]
         assert wait_for_state(client, job_id, ("succeeded", "failed"))["state"] == "succeeded"
     log = server.log()
-    # before: the same lines as at info
+    # before: the same lines as at info; the options as they run (no pose or re-identification
+    # network in this service)
     assert (
         f"job {job_id}: 480x360 video, 10.000 frames per second, 24 frames announced; "
-        'options {"detector":{"name":"default","upscale":1.0},"formats":["json"]}'
+        'options {"detector":{"name":"default","upscale":1.0},"tracker":{"pose":false,'
+        '"reid":false},"formats":["json"]}'
     ) in log
     # FFmpeg's complaint about the cut frame, which info leaves out, with OpenCV's prefix
     assert "[OPENCV:FFMPEG:16]" in log

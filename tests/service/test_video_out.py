@@ -4,6 +4,7 @@ time, and the tracks drawn where the JSON result puts them."""
 from __future__ import annotations
 
 import struct
+from dataclasses import replace
 from fractions import Fraction
 from itertools import islice
 from pathlib import Path
@@ -15,12 +16,15 @@ import pytest
 from mcap.reader import make_reader
 
 from api_schemas.jobs import JobOptions
+from api_schemas.tracks import BoxModel, FrameTracksMessage, PartState, TrackState, VideoInfo
 from service.analysis import analyze
-from service.frames import open_frames
+from service.frames import TimedFrame, open_frames
 from service.outputs import h264
+from service.outputs.base import RunSummary, StreamInfo
 from service.outputs.h264 import h264_unavailable
 from service.outputs.json_out import read_trajectories
-from service.outputs.video_out import H264Encoder, Mp4vEncoder
+from service.outputs.palette import track_colour
+from service.outputs.video_out import H264Encoder, Mp4vEncoder, TrackDrawer, VideoWriter
 from tests.service.conftest import PETS_VIDEO, VFR_MS
 
 pytestmark = pytest.mark.slow
@@ -191,3 +195,46 @@ def test_square_pixels_stay_square(annotated):
     assert video.pixel_aspect_ratio == 1.0
     with av.open(str(annotated.files["mp4"])) as container:
         assert container.streams.video[0].sample_aspect_ratio in (None, 0, 1)
+
+
+SKELETON = (("head", "neck"), ("neck", "left_shoulder"))
+
+
+def _posed(track_id: int = 1) -> FrameTracksMessage:
+    """A person with a visible head and neck 40 px apart and a hidden left shoulder."""
+    parts = [
+        PartState(name="head", x=60.0, y=20.0, visible=True, measured=True),
+        PartState(name="neck", x=60.0, y=60.0, visible=True, measured=True),
+        PartState(name="left_shoulder", x=20.0, y=60.0, visible=False),
+    ]
+    box = BoxModel(x=10.0, y=10.0, w=100.0, h=100.0)
+    track = TrackState(track_id=track_id, box=box, score=0.9, occluded=False, parts=parts)
+    return FrameTracksMessage(frame_index=0, timestamp=0.0, tracks=[track])
+
+
+def test_limbs_are_drawn_between_visible_parts_in_the_track_colour():
+    grey = np.full((120, 120, 3), 128, np.uint8)
+    drawn = TrackDrawer(skeleton=SKELETON).draw(grey, _posed())
+    bare = TrackDrawer().draw(grey, _posed())
+    r, g, b = track_colour(1)
+    # along the head-neck limb, away from the part dots: the track's colour (BGR), up to the
+    # anti-aliasing of a 1 px line
+    assert np.abs(drawn[30:51, 60].astype(int) - (b, g, r)).max() <= 16
+    assert (bare[30:51, 60] == 128).all()
+    # the limb to the hidden shoulder is left out
+    assert (drawn[60, 30:51] == 128).all()
+
+
+def test_the_annotated_video_shows_the_limbs(tmp_path):
+    grey = np.full((120, 120, 3), 128, np.uint8)
+    video = VideoInfo(width=120, height=120, frames_announced=3, frames_read=3, frame_step=1)
+    frames = []
+    for skeleton in (SKELETON, ()):
+        info = StreamInfo(120, 120, 10.0, 1, ("head", "neck", "left_shoulder"), "people")
+        writer = VideoWriter(tmp_path / f"{len(skeleton)}.mp4", replace(info, skeleton=skeleton))
+        for index in range(3):
+            writer.write(TimedFrame(index, index / 10, grey), _posed())
+        writer.close(RunSummary(video, 3))
+        frames.append(decoded(writer.path)[-1][1].astype(int))
+    limb = np.abs(frames[0][30:51, 59:62] - frames[1][30:51, 59:62]).sum(axis=2).max(axis=1)
+    assert (limb > 60).all(), limb  # each row of the limb changed, through compression
