@@ -184,7 +184,10 @@ def find_peaks(
     # -inf outside: a peak at the border is compared with its inside neighbours only
     kernel = np.ones((size, size), dtype=np.uint8)
     # dilation's border is -inf: a peak at the edge is compared with its inside neighbours only
-    largest = np.stack([cv2.dilate(np.ascontiguousarray(m), kernel) for m in maps])
+    maps = np.ascontiguousarray(maps)
+    largest = np.empty_like(maps)
+    for m, out in zip(maps, largest, strict=True):
+        cv2.dilate(m, kernel, dst=out)
     kinds, ys, xs = np.nonzero((maps == largest) & (maps > threshold))
     values = maps[kinds, ys, xs]
     peaks = []
@@ -512,8 +515,10 @@ def _enlarge(maps: np.ndarray, factor: int) -> np.ndarray:
     if factor == 1:
         return maps
     height, width = maps.shape[1:]
-    size = (width * factor, height * factor)
-    return np.stack([cv2.resize(m, size, interpolation=cv2.INTER_CUBIC) for m in maps])
+    out = np.empty((len(maps), height * factor, width * factor), dtype=np.float32)
+    for m, enlarged in zip(maps, out, strict=True):
+        cv2.resize(m, enlarged.shape[::-1], dst=enlarged, interpolation=cv2.INTER_CUBIC)
+    return out
 
 
 class PoseEstimator:
