@@ -27,8 +27,9 @@ One job uses one worker process; ``--workers`` only sets how many the server sta
 ``--dpm-model`` configures the server with a voc-release5 model (``VTRACK_DPM_MODEL``), for jobs
 with ``{"detector": {"name": "dpm"}}``; ``--models-dir`` with a folder of CNN models
 (``VTRACK_MODELS_DIR``; the shared data's ``models`` folder is laid out as ``vtrack models
-fetch`` lays one out), with which detector 'auto' runs the CNN. ``detector`` in the report is the
-detector and model that ran, as the JSON result names them.
+fetch`` lays one out), with which detector 'auto' runs the CNN and the tracker the pose and
+re-identification networks found there. ``detector`` and ``networks`` in the report are the
+detector and the networks that ran, as the JSON result names them.
 """
 
 from __future__ import annotations
@@ -135,9 +136,14 @@ def run(
                         for fmt, link in status["links"]["results"].items()
                     }
                     results.append(contents)
-                detector = None
+                detector, networks = None, None
                 if "json" in results[0]:
-                    detector = json.loads(results[0]["json"])["options"].get("detector")
+                    ran = json.loads(results[0]["json"])["options"]
+                    detector, tracker = ran.get("detector"), ran.get("tracker") or {}
+                    networks = {
+                        name: tracker.get(f"{name}_model") if tracker.get(name) else None
+                        for name in ("pose", "reid")
+                    }
                 end = time.perf_counter()
         finally:
             server.stop()
@@ -162,6 +168,7 @@ def run(
         "options": options or {},
         "settings": settings,
         "detector": detector,
+        "networks": networks,
         "jobs": jobs,
         "upload_to_result_s": round(total, 2),
         "ratio_to_real_time": round(total / duration, 3),
@@ -239,6 +246,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"options: {json.dumps(figures['options'])}, {figures['jobs']} job(s) at once")
     if figures["detector"] is not None:
         print(f"detector that ran: {json.dumps(figures['detector'])}")
+    if figures["networks"] is not None:
+        print(f"pose and re-identification that ran: {json.dumps(figures['networks'])}")
     rows = [
         ("upload to result", f"{figures['upload_to_result_s']:.1f} s"),
         ("ratio to real time", f"{figures['ratio_to_real_time']:.2f}"),

@@ -13,7 +13,10 @@ tracks with :func:`service.streams.tools.follow_tracks` in this process. Configu
 
 * ``service_cnn``: default stream options, detector 'auto', which runs the CNN person detector
   (the server is given the shared data's ``models`` folder as ``VTRACK_MODELS_DIR``: Open Model
-  Zoo's person-detection-0202, at 576 px for these 360 px frames).
+  Zoo's person-detection-0202, at 576 px for these 360 px frames), and the tracker the pose
+  (human-pose-estimation-0001, also at 576 px) and re-identification (0287) networks found there.
+* ``service_cnn_only`` (only when asked for): the same without the pose and re-identification
+  networks (``tracker.pose`` and ``tracker.reid`` false).
 * ``service_detector``: the service's embedded HOG detector (``"default"``, at the factor it
   picks for 360 px frames, 2.0).
 * ``upstream_detections``: the publisher also publishes the public ``det/det.txt`` detections
@@ -84,6 +87,7 @@ PREFIX = "vtrack"
 
 CONFIGS = {
     "service_cnn": {},
+    "service_cnn_only": {"tracker": {"pose": False, "reid": False}},
     "service_detector": {"detector": {"name": "default"}},
     "upstream_detections": {},
     "service_detector_1_5x": {"detector": {"name": "default", "upscale": 1.5}},
