@@ -1,10 +1,12 @@
-"""MOT benchmark: our multi-person tracker beside SORT, ByteTrack, OC-SORT and BoT-SORT.
+"""MOT benchmark: our multi-person tracker beside SORT, ByteTrack, OC-SORT, BoT-SORT, Deep OC-SORT
+and StrongSORT, every tracker on the same detections and, in parity rows, with the same boxes.
 
     python benchmarks/mot.py [--data DIR] [--sequences NAME_OR_DIR ...] [--trackers a,b,...]
+                             [--detections public,cnn] [--no-parity]
                              [--frames N] [--repeats R] [--seeds S] [--no-end-to-end]
                              [--no-peers] [--dpm PATH] [--dpm-config JSON] [--hog-config JSON]
-                             [--cnn-model PATH] [--tracker-config JSON] [--json]
-                             [--picture PNG] [--results DIR] [--list]
+                             [--cnn-model PATH] [--reid-model PATH] [--tracker-config JSON]
+                             [--json] [--picture PNG] [--results DIR] [--list]
 
 Sequences: the MOTChallenge folders under ``--data`` (default ``<repo>/../shared/data/mot`` or
 ``$VTRACK_SHARED_DATA/mot``: PETS09-S2L1 and TUD-Stadtmitte), or those named by
@@ -12,31 +14,89 @@ Sequences: the MOTChallenge folders under ``--data`` (default ``<repo>/../shared
 ``seqinfo.ini``, ``img1/``, ``gt/gt.txt``, ``det/det.txt``). A sequence without a readable
 ``gt/gt.txt`` is refused before anything runs: no tracker could be scored on it.
 
+Detection sources (``--detections``, default ``public,cnn``). Every tracker that is fed
+detections runs once on each source, and its rows are named ``<tracker>@<source>``
+(``sort@public``, ``ours@cnn``). All trackers of a source read the same MOTChallenge detection
+file (``frame, id, x, y, w, h, conf, ...``, 1-based) and are handed the same boxes, frame by
+frame; each reports a digest of the boxes it was given (``fed_digest``: frame, x, y, w, h in
+file units, rounded to 1e-4 px, one function mirrored in the peer scripts), the same for every
+tracker of a source.
+
+* ``public``: the sequence's ``det/det.txt`` (confidences 0.5 to 1 in these files);
+* ``cnn``: our CNN person detector (``tracking.detection.make_detector(--cnn-model)``, a
+  ``CnnDetector``; by default Open Model Zoo's person-detection-0202, the product's default
+  network) run once per sequence over every frame (``--frames`` of them) with the ``CnnConfig``
+  defaults but ``threshold`` 0.1 (``CNN_DETECTION_THRESHOLD``) instead of 0.2: 0.1 is the floor
+  of the low-score detections that ByteTrack's second association recovers (Zhang et al. 2022;
+  BoxMOT's BoT-SORT ``track_low_thresh`` 0.10), so the trackers that use low scores get them and
+  each of the others thresholds the scores by its own rule (Roboflow's ByteTrack and OC-SORT
+  split at 0.6, SORT and BoT-SORT start tracks at 0.25/0.7, BoxMOT's Deep OC-SORT drops boxes
+  under 0.5, ours weighs calibrated probabilities: ``low_confidence``, ``birth_confidence``).
+  Written once to ``<results>/detections/<sequence>/cnn.txt`` (``frame, -1, x + 1, y + 1, w,
+  h, c, -1, -1, -1``: boxes 1-based to 1/1000 px, ``c`` the network's confidence, the sigmoid
+  of the ``Detections.scores`` log-odds, to 1e-6) with ``cnn.json`` beside it; a run with the
+  same ``--results`` reuses it while the key (SHA-256 of the model's files, the configuration,
+  the sequence, the frame count) is the same.
+
+What score each tracker gets: the peers get the file's confidence column as it is (public: the
+file's; cnn: the network's confidence ``c``). Ours reads the same file with
+``MotDetections`` (``tracking/detection/external.py``, which takes the column as the
+probability, clipped to ``[0, 1]``, when it has no calibration): for ``public`` that is the
+column itself (as before); for ``cnn`` the column is first turned into the calibrated
+probability the detector hands ``ours_cnn``, ``p = calibration(log(c / (1 - c)))`` with the
+model's calibration (``KNOWN_CALIBRATIONS``; the network's confidence when it has none): our
+tracker's thresholds are on calibrated probabilities. Boxes are the same: ``MotDetections``
+only moves them to 0-based pixels.
+
 Trackers, all in one run:
 
 * peers ``sort``, ``bytetrack``, ``ocsort``, ``botsort``: Roboflow's ``trackers`` with their
   default parameters (``frame_rate`` set to the sequence's, see
-  ``benchmarks/peers/mot_trackers.py``) on the public detections ``det/det.txt``, frame by frame;
-  BoT-SORT also gets the frames for its camera-motion compensation. They run in their own
-  environment (``.venv-mot``, ``benchmarks/_mot_env.py``) because ``trackers`` pulls
+  ``benchmarks/peers/mot_trackers.py``), frame by frame on the detection file of the source
+  (``--det``); BoT-SORT also gets the frames for its camera-motion compensation. They run in
+  their own environment (``.venv-mot``, ``benchmarks/_mot_env.py``) because ``trackers`` pulls
   ``opencv-python`` 5, which would shadow the project's headless OpenCV 4;
-* ``ours``: :class:`tracking.people.MultiPersonTracker` with its default configuration on the
-  same public detections (``detector=None``; ``update(frame, i / fps, detections)``);
+* peers with a learned appearance model, ``deepocsort``, ``strongsort`` and ``botsort_reid``:
+  BoxMOT's (25.0.0) Deep OC-SORT, StrongSORT and BoT-SORT with re-identification, made by its
+  factory with its default parameters (BoT-SORT's ``frame_rate`` the sequence's; the other two
+  have none), in their own environment (``.venv-reid``, ``benchmarks/_reid_env.py``: BoxMOT,
+  PyTorch 2.14.1, torchvision 0.29.1, OpenCV 4; about 5.5 GB, made once with pip), see
+  ``benchmarks/peers/reid_trackers.py``. Their appearance is *our* re-identification network's
+  (``tracking.detection.reid.ReidEmbedder``, ``--reid-model``, by default Open Model Zoo's
+  person-reidentification-retail-0287): this process embeds every box of each source's
+  detection file (``ReidEmbedder.embed(frame, 0-based boxes)``, L2-normalised rows, NaN where a
+  box is too small) into ``<results>/detections/<sequence>/<source>.reid.npy``, aligned with the
+  file's rows and cached like the detection file (``.reid.json``: the network's and the file's
+  SHA-256, the frame count), and the trackers get those vectors with the detections
+  (``Detections(embeddings=...)``), so BoxMOT never builds its ReID backend and no weights are
+  loaded or downloaded (the peer script checks it). Their speed excludes the embedding network;
+* ``ours``: :class:`tracking.people.MultiPersonTracker` with its default configuration on each
+  source (``detector=None``; ``update(frame, i / fps, detections)``);
 * end to end (``--end-to-end``, the default): ``ours_hog``, the same tracker running the
   embedded HOG people detector (``make_detector("default")``), ``ours_dpm`` running the
   voc-release5 INRIA person DPM (``--dpm``) at its operating point for tracking
   (``DPM_TRACKING_CONFIG``), and ``ours_cnn`` running the CNN person detector
-  (``CnnDetector``, ``CnnConfig`` defaults) on ``--cnn-model``, by default Open Model Zoo's
-  person-detection-0202 under the shared data's ``models/``: the product's default model, which
-  a service job with detector 'auto' runs. The tracker gets no detections and runs its detector
-  on the schedule of its configuration. The DPM is slow: ``--no-end-to-end`` skips all three,
-  ``--frames N`` shortens every sequence. A missing model (``--dpm``, ``--cnn-model``) leaves
-  its tracker out with a note in a run of all trackers, and is an argument error when
-  ``--trackers`` names it;
+  (``CnnDetector``, ``CnnConfig`` defaults) on ``--cnn-model``: what a service job with
+  detector 'auto' runs. These have no source suffix: the tracker gets no detections and runs its
+  detector on the schedule of its configuration. The DPM is slow: ``--no-end-to-end`` skips all
+  three, ``--frames N`` shortens every sequence. A missing model (``--dpm``, ``--cnn-model``,
+  ``--reid-model``) leaves its trackers (``--cnn-model``: also the cnn source) out with a note in
+  a run of all trackers, and is an argument error when ``--trackers`` (or ``--detections``)
+  names them;
 * with ``--seeds S`` (default 4) each of ours also runs with the particle filter's seeds 1 to
-  S - 1 (``ours_seed1``, ``ours_cnn_seed1``...), and the comparison with the peers adds the
-  mean over the seeds (``ours_mean``...). The seeded end-to-end runs replay the detections of
-  the first run, frame by frame (the detector is deterministic), so the detector runs once.
+  S - 1 (``ours_seed1@public``, ``ours_cnn_seed1``...), and the comparison with the peers adds
+  the mean over the seeds (``ours_mean@public``...). The seeded end-to-end runs replay the
+  detections of the first run, frame by frame (the detector is deterministic), so the detector
+  runs once.
+
+Box parity rows (``--parity``, the default). Our tracker reports boxes of a fixed aspect
+(``PeopleTrackerConfig.box_aspect``, 0.41: width set to 0.41 x height about the box centre, the
+height kept), the peers the detector's boxes, and box shape alone moves the scores. So for
+every peer and source there is also ``<peer>+aspect@<source>``: the peer's rows through
+:func:`aspect_rows`, which calls our tracker's own rule (``tracking.people.tracker._normalised``,
+with the ``box_aspect`` ours runs with); its speed is the peer's. And for ours
+``ours+detbox@<source>`` (with its seeds): ``MultiPersonTracker`` with ``box_aspect=None``,
+which reports the associated detections' smoothed aspect.
 
 Scores: TrackEval (``benchmarks/peers/trackeval_score.py``, in ``.venv-mot``) on the MOTChallenge
 result files written to ``--results`` (default: a new temporary folder, kept and named in the
@@ -47,24 +107,29 @@ MOT15 mode: every ground-truth row with a non-zero flag (7th column) counts and 
 removed as a distractor match; the files here have no classes (8th column -1), which TrackEval's
 MOT16/17 preprocessing rejects.
 
-Coordinates: MOTChallenge files are 1-based; our tracker gets the public detections moved to
-0-based image coordinates (:class:`tracking.detection.MotDetections` moves them, see
+Coordinates: MOTChallenge files are 1-based; our tracker gets the detections moved to 0-based
+image coordinates (:class:`tracking.detection.MotDetections` moves them, see
 ``tracking/detection/sequences.py``) and its boxes are written back 1-based (``track_rows`` in
 ``tracking/evaluation/mot.py``); the ground truth goes to TrackEval as the file has it. The
-peers never look at pixels (BoT-SORT's motion compensation aside, to which a pixel is nothing)
-and keep the file's coordinates throughout.
+peers never look at pixels (camera-motion compensation aside, to which a pixel is nothing) and
+keep the file's coordinates throughout; the re-id network crops the 0-based boxes.
 
 Speed: frames per second of the trackers' ``update`` calls only (not image decoding, file
-reading, or building the detections), median over ``--repeats`` runs by fresh trackers (the
-end-to-end runs: ``--end-to-end-repeats``, default 1); for the end-to-end runs that includes the
-detector, which runs inside ``update`` (except in the seeded end-to-end runs, which replay the
-detections). Peers are timed in their own process, ours in this one.
+reading, building the detections, or the re-id embeddings), median over ``--repeats`` runs by
+fresh trackers (the end-to-end runs: ``--end-to-end-repeats``, default 1); for the end-to-end
+runs that includes the detector, which runs inside ``update`` (except in the seeded end-to-end
+runs, which replay the detections). Peers are timed in their own process, ours in this one.
 
-Output: a table per sequence and tracker, then the best peer per metric and the difference of
-each of ours to it; ``--json`` prints one JSON object on stdout instead (the table goes to
-stderr). ``--picture PNG`` (default: none) draws our tracks on a PETS09-S2L1 frame: boxes with
-ids, 20-frame trails, body parts (filled: visible; hollow: hidden); the committed
-``docs/images/mot.png`` is made by passing its path (``docs/benchmarks.md``).
+Output: a table per tracker and sequence, then for each source ours against the best peer per
+metric (the difference of each of ours, its seed means and the end-to-end rows): first the
+fair comparison, the best among the peers' rows *and* their ``+aspect`` rows (JSON
+``best_peer``, ``ours_vs_best_peer``, by source), then the raw one, the peers' own boxes only
+(``best_raw_peer``, ``ours_vs_best_raw_peer``). ``--json`` prints one JSON object on stdout
+instead (the table goes to stderr); it also describes each source (``sources``: files, scores,
+calibration, cache). ``--picture PNG`` (default: none) draws our tracks (``ours@public``) on a
+PETS09-S2L1 frame: boxes with ids, 20-frame trails, body parts (filled: visible; hollow:
+hidden); the committed ``docs/images/mot.png`` is made by passing its path
+(``docs/benchmarks.md``).
 
 Exit status: 0 when at least one tracker was scored; 2 for bad arguments or sequences (a
 tracker named in ``--trackers`` that another option leaves out is a bad argument); 1 when no
@@ -121,13 +186,32 @@ DEFAULT_CNN_MODEL = (
     SHARED_DATA / "models" / "person-detection-0202" / "FP16" / "person-detection-0202.xml"
 )
 CNN_SUFFIXES = (".xml", ".onnx")  # tracking.detection.cnn.MODEL_SUFFIXES, without importing it
+# Our re-identification network, whose embeddings the re-id peers get (tracking.detection.reid).
+DEFAULT_REID_MODEL = (
+    SHARED_DATA
+    / "models"
+    / "person-reidentification-retail-0287"
+    / "FP16"
+    / "person-reidentification-retail-0287.xml"
+)
 PEER_SCRIPT = Path(__file__).resolve().parent / "peers" / "mot_trackers.py"
+REID_SCRIPT = Path(__file__).resolve().parent / "peers" / "reid_trackers.py"
 SCORE_SCRIPT = Path(__file__).resolve().parent / "peers" / "trackeval_score.py"
 
-PEERS = ("sort", "bytetrack", "ocsort", "botsort")
+MOT_PEERS = ("sort", "bytetrack", "ocsort", "botsort")  # Roboflow's trackers, .venv-mot
+REID_PEERS = ("deepocsort", "strongsort", "botsort_reid")  # BoxMOT, .venv-reid
+PEERS = (*MOT_PEERS, *REID_PEERS)
 OURS = "ours"
 END_TO_END = ("ours_hog", "ours_dpm", "ours_cnn")
 TRACKERS = (*PEERS, OURS, *END_TO_END)
+SOURCES = ("public", "cnn")  # detection sources, --detections
+# The CNN source's operating point: confidence >= 0.1, the floor of the low-score detections
+# that ByteTrack's second association uses (Zhang et al. 2022; BoxMOT's BoT-SORT:
+# track_low_thresh 0.10), so that trackers that use low scores get them; the others threshold
+# the scores themselves (ours: low_confidence, birth_confidence on calibrated probabilities).
+CNN_DETECTION_THRESHOLD = 0.1
+ASPECT = "+aspect"  # a peer's rows with our box post-processing
+DETBOX = "+detbox"  # ours reporting the detections' aspect (box_aspect=None)
 PICTURE_SEQUENCE = "PETS09-S2L1"
 PICTURE_TRAIL = 20  # frames of trail behind each track
 PICTURE_MAX_BYTES = 300_000
@@ -185,6 +269,37 @@ class Run:
 
 
 @dataclasses.dataclass
+class DetectionSource:
+    """Detections every tracker of one source gets: a MOTChallenge detection file per sequence.
+
+    Attributes
+    ----------
+    name:
+        ``public`` or ``cnn``.
+    files:
+        Sequence name -> detection file (rows ``frame, -1, x, y, w, h, conf, -1, -1, -1``, file
+        units: frames and pixels 1-based).
+    calibration:
+        How ours reads the confidence column: ``None``, as the probability (clipped to
+        ``[0, 1]``, :class:`MotDetections` without calibration); else a
+        ``LogisticCalibration`` of the confidence's log-odds, ``p = calibration(log(c / (1 -
+        c)))``: the probability the detector itself gives the tracker (the CNN's
+        ``Detections.probabilities``).
+    details:
+        What the report says about it.
+    embeddings:
+        Sequence name -> ``.npy`` re-identification embeddings aligned with the file's rows
+        (only when the re-id peers run).
+    """
+
+    name: str
+    files: dict[str, Path]
+    calibration: object | None = None
+    details: dict[str, object] = dataclasses.field(default_factory=dict)
+    embeddings: dict[str, Path] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
 class Outcome:
     """Everything measured in one benchmark run."""
 
@@ -194,6 +309,7 @@ class Outcome:
     errors: dict[str, dict[str, str]] = dataclasses.field(default_factory=dict)
     details: dict[str, dict[str, object]] = dataclasses.field(default_factory=dict)
     notes: list[str] = dataclasses.field(default_factory=list)
+    sources: dict[str, DetectionSource] = dataclasses.field(default_factory=dict)
 
     def add(self, tracker: str, sequence: str, run: Run) -> None:
         self.runs.setdefault(tracker, {})[sequence] = run
@@ -203,22 +319,305 @@ class Outcome:
         print(f"{tracker} on {sequence} failed: {message}", file=sys.stderr)
 
 
+def row_name(base: str, source: str | None = None, seed: int = 0) -> str:
+    """A row of the report: ``<base>[_seed<k>][@<source>]`` (``sort@public``,
+    ``ours+detbox_seed2@cnn``; the end-to-end trackers have no source: ``ours_cnn_seed1``)."""
+    seeded = base if seed == 0 else f"{base}_seed{seed}"
+    return seeded if source is None else f"{seeded}@{source}"
+
+
+# --------------------------------------------------------------------------------------------
+# Detection sources
+
+
+def fed_digest(rows: np.ndarray) -> str:
+    """Digest of the detections a tracker was given, ``(N, 5)`` ``frame, x, y, w, h`` in file
+    units (1-based) in the order given, rounded to 1e-4 px. The peer scripts compute the same
+    (``benchmarks/peers/mot_trackers.py``, ``reid_trackers.py`` mirror this function), so the
+    report shows that every tracker of a source got the same boxes."""
+    values = np.round(np.asarray(rows, dtype=np.float64).reshape(-1, 5), 4) + 0.0  # no -0.0
+    return hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()[:16]
+
+
+def ours_fed_digest(detections: object, frames: int) -> str:
+    """:func:`fed_digest` of what ours is handed by ``detections.for_frame`` over ``frames``
+    frames (its 0-based boxes moved back to file units)."""
+    from tracking.detection.sequences import image_to_mot_boxes
+
+    fed = []
+    for index in range(frames):
+        boxes = image_to_mot_boxes(detections.for_frame(index).boxes)
+        fed.append(np.column_stack([np.full(len(boxes), index + 1.0), boxes]))
+    return fed_digest(np.concatenate(fed) if fed else np.zeros((0, 5)))
+
+
+def _files_sha256(*paths: Path) -> str:
+    digest = hashlib.sha256()
+    for path in paths:
+        with path.open("rb") as file:
+            for block in iter(lambda f=file: f.read(1 << 20), b""):
+                digest.update(block)
+    return digest.hexdigest()
+
+
+def _model_files(path: Path) -> list[Path]:
+    """A model's files: an OpenVINO IR's .xml and .bin, or the one file."""
+    weights = path.with_suffix(".bin")
+    return [path, weights] if path.suffix.lower() == ".xml" and weights.is_file() else [path]
+
+
+def _cached(meta: Path, target: Path, key: dict[str, object]) -> tuple[str, bool]:
+    """The key's digest, and whether ``target`` was made with it (its ``meta`` says so)."""
+    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()
+    try:
+        recorded = json.loads(meta.read_text())["key_sha256"]
+    except (OSError, ValueError, KeyError, TypeError):
+        recorded = None
+    return digest, recorded == digest and target.is_file()
+
+
+def public_source(sequences: Sequence[SequenceInfo]) -> DetectionSource:
+    """The public detections ``det/det.txt``: peers get the confidence column as it is, ours
+    reads it as the probability (clipped to ``[0, 1]``; 0.5 to 1 in these files)."""
+    return DetectionSource(
+        "public",
+        {s.name: s.det_path for s in sequences},
+        None,
+        {
+            "detections": "public det/det.txt",
+            "peers_score": "the file's confidence column as it is",
+            "ours_score": "the file's confidence column read as the probability (clipped to "
+            "[0, 1]; MotDetections.from_file without calibration)",
+        },
+    )
+
+
+def cnn_source(
+    sequences: Sequence[SequenceInfo], frames: dict[str, int], model: Path, folder: Path
+) -> DetectionSource:
+    """The CNN person detector's detections, at confidence >= ``CNN_DETECTION_THRESHOLD``, as
+    MOTChallenge files ``<folder>/detections/<sequence>/cnn.txt`` (see :func:`cnn_detection_file`).
+
+    Raises
+    ------
+    ImportError, ValueError, OSError
+        If the detector cannot be made or run.
+    """
+    from tracking.detection import make_detector
+    from tracking.detection.cnn import CnnConfig
+
+    config = dataclasses.replace(CnnConfig(), threshold=CNN_DETECTION_THRESHOLD)
+    detector = make_detector(model, config)
+    files, made = {}, {}
+    for sequence in sequences:
+        path, reused, seconds = cnn_detection_file(
+            detector, config, model, sequence, frames[sequence.name], folder
+        )
+        files[sequence.name] = path
+        made[sequence.name] = "reused" if reused else f"detected in {seconds:.1f} s"
+    calibration = detector.calibration
+    return DetectionSource(
+        "cnn",
+        files,
+        calibration,
+        {
+            "detections": f"CNN {model.stem}, confidence >= {CNN_DETECTION_THRESHOLD}",
+            "detector": str(model),
+            "detector_options": dataclasses.asdict(config),
+            "calibration": None if calibration is None else dataclasses.asdict(calibration),
+            "made": made,
+            "peers_score": "the network's confidence c in [0, 1] (sigmoid of the Detections' "
+            "log-odds scores), as the detection file holds it",
+            "ours_score": "the calibrated probability p = calibration(log(c / (1 - c))) of the "
+            "file's c, what the detector hands ours_cnn"
+            if calibration is not None
+            else "the file's confidence (the model has no calibration)",
+        },
+    )
+
+
+def cnn_detection_file(
+    detector: object,
+    config: object,
+    model: Path,
+    sequence: SequenceInfo,
+    frames: int,
+    folder: Path,
+) -> tuple[Path, bool, float]:
+    """``<folder>/detections/<sequence>/cnn.txt``: the detector on every frame up to
+    ``frames``, one row per detection ``frame, -1, x + 1, y + 1, w, h, c, -1, -1, -1`` (boxes
+    1-based to 1/1000 px, ``c`` the network's confidence, the sigmoid of ``Detections.scores``,
+    to 1e-6). Reused when ``cnn.json`` beside it records the same key: the model files' SHA-256,
+    the configuration, the sequence and the frame count. (path, reused, seconds detecting)."""
+    target = folder / "detections" / sequence.name / "cnn.txt"
+    meta = target.with_suffix(".json")
+    key = {
+        "model": str(model),
+        "model_sha256": _files_sha256(*_model_files(model)),
+        "config": dataclasses.asdict(config),
+        "sequence": str(sequence.path),
+        "frames": frames,
+    }
+    digest, reused = _cached(meta, target, key)
+    if reused:
+        return target, True, 0.0
+    lines = []
+    start = time.perf_counter()
+    progress = tqdm(
+        range(frames), desc=f"cnn {sequence.name}", unit="frame", file=sys.stderr, leave=False,
+        disable=None,
+    )  # fmt: skip
+    for index in progress:
+        found = detector.detect(read_rgb(sequence.frame_paths[index]))
+        confidence = 1.0 / (1.0 + np.exp(-np.asarray(found.scores, dtype=np.float64)))
+        for (x, y, w, h), c in zip(found.boxes, confidence, strict=True):
+            lines.append(f"{index + 1},-1,{x + 1:.3f},{y + 1:.3f},{w:.3f},{h:.3f},{c:.6f},-1,-1,-1")
+    seconds = time.perf_counter() - start
+    target.parent.mkdir(parents=True, exist_ok=True)
+    partial = target.with_suffix(".txt.partial")
+    partial.write_text("".join(f"{line}\n" for line in lines))
+    partial.replace(target)
+    meta.write_text(
+        json.dumps({"key_sha256": digest, **key, "rows": len(lines)}, indent=1, default=str)
+    )
+    return target, False, seconds
+
+
+def ours_detections(source: DetectionSource, sequence: SequenceInfo) -> object:
+    """The detections ours gets from ``source``: :class:`MotDetections` of the same file (0-based
+    boxes), the confidence column read as :attr:`DetectionSource.calibration` says."""
+    from tracking.detection import MotDetections
+    from tracking.detection.sequences import read_mot_rows as read_rows
+
+    path = source.files[sequence.name]
+    if source.calibration is None:
+        return MotDetections.from_file(path)
+    rows = read_rows(path).copy()  # as MotDetections.from_file reads it
+    c = np.clip(rows[:, 6], 1e-6, 1 - 1e-6)
+    rows[:, 6] = source.calibration.probability(np.log(c / (1 - c)))
+    return MotDetections(rows)
+
+
+def embeddings_file(
+    embedder: object, reid_model: Path, source: DetectionSource, sequence: SequenceInfo,
+    frames: int, folder: Path,
+) -> tuple[Path, bool, float]:  # fmt: skip
+    """``<folder>/detections/<sequence>/<source>.reid.npy``: our re-identification network's
+    embedding of every row of the source's detection file (``(rows, D)`` float32, in the file's
+    row order; NaN for rows past ``frames`` and boxes it cannot embed). Reused when the
+    ``.reid.json`` beside it records the same key: the network's and the detection file's
+    SHA-256 and the frame count. (path, reused, seconds embedding)."""
+    from tracking.detection.sequences import mot_to_image_boxes
+    from tracking.detection.sequences import read_mot_rows as read_rows
+
+    det = source.files[sequence.name]
+    target = folder / "detections" / sequence.name / f"{source.name}.reid.npy"
+    meta = target.with_name(f"{source.name}.reid.json")
+    key = {
+        "reid_model": str(reid_model),
+        "reid_model_sha256": _files_sha256(*_model_files(reid_model)),
+        "detections": str(det),
+        "detections_sha256": _files_sha256(det),
+        "frames": frames,
+    }
+    digest, reused = _cached(meta, target, key)
+    if reused:
+        return target, True, 0.0
+    rows = read_rows(det)
+    out = np.full((len(rows), embedder.embedding_size), np.nan, dtype=np.float32)
+    start = time.perf_counter()
+    progress = tqdm(
+        range(frames), desc=f"re-id {source.name} {sequence.name}", unit="frame",
+        file=sys.stderr, leave=False, disable=None,
+    )  # fmt: skip
+    for index in progress:
+        picked = np.flatnonzero(rows[:, 0] == index + 1)
+        if picked.size:
+            frame = read_rgb(sequence.frame_paths[index])
+            out[picked] = embedder.embed(frame, mot_to_image_boxes(rows[picked, 2:6]))
+    seconds = time.perf_counter() - start
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with target.with_suffix(".partial").open("wb") as file:
+        np.save(file, out)
+    target.with_suffix(".partial").replace(target)
+    meta.write_text(json.dumps({"key_sha256": digest, **key}, indent=1, default=str))
+    return target, False, seconds
+
+
+def prepare_sources(
+    args: argparse.Namespace, outcome: Outcome, folder: Path, names: Sequence[str]
+) -> None:
+    """``outcome.sources`` of ``names``; a source that cannot be made is left out with a note."""
+    for name in names:
+        if name == "public":
+            outcome.sources[name] = public_source(outcome.sequences)
+            continue
+        problem = cnn_model_problem(args.cnn_model)
+        if problem is not None:
+            outcome.notes.append(f"note: the cnn detections are left out: {problem} (--cnn-model)")
+            continue
+        print(f"cnn detections ({args.cnn_model.stem}) ...", file=sys.stderr)
+        try:
+            outcome.sources[name] = cnn_source(
+                outcome.sequences, outcome.frames, args.cnn_model, folder
+            )
+        except (ImportError, ValueError, OSError) as exc:
+            outcome.notes.append(f"note: the cnn detections are left out: {exc}")
+
+
+def prepare_embeddings(args: argparse.Namespace, outcome: Outcome, folder: Path) -> bool:
+    """Every source's embeddings for the re-id peers (:func:`embeddings_file`); False (and a
+    note) if they cannot be made."""
+    try:
+        from tracking.detection.reid import ReidEmbedder
+
+        embedder = ReidEmbedder.from_file(args.reid_model)
+        for source in outcome.sources.values():
+            made = {}
+            for sequence in outcome.sequences:
+                path, reused, seconds = embeddings_file(
+                    embedder, args.reid_model, source, sequence, outcome.frames[sequence.name],
+                    folder,
+                )  # fmt: skip
+                source.embeddings[sequence.name] = path
+                made[sequence.name] = "reused" if reused else f"embedded in {seconds:.1f} s"
+            source.details["reid_embeddings"] = {"model": str(args.reid_model), "made": made}
+    except (ImportError, ValueError, OSError) as exc:
+        outcome.notes.append(f"note: re-id peers skipped: no embeddings: {exc}")
+        return False
+    return True
+
+
+# --------------------------------------------------------------------------------------------
+# Peers
+
+
 def run_peers(
     python: Path,
     kinds: Sequence[str],
     outcome: Outcome,
+    source: DetectionSource,
     repeats: int,
     frames: int | None,
     frame_rate: str,
 ) -> None:
-    """Run each peer over all sequences in the MOT environment (one process per peer)."""
+    """Run each peer over all sequences on ``source`` in its environment (one process per peer
+    and source): Roboflow's trackers with ``mot_trackers.py``, BoxMOT's with
+    ``reid_trackers.py`` (and the source's embeddings)."""
     folders = [str(s.path) for s in outcome.sequences]
     for kind in kinds:
-        command = [str(python), str(PEER_SCRIPT), kind, *folders, "--repeats", str(repeats)]
+        reid = kind in REID_PEERS
+        name = row_name(kind, source.name)
+        script = REID_SCRIPT if reid else PEER_SCRIPT
+        command = [str(python), str(script), kind, *folders, "--repeats", str(repeats)]
         command += ["--frame-rate", frame_rate]
+        for sequence in outcome.sequences:
+            command += ["--det", str(source.files[sequence.name])]
+            if reid:
+                command += ["--embeddings", str(source.embeddings[sequence.name])]
         if frames is not None:
             command += ["--frames", str(frames)]
-        print(f"running {kind} ...", file=sys.stderr)
+        print(f"running {name} ...", file=sys.stderr)
         completed = subprocess.run(command, stdout=subprocess.PIPE, text=True, check=False)
         try:
             report = json.loads(completed.stdout) if completed.returncode == 0 else None
@@ -226,27 +625,76 @@ def run_peers(
             report = None
         if report is None:
             for sequence in outcome.sequences:
-                outcome.fail(kind, sequence.name, f"peer script exited with {completed.returncode}")
+                outcome.fail(name, sequence.name, f"peer script exited with {completed.returncode}")
             continue
-        outcome.details[kind] = {
-            "source": "trackers",
+        outcome.details[name] = {
+            "source": "boxmot" if reid else "trackers",
+            "family": "peer",
+            "base": kind,
+            "detection_source": source.name,
             "class": report["class"],
-            "detections": "public",
+            "detections": source.details["detections"],
+            "score": source.details["peers_score"],
             "versions": report["versions"],
             "params": report["params"],
+            "fed_digest": {},
         }
+        if reid:
+            outcome.details[name]["embeddings"] = report["embeddings"]
         by_name = {s.name: s for s in outcome.sequences}
         for entry in report["sequences"]:
-            name = entry["name"]
+            sequence = entry["name"]
             if "error" in entry:
-                outcome.fail(kind, name, entry["error"])
+                outcome.fail(name, sequence, entry["error"])
                 continue
-            if name not in by_name or entry["frames"] != outcome.frames[name]:
-                outcome.fail(kind, name, "unexpected sequence or length in the peer's report")
+            if sequence not in by_name or entry["frames"] != outcome.frames[sequence]:
+                outcome.fail(name, sequence, "unexpected sequence or length in the peer's report")
                 continue
+            outcome.details[name]["fed_digest"][sequence] = entry["fed_digest"]
+            if reid:
+                outcome.details[name].setdefault("unembedded", {})[sequence] = entry["unembedded"]
             rows = np.asarray(entry["rows"], dtype=np.float64).reshape(-1, 7)
             run = Run(rows, entry["seconds"], entry["frames"], entry["deterministic"])
-            outcome.add(kind, name, run)
+            outcome.add(name, sequence, run)
+
+
+def aspect_rows(rows: np.ndarray, aspect: float) -> np.ndarray:
+    """Result rows (``frame, id, x, y, w, h, ...``) with our tracker's box post-processing:
+    each box set to width ``aspect * h`` about its centre, its height kept. The rule is ours,
+    imported (``tracking.people.tracker._normalised``, what ``MultiPersonTracker`` reports
+    with ``box_aspect``), not a copy. It moves no centre, so it is the same in 1-based file
+    units as in the tracker's 0-based ones."""
+    from tracking.people.tracker import _normalised
+
+    out = np.array(rows, dtype=np.float64, copy=True).reshape(-1, np.shape(rows)[-1])
+    if len(out):
+        out[:, 2:6] = _normalised(out[:, 2:6], aspect)
+    return out
+
+
+def add_parity_rows(outcome: Outcome, aspect: float) -> None:
+    """Every peer run ``<peer>@<source>`` again as ``<peer>+aspect@<source>``: its rows through
+    :func:`aspect_rows` (the tracking, its time and its ids unchanged)."""
+    peers = [
+        t
+        for t, d in outcome.details.items()
+        if d.get("family") == "peer" and "postprocess" not in d and t in outcome.runs
+    ]
+    for tracker in peers:
+        details = outcome.details[tracker]
+        name = row_name(details["base"] + ASPECT, details["detection_source"])
+        outcome.details[name] = {
+            **details,
+            "base": details["base"] + ASPECT,
+            "of": tracker,
+            "postprocess": f"box width set to {aspect} x height about its centre, height kept "
+            "(tracking.people.tracker._normalised, ours' box_aspect)",
+        }
+        for sequence, run in outcome.runs[tracker].items():
+            rows = aspect_rows(run.rows, aspect)
+            outcome.add(name, sequence, Run(rows, run.seconds, run.frames, run.deterministic))
+        for sequence, message in outcome.errors.get(tracker, {}).items():
+            outcome.errors.setdefault(name, {})[sequence] = message
 
 
 @dataclasses.dataclass(frozen=True)
@@ -254,10 +702,14 @@ class OurTracker:
     """One of our trackers: how to make a fresh one, and what it runs on."""
 
     factory: Callable[[], object]
-    public: bool  # fed the public detections (else it runs its own detector)
+    source: str | None  # the detection source it is fed (None: it runs its own detector)
     details: dict[str, object]
     fill_gaps: float = 0.0  # seconds; the service's job option of that name
-    detector: object | None = None  # the detector the trackers get (None: public detections)
+    detector: object | None = None  # the detector the trackers get (None: a source's)
+
+    @property
+    def end_to_end(self) -> bool:
+        return self.source is None
 
 
 def _frame_key(frame: np.ndarray) -> bytes:
@@ -320,15 +772,20 @@ def build_ours(
     tracker_config: object | None = None,
     fill_gaps: float = 0.0,
     cnn_model: Path = DEFAULT_CNN_MODEL,
+    sources: Sequence[str] = ("public",),
+    parity: bool = False,
 ) -> dict[str, OurTracker]:
-    """Our trackers by name: ``MultiPersonTracker`` with the default configuration, on the public
-    detections (``ours``) or with its own detector (``ours_hog``, ``ours_dpm``, ``ours_cnn``:
-    the CNN detector on the network ``cnn_model`` with the ``CnnConfig`` defaults, as a service
-    job runs it; the model loads on first use, like the DPM's). With ``seeds``
-    above 1, each also runs with the particle filter's seeds 1, 2... (``ours_seed1``,
-    ``ours_dpm_seed1``...): the scores of a particle filter vary with its random draws, and one
-    seed would hide by how much. The seeded end-to-end runs replay the detections of the first
-    run (:class:`ReplayedDetector`), so their speed is the tracker's alone. ``dpm_config`` and
+    """Our trackers by row name: ``MultiPersonTracker`` with the default configuration on each
+    detection source of ``sources`` (``ours@public``, ``ours@cnn``; with ``parity`` also
+    ``ours+detbox@<source>``, the same with ``box_aspect=None``: it reports the associated
+    detections' smoothed aspect instead of 0.41), or with its own detector (``ours_hog``,
+    ``ours_dpm``, ``ours_cnn``: the CNN detector on the network ``cnn_model`` with the
+    ``CnnConfig`` defaults, as a service job runs it; the model loads on first use, like the
+    DPM's). With ``seeds`` above 1, each also runs with the particle filter's seeds 1, 2...
+    (``ours_seed1@public``, ``ours_dpm_seed1``...): the scores of a particle filter vary with
+    its random draws, and one seed would hide by how much. The seeded end-to-end runs replay the
+    detections of the first run (:class:`ReplayedDetector`), so their speed is the tracker's
+    alone. ``dpm_config`` and
     ``hog_config``: a ``DpmConfig`` for ``ours_dpm`` (default: ``DPM_TRACKING_CONFIG``, the
     DPM's operating point for tracking) and a ``HogPeopleConfig`` for ``ours_hog`` (default:
     the embedded defaults); ``tracker_config``: a ``PeopleTrackerConfig`` for all of ours
@@ -349,8 +806,30 @@ def build_ours(
 
     config = tracker_config or PeopleTrackerConfig()
     recorded = {"fill_gaps": fill_gaps}
-    sources = {
-        OURS: (None, None, {"detections": "public"}),
+    variants = [(OURS, config)]
+    if parity and config.box_aspect is not None:  # else ours already reports the detections'
+        variants.append((OURS + DETBOX, dataclasses.replace(config, box_aspect=None)))
+    out: dict[str, OurTracker] = {}
+    if OURS in names:
+        for source in sources:
+            for base, variant in variants:
+                for seed in range(seeds):
+                    seeded = dataclasses.replace(variant, seed=seed)
+                    used = {
+                        "family": "ours",
+                        "base": base,
+                        "detection_source": source,
+                        "detections": source,
+                        **recorded,
+                        "config": dataclasses.asdict(seeded),
+                    }
+                    out[row_name(base, source, seed)] = OurTracker(
+                        lambda c=seeded: MultiPersonTracker(c, detector=None),
+                        source,
+                        {**used, "seed": seed} if seed else used,
+                        fill_gaps,
+                    )
+    detectors = {
         "ours_hog": (
             "default",
             hog_config,
@@ -367,24 +846,20 @@ def build_ours(
             {"detections": f"CNN {Path(cnn_model).stem}", "detector": str(cnn_model)},
         ),
     }
-    out: dict[str, OurTracker] = {}
-    for name in names:
-        source, options, details = sources[name]
-        details = {**details, **recorded}
-        if source is not None:
-            details["detector_options"] = dataclasses.asdict(options) if options else {}
-        recorder = (
-            RecordingDetector(lambda s=source, o=options: make_detector(s, o)) if source else None
-        )
+    for name in [n for n in names if n in detectors]:
+        model, options, details = detectors[name]
+        details = {"family": "ours", "base": name, "detection_source": None, **details}
+        options_used = dataclasses.asdict(options) if options else {}
+        details = {**details, **recorded, "detector_options": options_used}
+        recorder = RecordingDetector(lambda m=model, o=options: make_detector(m, o))
         for seed in range(seeds):
             seeded = dataclasses.replace(config, seed=seed)
-            key = name if seed == 0 else f"{name}_seed{seed}"
-            detector = ReplayedDetector(recorder) if recorder is not None and seed else recorder
+            detector = ReplayedDetector(recorder) if seed else recorder
             # the configuration the run uses, its seed included, is the one reported
             used = {**details, "config": dataclasses.asdict(seeded)}
-            out[key] = OurTracker(
+            out[row_name(name, None, seed)] = OurTracker(
                 lambda c=seeded, d=detector: MultiPersonTracker(c, detector=d),
-                source is None,
+                None,
                 {**used, "seed": seed} if seed else used,
                 fill_gaps,
                 detector,
@@ -408,9 +883,7 @@ def detector_calibration(detector: object | None) -> dict[str, object] | None:
 
 def public_detections(sequence: SequenceInfo) -> object:
     """The sequence's ``det/det.txt`` as :class:`MotDetections` (0-based boxes)."""
-    from tracking.detection import MotDetections
-
-    return MotDetections.from_file(sequence.det_path)
+    return ours_detections(public_source([sequence]), sequence)
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -426,12 +899,15 @@ def track_ours(
     frames: int,
     progress: tqdm,
     keep_estimates: bool,
+    detections: object | None = None,
 ) -> tuple[np.ndarray, float, list[tuple[TrackEstimate, ...]] | None]:
-    """One run of a fresh tracker: result rows, seconds in ``update``, estimates if kept."""
+    """One run of a fresh tracker on ``detections`` (a :class:`MotDetections`; None for an
+    end-to-end tracker): result rows, seconds in ``update``, estimates if kept."""
     from tracking.gap_filling import GapFiller
     from tracking.tracks import FrameTracks
 
-    detections = public_detections(sequence) if ours.public else None
+    if (detections is None) != ours.end_to_end:
+        raise ValueError("a tracker fed a detection source needs its detections, and only it")
     tracker = ours.factory()
     filler = GapFiller(ours.fill_gaps) if ours.fill_gaps > 0 else None
     rows = []
@@ -461,9 +937,15 @@ def run_ours(
     end_to_end_repeats: int,
     picture_sequence: str | None,
 ) -> None:
+    given: dict[tuple[str, str], object] = {}  # (source, sequence) -> MotDetections
     for name, tracker in ours.items():
         outcome.details[name] = {"source": "ours", **tracker.details}
-        count = repeats if tracker.public else end_to_end_repeats
+        if not tracker.end_to_end:
+            source = outcome.sources[tracker.source]
+            outcome.details[name]["detections"] = source.details["detections"]
+            outcome.details[name]["score"] = source.details["ours_score"]
+            outcome.details[name]["fed_digest"] = {}
+        count = end_to_end_repeats if tracker.end_to_end else repeats
         total = count * sum(outcome.frames.values())
         progress = tqdm(
             total=total, desc=name, unit="frame", file=sys.stderr, leave=False, disable=None
@@ -474,8 +956,16 @@ def run_ours(
                 frames = outcome.frames[sequence.name]
                 keep = sequence.name == picture_sequence
                 try:
+                    detections = None
+                    if not tracker.end_to_end:
+                        key = (tracker.source, sequence.name)
+                        if key not in given:
+                            given[key] = ours_detections(outcome.sources[key[0]], sequence)
+                        detections = given[key]
+                        digest = ours_fed_digest(detections, frames)
+                        outcome.details[name]["fed_digest"][sequence.name] = digest
                     runs = [
-                        track_ours(tracker, sequence, frames, bar, keep and k == 0)
+                        track_ours(tracker, sequence, frames, bar, keep and k == 0, detections)
                         for k in range(count)
                     ]
                 except Exception as exc:  # one broken run must not stop the benchmark
@@ -600,42 +1090,87 @@ def tracker_figures(outcome: Outcome, tracker: str, scores: dict[str, dict]) -> 
     return out
 
 
+def _order(tracker: str, details: dict[str, object], sources: Sequence[str]) -> tuple:
+    """Where a row goes in the report: by source (end-to-end last), the peers (their own boxes,
+    then ``+aspect``) before ours (then ``+detbox``), by name, by seed."""
+    source = details.get("detection_source")
+    base = str(details.get("base", tracker))
+    plain = base.removesuffix(ASPECT).removesuffix(DETBOX)
+    names = [*PEERS, OURS, *END_TO_END]
+    return (
+        list(sources).index(source) if source in sources else len(sources),
+        0 if details.get("family") == "peer" else 1,
+        base != plain,
+        names.index(plain) if plain in names else len(names),
+        details.get("seed", 0),
+        tracker,
+    )
+
+
+def compare(
+    trackers: dict[str, dict], keys: Sequence[str], source: str, fair: bool
+) -> tuple[dict[str, dict], dict[str, dict]]:
+    """(best peer per sequence and metric, ours minus it per tracker and sequence) on
+    ``source``: among the peers' rows of that source, their ``+aspect`` rows included when
+    ``fair``; ours: our rows of that source and the end-to-end ones (seed 0), and the means over
+    the seeds (``<base>_mean@<source>``)."""
+    peers = [
+        t
+        for t, d in trackers.items()
+        if d.get("family") == "peer"
+        and d.get("detection_source") == source
+        and (fair or "postprocess" not in d)
+    ]
+    ours: dict[str, list[str]] = {}  # base row name -> its seeded rows
+    for tracker, details in trackers.items():
+        if details.get("family") == "ours" and details.get("detection_source") in (source, None):
+            base = row_name(str(details["base"]), details.get("detection_source"))
+            ours.setdefault(base, []).append(tracker)
+    best: dict[str, dict] = {}
+    versus: dict[str, dict[str, dict[str, float]]] = {}
+    for key in keys:
+        figures = {
+            t: trackers[t]["sequences"][key] for t in peers if key in trackers[t]["sequences"]
+        }
+        if not figures:
+            continue
+        best[key] = best_peers(figures)
+        for base, rows in ours.items():
+            first = trackers.get(base, {}).get("sequences", {}).get(key)
+            if first:
+                versus.setdefault(base, {})[key] = versus_best(first, best[key])
+            seeded = [
+                trackers[t]["sequences"][key] for t in rows if key in trackers[t]["sequences"]
+            ]
+            if len(seeded) > 1:  # the mean over the particle filter's seeds
+                numbers = [m for m, v in seeded[0].items() if isinstance(v, (int, float))]
+                mean = {m: float(np.mean([r[m] for r in seeded])) for m in numbers}
+                name, _, at = base.partition("@")
+                mean_name = f"{name}_mean@{at}" if at else f"{name}_mean"
+                versus.setdefault(mean_name, {})[key] = versus_best(mean, best[key])
+    return best, versus
+
+
 def summarize(outcome: Outcome, scored: dict[str, object], results: Path) -> dict[str, object]:
     """All figures as one JSON-ready dict: per tracker and sequence, best peers, differences."""
     scores: dict[str, dict] = scored.get("trackers", {})
+    sources = list(outcome.sources)
+    order = sorted(outcome.runs, key=lambda t: _order(t, outcome.details.get(t, {}), sources))
     trackers = {
         t: {
             **outcome.details.get(t, {}),
             "sequences": tracker_figures(outcome, t, scores.get(t, {})),
         }
-        for t in outcome.runs
+        for t in order
     }
     keys = [s.name for s in outcome.sequences] + ([COMBINED] if len(outcome.sequences) > 1 else [])
     best: dict[str, dict] = {}
-    versus: dict[str, dict[str, dict[str, float]]] = {}
-    for key in keys:
-        figures = {
-            t: trackers[t]["sequences"][key]
-            for t in PEERS
-            if key in trackers.get(t, {}).get("sequences", {})
-        }
-        if not figures:
-            continue
-        best[key] = best_peers(figures)
-        for tracker in (OURS, *END_TO_END):
-            ours = trackers.get(tracker, {}).get("sequences", {}).get(key)
-            if ours:
-                versus.setdefault(tracker, {})[key] = versus_best(ours, best[key])
-        for base in (OURS, *END_TO_END):
-            seeded = [
-                trackers[t]["sequences"][key]
-                for t in trackers
-                if (t == base or t.startswith(f"{base}_seed")) and key in trackers[t]["sequences"]
-            ]
-            if len(seeded) > 1:  # the mean over the particle filter's seeds
-                numbers = [m for m, v in seeded[0].items() if isinstance(v, (int, float))]
-                mean = {m: float(np.mean([r[m] for r in seeded])) for m in numbers}
-                versus.setdefault(f"{base}_mean", {})[key] = versus_best(mean, best[key])
+    versus: dict[str, dict] = {}
+    best_raw: dict[str, dict] = {}
+    versus_raw: dict[str, dict] = {}
+    for source in sources:
+        best[source], versus[source] = compare(trackers, keys, source, fair=True)
+        best_raw[source], versus_raw[source] = compare(trackers, keys, source, fair=False)
     errors = {t: dict(e) for t, e in outcome.errors.items()}
     for tracker, message in scored.get("errors", {}).items():
         errors.setdefault(tracker, {})["trackeval"] = message
@@ -649,8 +1184,15 @@ def summarize(outcome: Outcome, scored: dict[str, object], results: Path) -> dic
             for s in outcome.sequences
         },
         "protocol": {
-            "detections": "public det/det.txt for the peers and ours; ours_hog, ours_dpm and "
-            "ours_cnn run their own detector",
+            "detections": "every tracker <name>@<source> runs on the same detection file of its "
+            "source (public: det/det.txt; cnn: our CNN detector's, run once per sequence); "
+            "ours_hog, ours_dpm and ours_cnn run their own detector",
+            "box_parity": "<peer>+aspect@<source>: the peer's rows with our box post-processing "
+            "(width = box_aspect x height about the centre); ours+detbox@<source>: ours with "
+            "box_aspect=None (the detections' smoothed aspect)",
+            "comparison": "best_peer / ours_vs_best_peer: the best of the peers' rows of each "
+            "source, their +aspect rows included (the fair comparison); best_raw_peer / "
+            "ours_vs_best_raw_peer: the peers' own boxes only",
             "coordinates": "MOTChallenge files are 1-based; ours gets 0-based boxes and writes "
             "1-based ones; the peers keep the file's",
             "trackeval": {k: v for k, v in scored.items() if k in ("trackeval", "config")},
@@ -658,9 +1200,15 @@ def summarize(outcome: Outcome, scored: dict[str, object], results: Path) -> dic
             "the counts at IoU 0.5",
             "fps": "frames / (median over repeats of the seconds in update calls)",
         },
+        "sources": {
+            name: {**source.details, "files": {k: str(v) for k, v in source.files.items()}}
+            for name, source in outcome.sources.items()
+        },
         "trackers": trackers,
         "best_peer": best,
         "ours_vs_best_peer": versus,
+        "best_raw_peer": best_raw,
+        "ours_vs_best_raw_peer": versus_raw,
         "results_dir": str(results),
         "errors": errors,
         "notes": outcome.notes,
@@ -687,10 +1235,13 @@ def format_table(report: dict[str, object]) -> str:
     frames = sum(s["frames"] for s in sequences.values())
     header = "".join(f" {h:>6}" for _, h, _ in TABLE)
     lines = [
-        f"MOT: {len(sequences)} sequences, {frames} frames. Peers and 'ours' on the public "
-        "detections; ours_hog, ours_dpm, ours_cnn run their own detector. Scores by TrackEval "
-        "(HOTA, DetA, AssA over IoU 0.05..0.95; MOTA, IDF1, counts at IoU 0.5), in percent. "
-        "fps: update calls only, median of the repeats.",
+        f"MOT: {len(sequences)} sequences, {frames} frames. <tracker>@<source>: every tracker "
+        "of a source on the same detections (public: det/det.txt; cnn: our CNN detector's); "
+        "<peer>+aspect: the peer's boxes with our post-processing (width 0.41 x height about "
+        "the centre); ours+detbox: ours reporting the detections' aspect; ours_hog, ours_dpm, "
+        "ours_cnn run their own detector. Scores by TrackEval (HOTA, DetA, AssA over IoU "
+        "0.05..0.95; MOTA, IDF1, counts at IoU 0.5), in percent. fps: update calls only, "
+        "median of the repeats (re-id peers: without the re-id network, which ran before).",
         "",
         f"{'tracker':<{width}}  {'sequence':<{width}} {header} {'fps':>8}",
     ]
@@ -708,34 +1259,53 @@ def format_table(report: dict[str, object]) -> str:
         if tracker not in trackers:  # failed on every sequence
             lines += [f"{tracker}: {name}: {message}" for name, message in failures.items()]
 
-    best: dict[str, dict] = report["best_peer"]
-    versus: dict[str, dict] = report["ours_vs_best_peer"]
-    ours = list(versus)
-    if best and ours:
-        lines += [
-            "Ours against the best peer per metric (ours - best, in points; IDSW: ours - fewest; "
-            "fps: ours / fastest peer)",
-            f"{'sequence':<{width}}  {'metric':<6} {'best peer':>17}  "
-            + " ".join(f"{t:>10}" for t in ours),
-        ]
-        for key, metrics in best.items():
-            for metric, ref in metrics.items():
-                digits = 0 if metric == "IDSW" else 1
-                ref_text = f"{ref['value']:.{digits}f} {ref['tracker']}"
-                cells = []
-                for tracker in ours:
-                    diff = versus[tracker].get(key, {})
-                    if metric == "fps":
-                        ratio = diff.get("fps_ratio")
-                        cells.append(f"{'-' if ratio is None else f'x{ratio:.3g}':>10}")
-                    else:
-                        cells.append(_cell(diff.get(metric), digits, 10, signed=True))
-                lines.append(f"{key:<{width}}  {metric:<6} {ref_text:>17}  " + " ".join(cells))
-            lines.append("")
+    for source in report["best_peer"]:
+        for fair in (True, False):
+            lines += comparison_lines(report, source, fair, width)
     lines.append(f"result files: {report['results_dir']}")
     if report["notes"]:
         lines += ["", *report["notes"]]
     return "\n".join(lines)
+
+
+def comparison_lines(report: dict[str, object], source: str, fair: bool, width: int) -> list[str]:
+    """The block of ours against the best peer on ``source`` (``fair``: the peers' ``+aspect``
+    rows included), one column per row of ours (named without ``@<source>``)."""
+    best: dict[str, dict] = report["best_peer" if fair else "best_raw_peer"].get(source, {})
+    versus: dict[str, dict] = report["ours_vs_best_peer" if fair else "ours_vs_best_raw_peer"]
+    versus = versus.get(source, {})
+    ours = list(versus)
+    if not best or not ours:
+        return []
+    labels = [t.removesuffix(f"@{source}") for t in ours]
+    column = max([10, *(len(label) for label in labels)])
+    what = (
+        "the best of the peers' rows and their +aspect rows (our box post-processing): the "
+        "fair comparison"
+        if fair
+        else "the best of the peers' own boxes (raw)"
+    )
+    lines = [
+        f"Ours against the best peer on the {source} detections: {what} (ours - best, in "
+        "points; IDSW: ours - fewest; fps: ours / fastest peer)",
+        f"{'sequence':<{width}}  {'metric':<6} {'best peer':>{width + 8}}  "
+        + " ".join(f"{label:>{column}}" for label in labels),
+    ]
+    for key, metrics in best.items():
+        for metric, ref in metrics.items():
+            digits = 0 if metric == "IDSW" else 1
+            ref_text = f"{ref['value']:.{digits}f} {ref['tracker'].removesuffix(f'@{source}')}"
+            cells = []
+            for tracker in ours:
+                diff = versus[tracker].get(key, {})
+                if metric == "fps":
+                    ratio = diff.get("fps_ratio")
+                    cells.append(f"{'-' if ratio is None else f'x{ratio:.3g}':>{column}}")
+                else:
+                    cells.append(_cell(diff.get(metric), digits, column, signed=True))
+            lines.append(f"{key:<{width}}  {metric:<6} {ref_text:>{width + 8}}  " + " ".join(cells))
+        lines.append("")
+    return lines
 
 
 # --------------------------------------------------------------------------------------------
@@ -819,7 +1389,13 @@ def make_picture(outcome: Outcome, path: Path) -> dict[str, object] | None:
     sequence = next((s for s in outcome.sequences if s.name == PICTURE_SEQUENCE), None)
     if sequence is None:
         return None
-    for tracker in (OURS, "ours_dpm", "ours_cnn", "ours_hog"):
+    for tracker in (
+        row_name(OURS, "public"),
+        row_name(OURS, "cnn"),
+        "ours_dpm",
+        "ours_cnn",
+        "ours_hog",
+    ):
         run = outcome.runs.get(tracker, {}).get(sequence.name)
         if run is None or not run.estimates or not any(run.estimates):
             continue
@@ -841,6 +1417,18 @@ def make_picture(outcome: Outcome, path: Path) -> dict[str, object] | None:
 
 def _names(text: str | None) -> list[str] | None:
     return None if text is None else [n.strip() for n in text.split(",") if n.strip()]
+
+
+def _sources(text: str) -> tuple[str, ...]:
+    """``--detections``: known source names, in their canonical order."""
+    names = _names(text) or []
+    unknown = [n for n in names if n not in SOURCES]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"unknown detection source {', '.join(unknown) or repr(text)}; choose from "
+            f"{', '.join(SOURCES)}"
+        )
+    return tuple(n for n in SOURCES if n in names)
 
 
 def _config(kind: str, text: str) -> object:
@@ -865,8 +1453,9 @@ def _config(kind: str, text: str) -> object:
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        description="Run our multi-person tracker and SORT, ByteTrack, OC-SORT, BoT-SORT on "
-        "MOTChallenge sequences and score them with TrackEval."
+        description="Run our multi-person tracker and SORT, ByteTrack, OC-SORT, BoT-SORT, Deep "
+        "OC-SORT, StrongSORT on MOTChallenge sequences, each on the same detections, and score "
+        "them with TrackEval."
     )
     parser.add_argument(
         "--data", type=Path, default=DEFAULT_DATA, help=f"MOT folder (default {DEFAULT_DATA})"
@@ -880,6 +1469,21 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--trackers",
         help=f"comma-separated tracker names, of {', '.join(TRACKERS)} (default: all that the "
         "other options leave in)",
+    )
+    parser.add_argument(
+        "--detections",
+        type=_sources,
+        metavar="SOURCES",
+        help="comma-separated detection sources every tracker runs on, of "
+        f"{', '.join(SOURCES)} (default: both; cnn: the --cnn-model network at confidence >= "
+        f"{CNN_DETECTION_THRESHOLD}, run once per sequence and kept under --results)",
+    )
+    parser.add_argument(
+        "--parity",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also the box parity rows: <peer>+aspect@<source> (the peer's boxes with our "
+        "box_aspect) and ours+detbox@<source> (ours with box_aspect=None) (default on)",
     )
     parser.add_argument("--frames", type=int, help="only the first N frames of every sequence")
     parser.add_argument(
@@ -934,10 +1538,20 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         type=Path,
         default=DEFAULT_CNN_MODEL,
         metavar="PATH",
-        help="network of ours_cnn, an OpenVINO IR .xml (its .bin beside it) or an .onnx file "
-        f"(default: the product's default, {DEFAULT_CNN_MODEL})",
+        help="network of ours_cnn and of the cnn detections, an OpenVINO IR .xml (its .bin "
+        f"beside it) or an .onnx file (default: the product's default, {DEFAULT_CNN_MODEL})",
     )
-    parser.add_argument("--no-peers", action="store_true", help="skip SORT, ByteTrack...")
+    parser.add_argument(
+        "--reid-model",
+        type=Path,
+        default=DEFAULT_REID_MODEL,
+        metavar="PATH",
+        help="our re-identification network, whose embeddings the re-id peers (deepocsort, "
+        f"strongsort, botsort_reid) get (default {DEFAULT_REID_MODEL})",
+    )
+    parser.add_argument(
+        "--no-peers", action="store_true", help="skip the peers (SORT, ..., Deep OC-SORT, ...)"
+    )
     parser.add_argument(
         "--peer-frame-rate",
         choices=("sequence", "library"),
@@ -948,6 +1562,12 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--mot-env",
         type=Path,
         help="virtual environment of the peers and TrackEval, created if needed (.venv-mot)",
+    )
+    parser.add_argument(
+        "--reid-env",
+        type=Path,
+        help="virtual environment of the re-id peers (BoxMOT, PyTorch), created if needed "
+        "(.venv-reid)",
     )
     parser.add_argument(
         "--results",
@@ -982,9 +1602,14 @@ def tracker_problem(args: argparse.Namespace) -> str | None:
     """What is wrong with ``--trackers`` given the other options, or None.
 
     A tracker asked for by name is run or refused, never dropped: unknown names, and names
-    that ``--no-peers``, ``--no-end-to-end`` or a missing ``--dpm`` or ``--cnn-model`` model
-    leave out, are argument errors.
+    that ``--no-peers``, ``--no-end-to-end`` or a missing ``--dpm``, ``--cnn-model`` or
+    ``--reid-model`` model leave out, are argument errors; so is ``--detections cnn`` without
+    its model.
     """
+    if args.detections is not None and "cnn" in args.detections:
+        problem = cnn_model_problem(args.cnn_model)
+        if problem is not None:
+            return f"--detections asks for cnn but {problem}; give its path with --cnn-model"
     requested = _names(args.trackers)
     if requested is None:  # all: the options choose, and a missing model becomes a note
         return None
@@ -1013,20 +1638,29 @@ def tracker_problem(args: argparse.Namespace) -> str | None:
         problem = cnn_model_problem(args.cnn_model)
         if problem is not None:
             return f"--trackers asks for ours_cnn but {problem}; give its path with --cnn-model"
+    reid = [n for n in requested if n in REID_PEERS]
+    if reid:
+        problem = cnn_model_problem(args.reid_model, "re-identification")
+        if problem is not None:
+            return (
+                f"--trackers asks for {', '.join(reid)} but {problem}; give its path with "
+                "--reid-model"
+            )
     return None
 
 
-def cnn_model_problem(path: Path) -> str | None:
-    """Why ``ours_cnn`` cannot run the network at ``path`` (not a model file, missing, an IR
-    without its weights), or None. Only the files are looked at, so that a bad path is told
-    before anything runs; a file OpenVINO cannot read fails ``ours_cnn`` on every sequence."""
+def cnn_model_problem(path: Path, kind: str = "CNN") -> str | None:
+    """Why ``ours_cnn`` (or the cnn detections; ``kind`` "re-identification": the re-id peers'
+    embeddings) cannot run the network at ``path`` (not a model file, missing, an IR without
+    its weights), or None. Only the files are looked at, so that a bad path is told before
+    anything runs; a file OpenVINO cannot read fails ``ours_cnn`` on every sequence."""
     if path.suffix.lower() not in CNN_SUFFIXES:
-        return f"{path} is not a CNN model (an OpenVINO IR .xml or an .onnx file)"
+        return f"{path} is not a {kind} model (an OpenVINO IR .xml or an .onnx file)"
     if not path.is_file():
-        return f"there is no CNN model at {path}"
+        return f"there is no {kind} model at {path}"
     weights = path.with_suffix(".bin")
     if path.suffix.lower() == ".xml" and not weights.is_file():
-        return f"the CNN model {path} has no weights {weights.name} beside it"
+        return f"the {kind} model {path} has no weights {weights.name} beside it"
     return None
 
 
@@ -1093,6 +1727,36 @@ def mot_python(args: argparse.Namespace, outcome: Outcome) -> Path | None:
         return None
 
 
+def parity_aspect(args: argparse.Namespace, outcome: Outcome) -> float | None:
+    """The box aspect ours reports (``PeopleTrackerConfig.box_aspect`` of the configuration it
+    runs with), which the peers' ``+aspect`` rows get; None (and a note) when ours reports the
+    detections' own aspect or cannot be imported."""
+    try:
+        from tracking.people import PeopleTrackerConfig
+    except ImportError as exc:
+        outcome.notes.append(f"note: no +aspect rows: tracking.people is unavailable: {exc}")
+        return None
+    aspect = (args.tracker_config or PeopleTrackerConfig()).box_aspect
+    if aspect is None:
+        outcome.notes.append("note: no +aspect rows: ours runs with box_aspect None")
+    return aspect
+
+
+def reid_python(args: argparse.Namespace, outcome: Outcome) -> Path | None:
+    """The interpreter of the re-id peers' environment (BoxMOT); None (and a note) if it is
+    unavailable."""
+    try:  # run as a script: benchmarks/ is on sys.path
+        from _reid_env import PeerEnvError, ensure_reid_env
+    except ImportError:  # python -m benchmarks.mot from the repository root
+        from benchmarks._reid_env import PeerEnvError, ensure_reid_env
+    try:
+        return ensure_reid_env(*([args.reid_env] if args.reid_env else []))
+    except PeerEnvError as exc:
+        outcome.notes.append(f"note: re-id peers skipped: {exc}")
+        print(f"the re-id environment is unavailable, no re-id peers: {exc}", file=sys.stderr)
+        return None
+
+
 def make_ours(
     args: argparse.Namespace, names: list[str], outcome: Outcome
 ) -> dict[str, OurTracker]:
@@ -1118,6 +1782,8 @@ def make_ours(
             args.tracker_config,
             args.fill_gaps,
             args.cnn_model,
+            list(outcome.sources),
+            args.parity,
         )
     except ImportError as exc:
         outcome.notes.append(f"note: our tracker is unavailable (tracking.people: {exc})")
@@ -1147,21 +1813,40 @@ def scored_trackers(report: dict[str, object]) -> list[str]:
 
 
 def list_trackers(args: argparse.Namespace) -> str:
-    """``--list``: the tracker names, and what each of ours tracks on (models: missing or not)."""
+    """``--list``: the detection sources, the tracker names and their report rows, and what each
+    of ours tracks on (models: missing or not)."""
 
     def model(kind: str, path: Path, problem: str | None) -> str:
         return f"{kind} {path}" if problem is None else f"{kind}: {problem}"
 
     dpm_problem = None if args.dpm.is_file() else f"there is no DPM model at {args.dpm}"
-    sources = {
-        OURS: "public detections det/det.txt",
+    cnn = model("CNN", args.cnn_model, cnn_model_problem(args.cnn_model))
+    detections = {
+        "public": "det/det.txt of each sequence",
+        "cnn": f"{cnn} at confidence >= {CNN_DETECTION_THRESHOLD}, once per sequence",
+    }
+    ours = {
+        OURS: "each detection source (ours@<source>)",
         "ours_hog": "embedded HOG people detector",
         "ours_dpm": model("DPM", args.dpm, dpm_problem),
-        "ours_cnn": model("CNN", args.cnn_model, cnn_model_problem(args.cnn_model)),
+        "ours_cnn": cnn,
     }
-    width = max(len(n) for n in sources)
-    lines = ["peers: " + ", ".join(PEERS), "ours:  " + ", ".join([OURS, *END_TO_END])]
-    lines += [f"  {name:<{width}}  {source}" for name, source in sources.items()]
+    reid = cnn_model_problem(args.reid_model, "re-identification")
+    width = max(len(n) for n in ours)
+    lines = ["detections (--detections): " + ", ".join(SOURCES)]
+    lines += [f"  {name:<{width}}  {text}" for name, text in detections.items()]
+    lines += [
+        "peers: " + ", ".join(MOT_PEERS) + " (Roboflow's trackers)",
+        "       " + ", ".join(REID_PEERS) + " (BoxMOT, with "
+        + model("our re-identification network", args.reid_model, reid) + ")",
+        "ours:  " + ", ".join([OURS, *END_TO_END]),
+    ]  # fmt: skip
+    lines += [f"  {name:<{width}}  {source}" for name, source in ours.items()]
+    lines += [
+        "rows per source S: <peer>@S, <peer>+aspect@S (the peer's boxes with our box_aspect), "
+        "ours@S, ours+detbox@S (box_aspect=None), and ours_seed<k>@S... for --seeds; the "
+        "end-to-end rows ours_hog, ours_dpm, ours_cnn have no source",
+    ]
     return "\n".join(lines)
 
 
@@ -1179,10 +1864,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     frames = {s.name: min(len(s), args.frames or len(s)) for s in sequences}
     outcome = Outcome(sequences=sequences, frames=frames)
 
+    results = args.results or Path(tempfile.mkdtemp(prefix="vtrack-mot-results-"))
     python = mot_python(args, outcome)
-    if python is not None and peers:
-        run_peers(python, peers, outcome, args.repeats, args.frames, args.peer_frame_rate)
+    if peers or OURS in ours_names:  # the trackers that are fed a detection source
+        prepare_sources(args, outcome, results, args.detections or SOURCES)
+    mot_peers = [p for p in peers if p in MOT_PEERS]
+    if python is not None and mot_peers:
+        for source in outcome.sources.values():
+            run_peers(python, mot_peers, outcome, source, args.repeats, args.frames,
+                      args.peer_frame_rate)  # fmt: skip
+    reid_peers = [p for p in peers if p in REID_PEERS]
+    if reid_peers and outcome.sources:
+        problem = cnn_model_problem(args.reid_model, "re-identification")
+        reid = None
+        if problem is not None:
+            outcome.notes.append(f"note: re-id peers skipped: {problem} (--reid-model)")
+        else:
+            reid = reid_python(args, outcome)
+        if reid is not None and prepare_embeddings(args, outcome, results):
+            for source in outcome.sources.values():
+                run_peers(reid, reid_peers, outcome, source, args.repeats, args.frames,
+                          args.peer_frame_rate)  # fmt: skip
     ours = make_ours(args, ours_names, outcome)
+    if args.parity:
+        aspect = parity_aspect(args, outcome)
+        if aspect is not None:
+            add_parity_rows(outcome, aspect)
     picture_sequence = PICTURE_SEQUENCE if args.picture is not None else None
     run_ours(ours, outcome, args.repeats, args.end_to_end_repeats, picture_sequence)
     if not outcome.runs:
@@ -1191,7 +1898,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(note, file=sys.stderr)
         return 1
 
-    results = args.results or Path(tempfile.mkdtemp(prefix="vtrack-mot-results-"))
     write_results(outcome, results)
     scored, unscored = score(python, outcome, results)
     report = summarize(outcome, scored, results)

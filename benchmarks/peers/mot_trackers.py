@@ -5,7 +5,7 @@ A standalone script for the MOT peer environment (``trackers``, ``supervision``,
 in a subprocess:
 
     .venv-mot/bin/python benchmarks/peers/mot_trackers.py KIND SEQUENCE_DIR [...]
-        [--frames N] [--repeats R] [--frame-rate sequence|library]
+        [--det FILE [...]] [--frames N] [--repeats R] [--frame-rate sequence|library]
 
 Kinds: ``sort`` (SORTTracker), ``bytetrack`` (ByteTrackTracker), ``ocsort`` (OCSORTTracker),
 ``botsort`` (BoTSORTTracker). Every parameter keeps the library's default except
@@ -15,9 +15,12 @@ scale ``lost_track_buffer`` (given in frames at 30 fps) to the video's rate. ``-
 library`` keeps the library's 30 fps. Updates run in the library's fixed-rate mode (no
 timestamps): every frame is one step.
 
-Input, per frame, the public detections ``det/det.txt`` as ``supervision.Detections`` with
-``xyxy`` and ``confidence`` (the file's column 7), in the file's coordinates (1-based; these
-trackers never look at pixels, so their output stays in the same convention). BoT-SORT also
+Input, per frame, the detections of a MOTChallenge detection file as ``supervision.Detections``
+with ``xyxy`` and ``confidence`` (the file's column 7, as it is), in the file's coordinates
+(1-based; these trackers never look at pixels, so their output stays in the same convention).
+The file is the sequence's public detections ``det/det.txt``, or the i-th ``--det FILE`` for
+the i-th sequence (``benchmarks/mot.py`` passes its CNN detections so). Rows without width or
+height are left out, as the project's ``MotDetections`` leaves them out for ours. BoT-SORT also
 gets the frame (BGR, as it expects) for its camera-motion compensation (on by default,
 sparse optical flow at half resolution); the others get no frame (they would only warn).
 
@@ -32,7 +35,9 @@ says whether every run gave the same rows.
 
 Output (stdout): one JSON object ``{"kind", "class", "versions", "params", "sequences": [...]}``;
 each sequence is ``{"name", "frames", "frame_rate", "rows": [[frame, id, x, y, w, h, conf],
-...], "seconds": [per run], "deterministic"}`` or ``{"name", "error"}``.
+...], "seconds": [per run], "deterministic", "fed_digest"}`` or ``{"name", "error"}``.
+``fed_digest`` is a digest of the boxes the tracker was given (frame, x, y, w, h, rounded to
+1e-4 px), the same function as ``benchmarks/mot.py``'s ``fed_digest``.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from __future__ import annotations
 import argparse
 import configparser
 import contextlib
+import hashlib
 import importlib.metadata
 import inspect
 import json
@@ -78,8 +84,16 @@ def default_params(kind: str) -> dict[str, object]:
     return params
 
 
-def read_sequence(folder: Path) -> dict[str, object]:
-    """Name, frame rate and frame paths from ``seqinfo.ini``; detections per 1-based frame."""
+def fed_digest(rows: np.ndarray) -> str:
+    """Digest of detections ``frame, x, y, w, h`` (file units), rounded to 1e-4 px; mirrored in
+    ``benchmarks/mot.py`` and ``benchmarks/peers/reid_trackers.py``."""
+    values = np.round(np.asarray(rows, dtype=np.float64).reshape(-1, 5), 4) + 0.0  # no -0.0
+    return hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()[:16]
+
+
+def read_sequence(folder: Path, det_file: Path | None = None) -> dict[str, object]:
+    """Name, frame rate and frame paths from ``seqinfo.ini``; detections (``det_file``, by
+    default ``det/det.txt``), rows with a width and a height."""
     parser = configparser.ConfigParser()
     if not parser.read(folder / "seqinfo.ini", encoding="utf-8"):
         raise ValueError(f"{folder}: no seqinfo.ini")
@@ -91,7 +105,10 @@ def read_sequence(folder: Path) -> dict[str, object]:
     length = int(info.get("seqLength", len(frames)))
     if len(frames) < length:
         raise ValueError(f"{folder}: seqLength {length} but {len(frames)} images")
-    rows = np.loadtxt(folder / "det" / "det.txt", delimiter=",", ndmin=2)
+    rows = np.loadtxt(det_file or folder / "det" / "det.txt", delimiter=",", ndmin=2)
+    if rows.size == 0:
+        rows = np.zeros((0, 7))
+    rows = rows[(rows[:, 4] > 0) & (rows[:, 5] > 0)]
     return {
         "name": info.get("name", folder.name),
         "frame_rate": float(info["frameRate"]),
@@ -111,17 +128,21 @@ def to_detections(rows: np.ndarray) -> sv.Detections:
 
 def track_once(
     kind: str, sequence: dict[str, object], frames: int, frame_rate: float | None
-) -> tuple[list[list[float]], float]:
-    """One run of a fresh tracker: result rows (file units) and the seconds spent in update."""
+) -> tuple[list[list[float]], float, str]:
+    """One run of a fresh tracker: result rows (file units), the seconds spent in update and
+    the digest of the detections it was given."""
     tracker = KINDS[kind](**({} if frame_rate is None else {"frame_rate": frame_rate}))
     detections: np.ndarray = sequence["detections"]
     by_frame = {int(f): detections[detections[:, 0] == f] for f in np.unique(detections[:, 0])}
     empty = np.zeros((0, detections.shape[1]))
     rows: list[list[float]] = []
+    fed: list[np.ndarray] = []
     seconds = 0.0
     for index in range(frames):
         frame_number = index + 1
-        current = to_detections(by_frame.get(frame_number, empty))
+        given = by_frame.get(frame_number, empty)
+        fed.append(np.column_stack([given[:, 0], given[:, 2:6]]))
+        current = to_detections(given)
         image = None
         if kind in NEEDS_FRAMES:
             image = cv2.imread(str(sequence["frames"][index]), cv2.IMREAD_COLOR)
@@ -143,13 +164,18 @@ def track_once(
                     [frame_number, int(track_id), float(x1), float(y1), float(x2 - x1),
                      float(y2 - y1), float(score)]
                 )  # fmt: skip
-    return rows, seconds
+    return rows, seconds, fed_digest(np.concatenate(fed) if fed else np.zeros((0, 5)))
 
 
 def run_sequence(
-    kind: str, folder: Path, max_frames: int | None, repeats: int, use_sequence_rate: bool
+    kind: str,
+    folder: Path,
+    max_frames: int | None,
+    repeats: int,
+    use_sequence_rate: bool,
+    det_file: Path | None = None,
 ) -> dict[str, object]:
-    sequence = read_sequence(folder)
+    sequence = read_sequence(folder, det_file)
     frames = len(sequence["frames"])
     if max_frames is not None:
         frames = min(frames, max_frames)
@@ -161,8 +187,9 @@ def run_sequence(
         "frames": frames,
         "frame_rate": sequence["frame_rate"],
         "rows": rows,
-        "seconds": [seconds for _, seconds in runs],
-        "deterministic": all(r == rows for r, _ in runs[1:]),
+        "seconds": [seconds for _, seconds, _ in runs],
+        "deterministic": all(r == rows for r, _, _ in runs[1:]),
+        "fed_digest": runs[0][2],
     }
 
 
@@ -170,6 +197,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("kind", choices=sorted(KINDS))
     parser.add_argument("sequences", nargs="+", type=Path, help="MOTChallenge sequence folders")
+    parser.add_argument(
+        "--det",
+        type=Path,
+        action="append",
+        help="detection file of each sequence, in order (default: each one's det/det.txt)",
+    )
     parser.add_argument("--frames", type=int, help="only the first N frames of each sequence")
     parser.add_argument("--repeats", type=int, default=1, help="timed runs per sequence")
     parser.add_argument(
@@ -181,14 +214,22 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.repeats < 1 or (args.frames is not None and args.frames < 1):
         parser.error("--repeats and --frames must be positive")
+    if args.det is not None and len(args.det) != len(args.sequences):
+        parser.error("give one --det per sequence, or none")
+    det_files = args.det or [None] * len(args.sequences)
     warnings.simplefilter("ignore", FutureWarning)  # pyDeprecate notices of the library
     results = []
-    for folder in args.sequences:
+    for folder, det_file in zip(args.sequences, det_files, strict=True):
         try:
             # the library logs through `logging` and may print: keep stdout for the JSON
             with contextlib.redirect_stdout(sys.stderr):
                 result = run_sequence(
-                    args.kind, folder, args.frames, args.repeats, args.frame_rate == "sequence"
+                    args.kind,
+                    folder,
+                    args.frames,
+                    args.repeats,
+                    args.frame_rate == "sequence",
+                    det_file,
                 )
         except (OSError, ValueError, KeyError, cv2.error) as exc:
             result = {"name": folder.name, "error": f"{type(exc).__name__}: {exc}"}
