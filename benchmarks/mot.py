@@ -98,6 +98,12 @@ with the ``box_aspect`` ours runs with); its speed is the peer's. And for ours
 ``ours+detbox@<source>`` (with its seeds): ``MultiPersonTracker`` with ``box_aspect=None``,
 which reports the associated detections' smoothed aspect.
 
+Re-identification in ours: each of ours also runs with the re-identification network of
+``--reid-model`` (``ours+reid@<source>``, ``ours+detbox+reid@<source>``), as a service job
+runs when the model is installed (``tracker.reid``); the tracker embeds the detections itself,
+with the network that gives the re-id peers their embeddings. ``--no-ours-reid`` leaves these
+rows out.
+
 Scores: TrackEval (``benchmarks/peers/trackeval_score.py``, in ``.venv-mot``) on the MOTChallenge
 result files written to ``--results`` (default: a new temporary folder, kept and named in the
 output), against ``gt/gt.txt`` cut to the frames that were run: HOTA, DetA, AssA (means over the
@@ -143,6 +149,7 @@ import argparse
 import contextlib
 import dataclasses
 import hashlib
+import itertools
 import json
 import shutil
 import statistics
@@ -212,6 +219,7 @@ SOURCES = ("public", "cnn")  # detection sources, --detections
 CNN_DETECTION_THRESHOLD = 0.1
 ASPECT = "+aspect"  # a peer's rows with our box post-processing
 DETBOX = "+detbox"  # ours reporting the detections' aspect (box_aspect=None)
+REID = "+reid"  # ours with the re-identification network (--reid-model)
 PICTURE_SEQUENCE = "PETS09-S2L1"
 PICTURE_TRAIL = 20  # frames of trail behind each track
 PICTURE_MAX_BYTES = 300_000
@@ -774,6 +782,7 @@ def build_ours(
     cnn_model: Path = DEFAULT_CNN_MODEL,
     sources: Sequence[str] = ("public",),
     parity: bool = False,
+    reid_model: Path | None = None,
 ) -> dict[str, OurTracker]:
     """Our trackers by row name: ``MultiPersonTracker`` with the default configuration on each
     detection source of ``sources`` (``ours@public``, ``ours@cnn``; with ``parity`` also
@@ -790,7 +799,10 @@ def build_ours(
     DPM's operating point for tracking) and a ``HogPeopleConfig`` for ``ours_hog`` (default:
     the embedded defaults); ``tracker_config``: a ``PeopleTrackerConfig`` for all of ours
     (default: the defaults); ``fill_gaps``: seconds of the results' gaps to fill
-    (:class:`tracking.gap_filling.GapFiller`, the service's ``fill_gaps``; 0: none).
+    (:class:`tracking.gap_filling.GapFiller`, the service's ``fill_gaps``; 0: none);
+    ``reid_model``: a re-identification network with which ours also runs as a service job
+    with the model installed runs it (``ours+reid@<source>``, ``ours+detbox+reid@<source>``:
+    the tracker embeds each frame's detections itself).
 
     ``tracking.people`` and ``tracking.detection`` are imported here, not at module level, so
     the harness also runs with the peers only while they are missing.
@@ -809,22 +821,29 @@ def build_ours(
     variants = [(OURS, config)]
     if parity and config.box_aspect is not None:  # else ours already reports the detections'
         variants.append((OURS + DETBOX, dataclasses.replace(config, box_aspect=None)))
+    reid = None
+    if reid_model is not None:
+        from tracking.detection.reid import ReidEmbedder
+
+        reid = ReidEmbedder.from_file(reid_model)
+    networks = [("", None)] + ([(REID, reid)] if reid is not None else [])
     out: dict[str, OurTracker] = {}
     if OURS in names:
         for source in sources:
-            for base, variant in variants:
+            for (base, variant), (suffix, embedder) in itertools.product(variants, networks):
                 for seed in range(seeds):
                     seeded = dataclasses.replace(variant, seed=seed)
                     used = {
                         "family": "ours",
-                        "base": base,
+                        "base": base + suffix,
                         "detection_source": source,
                         "detections": source,
                         **recorded,
                         "config": dataclasses.asdict(seeded),
+                        "reid_model": str(reid_model) if embedder is not None else None,
                     }
-                    out[row_name(base, source, seed)] = OurTracker(
-                        lambda c=seeded: MultiPersonTracker(c, detector=None),
+                    out[row_name(base + suffix, source, seed)] = OurTracker(
+                        lambda c=seeded, r=embedder: MultiPersonTracker(c, detector=None, reid=r),
                         source,
                         {**used, "seed": seed} if seed else used,
                         fill_gaps,
@@ -1485,6 +1504,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         help="also the box parity rows: <peer>+aspect@<source> (the peer's boxes with our "
         "box_aspect) and ours+detbox@<source> (ours with box_aspect=None) (default on)",
     )
+    parser.add_argument(
+        "--no-ours-reid",
+        action="store_true",
+        help="no ours+reid rows (ours with the --reid-model network)",
+    )
     parser.add_argument("--frames", type=int, help="only the first N frames of every sequence")
     parser.add_argument(
         "--repeats", type=int, default=3, help="timed runs per tracker and sequence (default 3)"
@@ -1784,6 +1808,7 @@ def make_ours(
             args.cnn_model,
             list(outcome.sources),
             args.parity,
+            None if args.no_ours_reid or cnn_model_problem(args.reid_model) else args.reid_model,
         )
     except ImportError as exc:
         outcome.notes.append(f"note: our tracker is unavailable (tracking.people: {exc})")

@@ -107,6 +107,21 @@ def test_ours_runs_on_each_source_and_with_the_detections_aspect(mot, tmp_path: 
                                parity=True)) == ["ours@public"]  # fmt: skip
 
 
+def test_ours_also_runs_with_the_reid_network(mot, tmp_path: Path) -> None:
+    """ours+reid@<source>: the tracker with the re-identification network, as a job with the
+    model installed runs; its twin with the detections' aspect too."""
+    ours = mot.build_ours(["ours"], tmp_path / "none.mat", 1, parity=True,
+                          reid_model=mot.DEFAULT_REID_MODEL)  # fmt: skip
+    assert list(ours) == ["ours@public", "ours+reid@public", "ours+detbox@public",
+                          "ours+detbox+reid@public"]  # fmt: skip
+    for name, entry in ours.items():
+        tracker = entry.factory()
+        assert (tracker._reid is not None) == name.endswith("+reid@public"), name
+        assert entry.details["reid_model"] == (
+            str(mot.DEFAULT_REID_MODEL) if "+reid" in name else None
+        )
+
+
 def test_dpm_runs_at_its_tracking_operating_point(mot, tmp_path: Path) -> None:
     ours = mot.build_ours(["ours_dpm"], tmp_path / "none.mat")  # the model loads on first use
     assert ours["ours_dpm"].details["detector_options"] == dataclasses.asdict(DPM_TRACKING_CONFIG)
@@ -142,7 +157,7 @@ def test_a_missing_cnn_model_leaves_ours_cnn_out_with_a_note(mot, tmp_path: Path
         (tmp_path / "none.xml", f"there is no CNN model at {tmp_path}/none.xml"),
         (weightless, f"the CNN model {weightless} has no weights net.bin beside it"),
     ]:
-        args = mot.parse_args(["--cnn-model", str(path), "--no-parity"])
+        args = mot.parse_args(["--cnn-model", str(path), "--no-parity", "--no-ours-reid"])
         outcome = mot.Outcome(sequences=[], frames={}, sources={"public": mot.public_source([])})
         ours = mot.make_ours(args, ["ours", "ours_cnn"], outcome)
         assert list(ours) == ["ours@public", "ours_seed1@public", "ours_seed2@public",
@@ -314,7 +329,7 @@ def unscored_run(mot, shared_data, tmp_path_factory):
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = mot.main(
             ["--data", str(shared_data / "mot"), "--sequences", "TUD-Stadtmitte", "--frames", "3",
-             "--trackers", "ours", "--no-peers", "--seeds", "2", "--repeats", "1",
+             "--no-ours-reid", "--trackers", "ours", "--no-peers", "--seeds", "2", "--repeats", "1",
              "--detections", "public", "--no-parity",
              "--mot-env", str(_refused_env(tmp / "env")), "--results", str(tmp / "results"),
              "--json"]
@@ -344,7 +359,7 @@ def test_ours_cnn_tracks_end_to_end(mot, shared_data, tmp_path, capsys) -> None:
     report names the model and the calibration it ran with."""
     code = mot.main(
         ["--data", str(shared_data / "mot"), "--sequences", "PETS09-S2L1", "--frames", "3",
-         "--trackers", "ours_cnn", "--seeds", "2", "--repeats", "1", "--no-peers",
+         "--no-ours-reid", "--trackers", "ours_cnn", "--seeds", "2", "--repeats", "1", "--no-peers",
          "--mot-env", str(_refused_env(tmp_path / "env")), "--results", str(tmp_path / "r"),
          "--json"]
     )  # fmt: skip
@@ -446,7 +461,7 @@ def test_ours_runs_on_each_source(mot, shared_data, tmp_path, capsys) -> None:
     with the probability the detector would hand ours_cnn; ours+detbox reports other boxes."""
     results = tmp_path / "r"
     argv = ["--data", str(shared_data / "mot"), "--sequences", "TUD-Stadtmitte", "--frames", "3",
-            "--trackers", "ours", "--seeds", "1", "--repeats", "1", "--no-peers",
+            "--no-ours-reid", "--trackers", "ours", "--seeds", "1", "--repeats", "1", "--no-peers",
             "--mot-env", str(_refused_env(tmp_path / "env")), "--results", str(results),
             "--json"]  # fmt: skip
     assert mot.main(argv) == 1  # tracked, but nothing could score it
@@ -518,7 +533,7 @@ def test_every_tracker_of_a_source_gets_the_same_detections(mot, shared_data, tm
     results = tmp_path / "r"
     code = mot.main(
         ["--data", str(shared_data / "mot"), "--sequences", "TUD-Stadtmitte", "--frames", "5",
-         "--trackers", "sort,deepocsort,ours", "--seeds", "2", "--repeats", "1",
+         "--no-ours-reid", "--trackers", "sort,deepocsort,ours", "--seeds", "2", "--repeats", "1",
          "--results", str(results), "--json"]
     )  # fmt: skip
     assert code == 0
