@@ -871,8 +871,10 @@ def build_ours(
         options_used = dataclasses.asdict(options) if options else {}
         details = {**details, **recorded, "detector_options": options_used}
         recorder = RecordingDetector(lambda m=model, o=options: make_detector(m, o))
+        # as a service job: the CNN's tracks keep its boxes' shape (service.pipelines)
+        own = dataclasses.replace(config, box_aspect=None) if name == "ours_cnn" else config
         for seed in range(seeds):
-            seeded = dataclasses.replace(config, seed=seed)
+            seeded = dataclasses.replace(own, seed=seed)
             detector = ReplayedDetector(recorder) if seed else recorder
             # the configuration the run uses, its seed included, is the one reported
             used = {**details, "config": dataclasses.asdict(seeded)}

@@ -677,8 +677,9 @@ class MultiPersonTracker:
         (:mod:`tracking.people.identity`) minus the distance between detection and ``box`` in
         heights; ``-inf`` when the person cannot have walked there or is of another size.
         With a re-identification network, the calibrated probability that the embeddings show
-        the same person minus the distance as a share of how far the person can have walked
-        (a person may come back far from where it was lost, after a long time).
+        the same person (at least ``reid_min_probability``) minus the distance as a share of
+        how far the person can have walked (a person may come back far from where it was lost,
+        after a long time).
 
         Measured on PETS09-S2L1's re-appearances, the same person is a median 0.42 heights from
         where it was lost, another 0.70; colour similarities are 0.80 against 0.39.
@@ -694,7 +695,8 @@ class MultiPersonTracker:
             return -math.inf
         if current.embeddings is not None:
             log_odds = self._identity_log_odds([track], current)[0, index]
-            return -math.inf if np.isnan(log_odds) else _sigmoid(log_odds) - distance / reach
+            same = 0.0 if np.isnan(log_odds) else _sigmoid(log_odds)
+            return -math.inf if same < c.reid_min_probability else same - distance / reach
         colour = signature_similarity(track.signature, current.signatures[index])[0, 0]
         return float(colour) - distance
 
