@@ -319,6 +319,12 @@ class StreamStatus(BaseModel):
         description="What the stream loses with that detector (detector 'auto' without a CNN "
         "model: the embedded detector, and how to install the model).",
     )
+    tracker: PeopleTrackerOptions | None = Field(
+        default=None,
+        description="The tracker options the stream's worker runs: its spec's with 'pose' and "
+        "'reid' resolved (true or false) and their models named; None when they cannot run "
+        "(see error).",
+    )
     spec: StreamSpec
 
 

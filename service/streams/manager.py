@@ -31,7 +31,13 @@ from api_schemas.streams import (
     StreamStatus,
     StreamTracksMessage,
 )
-from service.pipelines import OptionsError, PipelineResources, check_options, choose_detector
+from service.pipelines import (
+    OptionsError,
+    PipelineResources,
+    check_options,
+    choose_detector,
+    choose_networks,
+)
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 from service.streams.store import StreamRecord, StreamStore
@@ -513,9 +519,14 @@ class StreamManager:
             choice = choose_detector(record.spec.detector, self._resources)
         except OptionsError:  # the model went away: the worker says so in error
             choice = None
+        try:
+            tracker = choose_networks(record.spec.tracker, self._resources).tracker
+        except OptionsError:  # likewise
+            tracker = None
         return StreamStatus(
             detector=None if choice is None else choice.options,
             detector_warning=None if choice is None else choice.warning,
+            tracker=tracker,
             id=record.id,
             camera=record.spec.camera,
             state=self._state(stream),

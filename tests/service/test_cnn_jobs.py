@@ -84,6 +84,8 @@ def test_a_live_stream_tracks_with_the_cnn_and_its_status_says_so(cnn_server, sh
             assert shown["detector"]["name"] == "cnn" and shown["detector_warning"] is None
             assert shown["detector"]["model"] == "person-detection-0202"
             assert shown["spec"]["detector"]["name"] == "auto"  # as it was asked for
+            # the folder has no pose or re-identification model: the tracker runs without
+            assert (shown["tracker"]["pose"], shown["tracker"]["reid"]) == (False, False)
             follower = Follower(session, StreamKeys("vtrack", "cnn_gate"))
             frames, _ = video_frames(str(shared_data / PETS_VIDEO))
             publish_frames(session, StreamKeys("vtrack", "cnn_gate"), frames, 10.0, limit=30)
