@@ -116,8 +116,8 @@ class MultiPersonTracker:
     reid:
         A re-identification network (:class:`~tracking.detection.reid.ReidEmbedder`): the
         detections' embeddings, against each person's gallery, are the identity term of the
-        association and of the particles' weights, and recognise people who come back; it
-        replaces the clothing colours.
+        association (beside the clothing colours) and of the particles' weights, and
+        recognise people who come back.
     """
 
     def __init__(
@@ -451,6 +451,7 @@ class MultiPersonTracker:
         measuring the part of its name with a noise from its heatmap value. The grouping of
         keypoints into skeletons decides whose a keypoint is, so a keypoint inside a nearer
         person's box still counts (a head above the shoulder of someone in front)."""
+        # imported here: the pose module loads OpenVINO, which a tracker without one never needs
         from tracking.detection.pose import KEYPOINT_NAMES
 
         c = self.config
