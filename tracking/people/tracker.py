@@ -85,6 +85,7 @@ class _Frame:
     responses: list[ResponseMap] = field(default_factory=list)  # each person's appearance
     signatures: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # the detections'
     embeddings: np.ndarray | None = None  # (D, E) the detections' re-identification embeddings
+    identity: dict[int, np.ndarray] = field(default_factory=dict)  # id(track) -> (D,) log odds
     boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))  # after the update
 
 
@@ -477,17 +478,22 @@ class MultiPersonTracker:
     def _identity_log_odds(self, tracks: list[_Track], current: _Frame) -> np.ndarray:
         """``(T, D)`` log odds that each detection shows each person, from the cosine of its
         embedding to the most similar of the person's gallery (the network's calibration);
-        NaN where either has no embedding."""
+        NaN where either has no embedding. Each person's row is computed once per frame (the
+        association, the weights and the recognition of lost people all ask)."""
         embeddings = current.embeddings
+        missing = [t for t in tracks if id(t) not in current.identity]
+        if missing and len(embeddings):
+            galleries = np.stack([t.gallery for t in missing])  # (T, G, E)
+            with np.errstate(invalid="ignore"):
+                cosine = np.einsum("tge,de->tgd", galleries, embeddings)
+                best = np.max(np.where(np.isnan(cosine), -np.inf, cosine), axis=1)
+            best[~np.isfinite(best)] = np.nan
+            calibration = self._reid.calibration
+            for track, row in zip(missing, calibration.a * best + calibration.b, strict=True):
+                current.identity[id(track)] = row
         if not tracks or len(embeddings) == 0:
             return np.zeros((len(tracks), len(embeddings)))
-        galleries = np.stack([t.gallery for t in tracks])  # (T, G, E)
-        with np.errstate(invalid="ignore"):
-            cosine = np.einsum("tge,de->tgd", galleries, embeddings)
-            best = np.max(np.where(np.isnan(cosine), -np.inf, cosine), axis=1)
-        best[~np.isfinite(best)] = np.nan
-        calibration = self._reid.calibration
-        return calibration.a * best + calibration.b
+        return np.stack([current.identity[id(t)] for t in tracks])
 
     def _learn(self, current: _Frame) -> None:
         """Appearance learning at the estimate, only where a detection confirms the person and
@@ -507,7 +513,7 @@ class MultiPersonTracker:
                 self.config.low_confidence
             )
             if current.embeddings is not None and confident:
-                self._remember(track, current.embeddings[track.detection])
+                self._remember(track, current.embeddings[track.detection], current)
             track.appearance.learn(
                 current.image,
                 (float(root[CX]), float(root[CY])),
@@ -632,7 +638,7 @@ class MultiPersonTracker:
         )
         if current.embeddings is not None:
             track.gallery = np.full((c.reid_gallery, current.embeddings.shape[1]), np.nan)
-            self._remember(track, current.embeddings[index])
+            self._remember(track, current.embeddings[index], current)
         if c.part_appearance is not None and current.detections.parts.shape[1] == 0:
             track.parts = PartTrackers(
                 c.part_appearance, self._body, self._part_features, c.part_min_peak
@@ -647,8 +653,10 @@ class MultiPersonTracker:
         self._tracks.append(track)
 
     @staticmethod
-    def _remember(track: _Track, embedding: np.ndarray) -> None:
-        """Put an embedding in the person's gallery in place of its oldest."""
+    def _remember(track: _Track, embedding: np.ndarray, current: _Frame) -> None:
+        """Put an embedding in the person's gallery in place of its oldest (the frame's log
+        odds for the person, if any, no longer hold)."""
+        current.identity.pop(id(track), None)
         if track.gallery is None or not np.all(np.isfinite(embedding)):
             return
         track.gallery[track.gallery_next] = embedding
