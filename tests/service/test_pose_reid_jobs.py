@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from service.models.catalog import CATALOG, DEFAULT_POSE, DEFAULT_REID
+from service.models.catalog import CATALOG, DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID
 from tests.service.conftest import submit, wait_for_state
 from tests.service.test_analyze_cli import vtrack
 from tests.service.test_cnn_jobs import _result, models_folder
@@ -211,3 +211,37 @@ def test_analyze_runs_the_networks_of_its_flags(pets_short, shared_data, tmp_pat
     result = vtrack(*args, "--reid-model", pose)
     assert result.returncode == 2, result.stderr
     assert "--reid-model" in result.stderr and "re-identification" in result.stderr
+
+
+@pytest.mark.slow
+def test_a_network_damaged_while_the_service_runs_fails_its_jobs_only(
+    make_server, tmp_path, shared_data, pets_short
+):
+    models = add_models(shared_data, models_folder(shared_data, tmp_path / "models"), *DEFAULTS)
+    server = make_server(workers=1, models_dir=models)
+    weights = graph(models, DEFAULT_REID).with_suffix(".bin")
+    weights.write_bytes(weights.read_bytes()[:1000])  # after the start: the worker meets it
+    with server.client() as client:
+        response = submit(client, pets_short, {"formats": ["json"]})
+        status = wait_for_state(client, response.json()["id"], ("succeeded", "failed"))
+        assert status["state"] == "failed"
+        assert DEFAULT_REID in status["error"], status["error"]
+        # the service goes on: a job without re-identification runs
+        options = {"formats": ["json"], "tracker": {"reid": False}}
+        response = submit(client, pets_short, options)
+        status = wait_for_state(client, response.json()["id"], ("succeeded", "failed"))
+        assert status["state"] == "succeeded", status
+
+
+def test_cnn_jobs_keep_the_detections_box_shape(shared_data, tmp_path):
+    """The CNN's boxes fit the people: its tracks report their aspect; the embedded detector's
+    are padded: its tracks have the pedestrian aspect 0.41."""
+    from api_schemas.jobs import JobOptions
+    from service.pipelines import PipelineResources, build_pipeline
+
+    models = models_folder(shared_data, tmp_path / "models")
+    resources = PipelineResources(models_dir=models, cnn_model=graph(models, DEFAULT_DETECTOR))
+    cnn = build_pipeline(JobOptions(), resources)
+    embedded = build_pipeline(JobOptions(detector={"name": "default"}), resources)
+    assert cnn._tracker.config.box_aspect is None
+    assert embedded._tracker.config.box_aspect == 0.41
