@@ -67,11 +67,17 @@ class TrackerOutput:
         Peak-to-sidelobe ratio of the response: ``(peak - mean) / std`` of the response outside
         a small window around the peak (Bolme et al. 2010). Higher is more confident; a sudden
         drop signals occlusion or a lost target. Its scale depends on the feature grid.
+    occluded:
+        The tracker's failure signal fired (for presets that have one, see
+        :attr:`~tracking.correlation.CorrelationConfig.apce_ratio`): the response does not look
+        like the target's, so the target is hidden or lost, the box is where it was last
+        believed to be, and the tracker did not learn from this frame.
     """
 
     box: Box
     peak: float
     psr: float
+    occluded: bool = False
 
 
 @runtime_checkable

@@ -1,4 +1,4 @@
-"""Run an OpenCV tracker (KCF or CSRT) over OTB sequences and print the results as JSON.
+"""Run an OpenCV tracker (KCF, CSRT or MIL) over OTB sequences and print the results as JSON.
 
 A standalone script for the peer environment (``opencv-contrib-python-headless``, see
 ``benchmarks/_peer_env.py``): it imports nothing from the project. ``benchmarks/otb.py`` runs it
@@ -42,6 +42,8 @@ squared distance over all channels, is then exactly that of grey alone (at twice
   neither tracker moves nor trains its model, and with the default KCF threshold (0.5) the
   response peak of OpenCV's KCF soon stays below it on OTB sequences: KCF then freezes for the
   rest of the sequence. These kinds show what the filters themselves do.
+- ``mil``: MIL, online multiple-instance boosting (Babenko et al., CVPR 2009), with OpenCV's
+  default ``TrackerMIL_Params``. It has no failure threshold, hence no ``_nothresh`` twin.
 
 Every parameter not named here keeps OpenCV's default.
 
@@ -70,7 +72,12 @@ KCF_DESCRIPTORS = {
     "kcf_cn_full": (cv2.TrackerKCF_CN, cv2.TrackerKCF_GRAY, 1),
 }
 NO_THRESHOLD = "_nothresh"
-KINDS = (*KCF_DESCRIPTORS, "csrt", *(k + NO_THRESHOLD for k in (*KCF_DESCRIPTORS, "csrt")))
+KINDS = (
+    *KCF_DESCRIPTORS,
+    "csrt",
+    *(k + NO_THRESHOLD for k in (*KCF_DESCRIPTORS, "csrt")),
+    "mil",
+)
 
 
 def create_tracker(kind: str) -> tuple[cv2.Tracker, dict[str, object]]:
@@ -87,6 +94,9 @@ def create_tracker(kind: str) -> tuple[cv2.Tracker, dict[str, object]]:
         if kind.endswith(NO_THRESHOLD):
             params.detect_thresh = float("-inf")
         tracker = cv2.TrackerKCF.create(params)
+    elif kind == "mil":
+        params = cv2.TrackerMIL_Params()
+        tracker = cv2.TrackerMIL.create(params)
     else:
         raise ValueError(f"unknown tracker kind {kind!r}; expected one of {', '.join(KINDS)}")
     record = {name: getattr(params, name) for name in dir(params) if not name.startswith("_")}

@@ -195,4 +195,10 @@ def make_filter(
     """The learner the configuration names."""
     if config.learner == "mosse":
         return MosseFilter(shape, target_size, config)
+    if config.learner == "strcf":
+        from tracking.correlation.regularized import TemporalRegularizedFilter
+
+        return TemporalRegularizedFilter(
+            shape, target_size, config.label_sigma, config.temporal_regularization, config.admm
+        )
     return KernelFilter(shape, target_size, config)

@@ -49,3 +49,21 @@ def extract_patch(
             np.ascontiguousarray(patch), tuple(out_size), interpolation=interpolation
         )
     return patch
+
+
+def zoom_about_centre(grid: np.ndarray, factor: float) -> np.ndarray:
+    """``grid`` ``(M, N[, D])`` as a sample ``factor`` times as large would see it: output cell
+    ``i`` reads the input at ``factor`` times its offset from the centre (cell centres at
+    ``i + 1/2``), bilinearly; beyond the edges the edge cells repeat, as in
+    :func:`extract_patch`."""
+    rows, cols = grid.shape[:2]
+    affine = np.array(
+        [
+            [factor, 0.0, (cols / 2.0 - 0.5) * (1.0 - factor)],
+            [0.0, factor, (rows / 2.0 - 0.5) * (1.0 - factor)],
+        ]
+    )
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    border = cv2.BORDER_REPLICATE
+    zoomed = cv2.warpAffine(grid, affine, (cols, rows), flags=flags, borderMode=border)
+    return zoomed.reshape(grid.shape)

@@ -63,3 +63,36 @@ class AdaptiveProjection:
         self.basis = basis.astype(np.float32)
         self.eigenvalues = lam
         return self.basis
+
+
+def block_projection(
+    sample: np.ndarray, layout: tuple[tuple[str, int], ...], dims: dict[str, int]
+) -> np.ndarray:
+    """A block-diagonal projection of feature channels, fixed from one sample (ECO's
+    factorised convolution initialised by PCA, Danelljan et al. 2017, §3.1).
+
+    Each block of ``layout`` (``(component, dimensions)`` in stacking order) named in ``dims``
+    is projected onto the ``dims[name]`` principal components of its centred channels in
+    ``sample`` (``(M, N, D)``); the other blocks pass unchanged. Per block, because the
+    components' scales differ: one PCA over all channels would keep the loudest component.
+
+    Returns
+    -------
+    ndarray, float32, ``(D, D')``: multiply feature vectors by it on the right.
+    """
+    columns = []
+    start = 0
+    flat = sample.reshape(-1, sample.shape[-1]).astype(np.float64)
+    for name, size in layout:
+        keep = min(dims.get(name, size), size)
+        block = np.zeros((flat.shape[1], keep))
+        if keep == size:
+            block[start : start + size] = np.eye(size)
+        else:
+            channels = flat[:, start : start + size]
+            centred = channels - channels.mean(axis=0)
+            eigenvalues, eigenvectors = np.linalg.eigh(centred.T @ centred)
+            block[start : start + size] = eigenvectors[:, np.argsort(eigenvalues)[::-1][:keep]]
+        columns.append(block)
+        start += size
+    return np.concatenate(columns, axis=1).astype(np.float32)

@@ -72,6 +72,18 @@ def peak_to_sidelobe_ratio(response: np.ndarray, peak: tuple[int, int], exclude:
     return float((response[peak] - sidelobe.mean()) / max(std, 1e-12))
 
 
+def average_peak_to_correlation_energy(response: np.ndarray) -> float:
+    """APCE of a correlation response (Wang et al., CVPR 2017, eq. 8):
+    ``|F_max - F_min|^2 / mean((F - F_min)^2)``.
+
+    High for one sharp peak over a flat floor; low for a flat or many-peaked response, as when
+    the target is hidden and the filter matches scattered background.
+    """
+    low = float(response.min())
+    energy = float(np.mean((response - low) ** 2))
+    return (float(response.max()) - low) ** 2 / max(energy, 1e-30)
+
+
 def subpixel_peak(response: np.ndarray) -> tuple[float, float, tuple[int, int]]:
     """Location of the maximum of a periodic response, refined by a parabola per axis.
 

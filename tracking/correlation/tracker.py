@@ -9,10 +9,16 @@ import numpy as np
 
 from tracking.correlation.config import CorrelationConfig
 from tracking.correlation.learning import CorrelationFilter, make_filter
-from tracking.correlation.patches import extract_patch
+from tracking.correlation.patches import extract_patch, zoom_about_centre
 from tracking.correlation.presets import PRESETS
+from tracking.correlation.projection import block_projection
+from tracking.correlation.regularized import TemporalRegularizedFilter
 from tracking.correlation.scale import ScaleFilter
-from tracking.correlation.signals import peak_to_sidelobe_ratio, subpixel_peak
+from tracking.correlation.signals import (
+    average_peak_to_correlation_energy,
+    peak_to_sidelobe_ratio,
+    subpixel_peak,
+)
 from tracking.features.maps import FeatureMap
 from tracking.types import Box, TrackerOutput, as_box, validate_box, validate_uint8_frame
 
@@ -95,9 +101,11 @@ class CorrelationTracker:
         self._filter: CorrelationFilter | None = None
         self._scale_filter: ScaleFilter | None = None
         self._geometry: _Geometry | None = None
+        self._projection: np.ndarray | None = None
         self._center = (0.0, 0.0)
         self._scale = 1.0
         self._frame_size: tuple[int, ...] = ()
+        self._confidence = _ConfidenceHistory(self.config.apce_ratio, self.config.peak_ratio)
 
     @property
     def feature_map(self) -> FeatureMap:
@@ -128,6 +136,7 @@ class CorrelationTracker:
         self._geometry = self._plan_geometry(box)
         self._center = box.center
         self._scale = 1.0
+        self._confidence = _ConfidenceHistory(self.config.apce_ratio, self.config.peak_ratio)
         g = self._geometry
         cell = self.config.cell_size
         target_in_cells = (
@@ -135,7 +144,15 @@ class CorrelationTracker:
             box.w * g.model_pixels[0] / g.base_patch[0] / cell,
         )
         self._filter = make_filter(g.grid, target_in_cells, self.config)
-        self._filter.initialize(self._sample(frame, self._center, self._scale))
+        self._projection = None
+        first = self._sample(frame, self._center, self._scale)
+        if self.config.compressed_features:
+            self._projection = block_projection(
+                first, self._features.layout, dict(self.config.compressed_features)
+            )
+            first = first @ self._projection
+        self._filter.initialize(first)
+
         self._scale_filter = None
         if self.config.scale is not None:
             self._scale_filter = ScaleFilter(self.config.scale, g.base_target, self._features)
@@ -156,8 +173,7 @@ class CorrelationTracker:
                 "initialize the tracker again for frames of another size"
             )
         self._features.check_frame(frame)
-        found = self.respond(frame)
-        response = found.response
+        response, step, sample_scale, index = self._search(frame)
         row, col, peak = subpixel_peak(response)
         if not self.config.subpixel:
             row, col = float(peak[0]), float(peak[1])
@@ -167,18 +183,64 @@ class CorrelationTracker:
         d_row = (row - rows // 2 + rows / 2) % rows - rows / 2
         d_col = (col - cols // 2 + cols / 2) % cols - cols / 2
         height, width = frame.shape[:2]
+        previous = self._center
         self._center = (
-            float(np.clip(self._center[0] + d_col * found.step[0], 0, width - 1)),
-            float(np.clip(self._center[1] + d_row * found.step[1], 0, height - 1)),
+            float(np.clip(self._center[0] + d_col * step[0], 0, width - 1)),
+            float(np.clip(self._center[1] + d_row * step[1], 0, height - 1)),
         )
-        if self._scale_filter is not None:
-            self._scale = self._scale_filter.estimate(frame, self._center, self._scale)
-        self.learn(frame)
+        occluded = not self._confidence.accept(response)
+        if not occluded:
+            if self.config.search_scales > 1:
+                self._scale = self._bounded_scale(sample_scale)
+            if self._scale_filter is not None:
+                self._scale = self._scale_filter.estimate(frame, self._center, self._scale)
+            if isinstance(self._filter, TemporalRegularizedFilter) and self._scale == sample_scale:
+                # the search sample, moved onto the target, is the training sample
+                shift = (
+                    (self._center[1] - previous[1]) / step[1],
+                    (self._center[0] - previous[0]) / step[0],
+                )
+                self._filter.update_from_search(shift, index)
+                if self._scale_filter is not None:
+                    self._scale_filter.update(frame, self._center, self._scale)
+            else:
+                self.learn(frame)
         return TrackerOutput(
             box=self.box,
             peak=float(response[peak]),
             psr=peak_to_sidelobe_ratio(response, peak),
+            occluded=occluded,
         )
+
+    def _search(self, frame: np.ndarray) -> tuple[np.ndarray, tuple[float, float], float, int]:
+        """The response at the current position: over one sample at the current scale, or
+        (``search_scales`` > 1, STRCF) the best of a batch of samples around it.
+
+        Returns the response, its image pixels per cell, the scale it was sampled at and that
+        sample's index in the batch."""
+        c = self.config
+        if c.search_scales == 1:
+            found = self.respond(frame)
+            return found.response, found.step, self._scale, 0
+        exponents = np.arange(c.search_scales) - c.search_scales // 2
+        factors = c.search_scale_step**exponents
+        scales = self._scale * factors
+        # One sample at the current scale, zoomed on the feature grid for the others: the
+        # steps are a percent or two, and features cost five times the rest of a frame.
+        x = self._sample(frame, self._center, self._scale)
+        samples = np.stack([zoom_about_centre(x, f) for f in factors])
+        responses = self._filter.response(samples)
+        index = int(np.argmax(responses.reshape(len(scales), -1).max(axis=1)))
+        scale = float(scales[index])
+        return responses[index], self._geometry.pixels_per_cell(scale), scale, index
+
+    def _bounded_scale(self, scale: float) -> float:
+        """``scale`` kept where the target has at least 6 pixels a side (or its first size,
+        if smaller) and fits in the frame (STRCF's bounds)."""
+        w, h = self._geometry.base_target
+        low = min(6.0 / min(w, h), 1.0)
+        high = max(min(self._frame_size[1] / w, self._frame_size[0] / h), 1.0)
+        return float(np.clip(scale, low, high))
 
     def respond(
         self,
@@ -227,15 +289,19 @@ class CorrelationTracker:
     def _sample(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> np.ndarray:
         g = self._geometry
         size = (g.base_patch[0] * scale, g.base_patch[1] * scale)
-        return self._features(extract_patch(frame, center, size, g.model_pixels))
+        x = self._features(extract_patch(frame, center, size, g.model_pixels))
+        return x if self._projection is None else x @ self._projection
 
     def _plan_geometry(self, box: Box) -> _Geometry:
         """Patch size ``(M, N) = (1 + eta) s`` (§2.4.1), resampled down if above the area cap
         or up if its short side is below ``min_patch_side`` (never past the cap), and rounded
         to whole feature cells."""
         c = self.config
-        patch_w = max(box.w * (1.0 + c.padding), 2.0 * c.cell_size)
-        patch_h = max(box.h * (1.0 + c.padding), 2.0 * c.cell_size)
+        patch_w, patch_h = box.w * (1.0 + c.padding), box.h * (1.0 + c.padding)
+        if c.square_patch:  # the same area, as a square (STRCF's search region)
+            patch_w = patch_h = math.sqrt(patch_w * patch_h)
+        patch_w = max(patch_w, 2.0 * c.cell_size)
+        patch_h = max(patch_h, 2.0 * c.cell_size)
         area = patch_w * patch_h
         fit = math.inf if c.max_patch_area is None else math.sqrt(c.max_patch_area / area)
         # Below the cap, a small target is enlarged until the patch's short side reaches
@@ -248,6 +314,33 @@ class CorrelationTracker:
         model = (cols * c.cell_size, rows * c.cell_size)
         base_patch = (model[0] / resample, model[1] / resample)
         return _Geometry((box.w, box.h), base_patch, model, (rows, cols))
+
+
+class _ConfidenceHistory:
+    """The failure signal of LMCF (Wang et al., CVPR 2017, §3.3): a frame is trusted when its
+    response's APCE and peak both reach a fraction of their means over the frames before.
+
+    The means run over every frame so far, the rejected ones included (as in the paper): during
+    a long change of appearance they sink until frames are trusted again, so the tracker
+    cannot freeze for good the way a fixed threshold makes it.
+    """
+
+    def __init__(self, apce_ratio: float, peak_ratio: float) -> None:
+        self._ratios = (apce_ratio, peak_ratio)
+        self._sums = np.zeros(2)
+        self._count = 0
+
+    def accept(self, response: np.ndarray) -> bool:
+        """Record the frame's response; whether the tracker may trust it."""
+        if not any(self._ratios):
+            return True
+        values = np.array([average_peak_to_correlation_energy(response), float(response.max())])
+        ratios = np.asarray(self._ratios)
+        passed = (values >= ratios * self._sums / max(self._count, 1)) | (ratios == 0)
+        trusted = self._count == 0 or bool(passed.all())
+        self._sums += values
+        self._count += 1
+        return trusted
 
 
 def _config(config: object) -> CorrelationConfig:

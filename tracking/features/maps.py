@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import cv2
 import numpy as np
 
 from tracking.features.colornames import ColorNameTable
@@ -60,7 +61,9 @@ class FeatureMap:
             if name not in CELL_FEATURES
         }
         self._components = components
-        self.dim = sum(HOG_DIM if c == "hog" else self._pixel[c].dim for c in components)
+        self.layout = tuple((c, HOG_DIM if c == "hog" else self._pixel[c].dim) for c in components)
+        """``(component, dimensions)`` of each layer block, in the order they are stacked."""
+        self.dim = sum(d for _, d in self.layout)
         self.needs_color = any(c not in ("gray", "hog") for c in components)
 
     @classmethod
@@ -102,8 +105,10 @@ class FeatureMap:
                 layers.append(hog_feature_map(patch, c))
                 continue
             values = self._pixel[name](patch)
-            if c > 1:
-                values = values.reshape(rows, c, cols, c, -1).mean(axis=(1, 3))
+            if c > 1:  # the mean over each cell (INTER_AREA at a whole factor is exactly that)
+                values = values.astype(np.float32, copy=False)
+                values = cv2.resize(values, (cols, rows), interpolation=cv2.INTER_AREA)
+                values = values.reshape(rows, cols, -1)
             layers.append(values)
         stacked = layers[0] if len(layers) == 1 else np.concatenate(layers, axis=2)
         return stacked.astype(np.float32, copy=False)
