@@ -282,8 +282,12 @@ class PeopleTrackerOptions(BaseModel):
         return _inside_the_folder(value)
 
 
-DEFAULT_PRESET = "hog_cn_scale"
-"""The correlation preset of a single target whose options name none."""
+DEFAULT_PRESET = "strcf_hog_cn"
+"""The correlation preset of a single target whose options name none (the same as
+``tracking.correlation.DEFAULT_PRESET``; this package does not import the algorithms)."""
+
+FORMER_DEFAULT_PRESET = "hog_cn_scale"
+"""The default before ``strcf_hog_cn`` (issue 77): the options of earlier jobs name it."""
 
 _MODE_OF = {
     "first_box": ("single_target", "people are found by the detector"),
@@ -393,12 +397,14 @@ class JobOptions(BaseModel):
         mode, reason = _MODE_OF[info.field_name]
         given = info.data.get("mode")
         default = cls.model_fields[info.field_name].get_default(call_default_factory=True)
-        # the preset's default was DEFAULT_PRESET in every mode, and the detector's 'default'
-        # before 'auto': options copied from an earlier job's status still pass
-        old_default = {"preset": DEFAULT_PRESET, "detector": DetectorOptions(name="default")}.get(
-            info.field_name, default
-        )
-        if given is not None and given != mode and value not in (default, old_default):
+        # the preset's default was a preset's name in every mode (hog_cn_scale, then
+        # DEFAULT_PRESET), and the detector's 'default' before 'auto': options copied from an
+        # earlier job's status still pass
+        old_defaults = {
+            "preset": (DEFAULT_PRESET, FORMER_DEFAULT_PRESET),
+            "detector": (DetectorOptions(name="default"),),
+        }.get(info.field_name, ())
+        if given is not None and given != mode and value != default and value not in old_defaults:
             raise ValueError(f"only for mode '{mode}': {reason}")
         return value
 

@@ -68,6 +68,7 @@ DEFAULT_VARIANTS = (
     "rcsk_cn",
     "rcsk_cn_pca2",
     "hog_cn_scale",
+    "strcf_hog_cn",
 )
 TABLE_SUFFIX = "_table"
 

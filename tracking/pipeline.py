@@ -59,7 +59,8 @@ class FramePipeline(Protocol):
 class SingleTargetPipeline:
     """One object followed from its first-frame box by a correlation tracker (thesis Part I).
 
-    The object's track has id 1; its score is the correlation peak, clipped to ``[0, 1]``.
+    The object's track has id 1; its score is the correlation peak, clipped to ``[0, 1]``;
+    it is occluded where the tracker's failure signal says the target looks hidden or lost.
     ``first_box`` is a :class:`Box` or four numbers ``(x, y, w, h)``; ``config`` a
     :class:`CorrelationConfig` or a preset's name (:data:`tracking.correlation.PRESETS`).
     """
@@ -93,7 +94,7 @@ class SingleTargetPipeline:
             track = TrackEstimate(1, self._first_box, 1.0, False)
         else:
             out = self._tracker.update(frame)
-            track = TrackEstimate(1, out.box, float(np.clip(out.peak, 0.0, 1.0)), False)
+            track = TrackEstimate(1, out.box, float(np.clip(out.peak, 0.0, 1.0)), out.occluded)
         result = FrameTracks(self._index, float(timestamp), (track,))
         self._index += 1
         return result

@@ -70,8 +70,8 @@ class TrackerOutput:
     occluded:
         The tracker's failure signal fired (for presets that have one, see
         :attr:`~tracking.correlation.CorrelationConfig.apce_ratio`): the response does not look
-        like the target's, so the target is hidden or lost, the box is where it was last
-        believed to be, and the tracker did not learn from this frame.
+        like the target's, so the target is hidden or lost and the tracker did not learn from
+        this frame (the box is still the response's best guess).
     """
 
     box: Box

@@ -31,7 +31,7 @@ from service.cli.common import (
     warn_unused_table,
 )
 from service.frames import FrameSource
-from tracking.correlation import PRESETS
+from tracking.correlation import DEFAULT_PRESET, PRESETS
 from tracking.output_paths import output_folder
 from tracking.types import Box, box_problem
 
@@ -147,7 +147,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         help="follow one object from this first box instead",
     )
     analyze.add_argument(
-        "--preset", choices=sorted(PRESETS), help="tracker for --box (default hog_cn_scale)"
+        "--preset", choices=sorted(PRESETS), help=f"tracker for --box (default {DEFAULT_PRESET})"
     )
     analyze.add_argument(
         "--options",

@@ -23,7 +23,7 @@ from service.cli.common import (
     warn_unused_table,
 )
 from service.frames import FrameSource, ReadProgress, frame_size_problem, is_greyscale
-from tracking.correlation import PRESETS
+from tracking.correlation import DEFAULT_PRESET, PRESETS
 from tracking.output_paths import output_file, staged_output
 from tracking.types import Box, TrackerOutput, box_problem
 
@@ -33,8 +33,9 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     track = commands.add_parser(
         "track",
         help="follow one target through a video or image folder from its first box",
-        description="Follow one target with a correlation-filter tracker (preset hog_cn_scale "
-        "by default: HOG and Color Names with scale adaptation).",
+        description=f"Follow one target with a correlation-filter tracker (preset {DEFAULT_PRESET} "
+        "by default: STRCF on grey, HOG and Color Names, with scale adaptation; it reports "
+        "the frames where the target looks hidden or lost).",
     )
     track.add_argument("source", help="video file, image folder, or OTB sequence folder")
     track.add_argument(
@@ -45,9 +46,9 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     track.add_argument(
         "--preset",
-        default="hog_cn_scale",
+        default=DEFAULT_PRESET,
         choices=sorted(PRESETS),
-        help="tracker variant (default hog_cn_scale)",
+        help=f"tracker variant (default {DEFAULT_PRESET})",
     )
     track.add_argument("--w2c", type=Path, metavar="FILE", help=W2C_HELP)
     track.add_argument(
@@ -66,12 +67,18 @@ def add_command(commands: argparse._SubParsersAction) -> None:
 
 
 def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> str:
-    """One output row; the first frame (the given box) has no peak or PSR."""
-    peak, psr = (out.peak, out.psr) if out is not None else (None, None)
+    """One output row; the first frame (the given box) has no peak, PSR or occlusion."""
+    peak, psr, occluded = (out.peak, out.psr, out.occluded) if out is not None else (None,) * 3
     if fmt == "json":
-        record = {"frame": index, "box": [box.x, box.y, box.w, box.h], "peak": peak, "psr": psr}
+        record = {
+            "frame": index,
+            "box": [box.x, box.y, box.w, box.h],
+            "peak": peak,
+            "psr": psr,
+            "occluded": occluded,
+        }
         return json.dumps(record)
-    scores = f"{peak:.4f},{psr:.2f}" if out is not None else ","
+    scores = f"{peak:.4f},{psr:.2f},{int(occluded)}" if out is not None else ",,"
     return f"{index},{box.x:.2f},{box.y:.2f},{box.w:.2f},{box.h:.2f},{scores}"
 
 
@@ -130,7 +137,7 @@ def _track(args: argparse.Namespace) -> int:
             number = frame.index + 1  # the video's own: damaged frames leave their gap
             if written == 0:
                 if fmt == "csv":  # with the first row: a range without frames prints nothing
-                    print("frame,x,y,w,h,peak,psr", file=out_file)
+                    print("frame,x,y,w,h,peak,psr,occluded", file=out_file)
                 tracker.initialize(frame.image, box)
                 greyscale = is_greyscale(frame.image)
                 row = _format_row(number, box, None, fmt)

@@ -86,10 +86,11 @@ def test_an_option_of_the_other_mode_is_refused_where_it_was_given():
         {"mode": "single_target", "first_box": BOX, "detector": {}, "fill_gaps": 0}
     )
     # the preset's former default in every mode, as earlier people jobs' statuses show it
-    people = JobOptions.model_validate({"preset": "hog_cn_scale", "tracker": {"particles": 50}})
-    assert people.preset is None  # before: "hog_cn_scale", for a job that uses no preset
+    for former in ("hog_cn_scale", "strcf_hog_cn"):  # the default before issue 77, and now
+        people = JobOptions.model_validate({"preset": former, "tracker": {"particles": 50}})
+        assert people.preset is None  # before: the preset, for a job that uses none
     assert JobOptions.model_validate({"mode": "single_target", "first_box": BOX}).preset == (
-        "hog_cn_scale"
+        "strcf_hog_cn"
     )
     with pytest.raises(ValidationError) as caught:
         JobOptions.model_validate({"mode": "single_target", "first_box": BOX, "fill_gaps": 1})

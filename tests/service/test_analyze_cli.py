@@ -480,4 +480,4 @@ def test_analyze_takes_a_box_partly_left_of_and_above_the_frame(pets_short, tmp_
     assert result.returncode == 0, result.stderr
     first = json.loads((out / "trajectories.json").read_text())["tracks"][0]["frames"][0]
     assert first["box"] == {"x": -5, "y": -5, "w": 30, "h": 60}
-    assert "with the hog_cn_scale tracker" in result.stderr
+    assert "with the strcf_hog_cn tracker" in result.stderr

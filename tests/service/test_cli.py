@@ -92,8 +92,9 @@ def test_tracks_a_video_file_and_writes_csv(scene_video, tmp_path):
     result = vtrack("track", path, "--box", box, "--out", out, "--preset", "rcsk_cn")
     assert result.returncode == 0, result.stderr
     rows = np.genfromtxt(out, delimiter=",", skip_header=1)
-    assert rows.shape == (30, 7)
+    assert rows.shape == (30, 8)
     np.testing.assert_array_equal(rows[:, 0], np.arange(1, 31))
+    assert np.isnan(rows[0, 7]) and np.all(rows[1:, 7] == 0)  # occluded: empty, then never
     centres = rows[:, 1:3] + rows[:, 3:5] / 2
     true_centres = truth[:, :2] + truth[:, 2:] / 2
     assert np.abs(centres - true_centres).max() < 6.0
@@ -105,7 +106,7 @@ def test_a_box_partly_left_of_and_above_the_frame_is_taken_as_given(scene_video,
     # before: "argument --box: expected one argument" (argparse took the value for an option)
     result = vtrack("track", path, "--box", "-5,-5,20,20", "--out", out, "--quiet")
     assert result.returncode == 0, result.stderr
-    assert out.read_text().splitlines()[1] == "1,-5.00,-5.00,20.00,20.00,,"
+    assert out.read_text().splitlines()[1] == "1,-5.00,-5.00,20.00,20.00,,,"
     assert result.stderr == ""  # --quiet: no bar and no closing line
 
 
@@ -126,6 +127,7 @@ def test_otb_folder_takes_its_first_ground_truth_box_and_prints_json(shared_data
     first = [float(v) for v in lines[0].split()]
     assert records[0]["box"] == [first[0] - 1, first[1] - 1, first[2], first[3]]
     assert records[0]["psr"] is None and records[1]["psr"] > 0
+    assert records[0]["occluded"] is None and records[1]["occluded"] is False
 
 
 def _otb_folder_with_ground_truth(truth: bytes):
@@ -480,7 +482,7 @@ def test_an_output_behind_a_link_or_a_pipe_is_written_through_not_replaced(scene
     result = vtrack("track", path, "--box", box, "--out", pipe, "--quiet")
     reader.join(timeout=60)
     assert result.returncode == 0, result.stderr
-    assert len(lines) == 31 and lines[0] == "frame,x,y,w,h,peak,psr"
+    assert len(lines) == 31 and lines[0] == "frame,x,y,w,h,peak,psr,occluded"
     assert pipe.is_fifo() and sorted(p.name for p in tmp_path.iterdir()) == [
         "link.csv",
         "pipe",

@@ -61,7 +61,7 @@ def test_vtrack_track_says_the_same_of_greyscale_video(grey_video, tmp_path):
     assert tracked.returncode == 0, tracked.stderr
     assert (
         "vtrack: warning: the video is greyscale: the colour features (cn) of preset "
-        "hog_cn_scale see no colour in it" in tracked.stderr
+        "strcf_hog_cn see no colour in it" in tracked.stderr
     )
     grey = vtrack("track", grey_video, "--box", box, "--end", 1, "--quiet", "--preset", "rcsk_gray")
     assert grey.returncode == 0 and "greyscale" not in grey.stderr, grey.stderr

@@ -161,11 +161,11 @@ def test_track_from_start_takes_the_ground_truth_box_of_that_frame(shared_data):
     result = vtrack("track", sequence, "--start", "2", "--end", "2.5", "--quiet")
     assert result.returncode == 0, result.stderr
     rows = result.stdout.splitlines()
-    assert rows[0] == "frame,x,y,w,h,peak,psr"
+    assert rows[0] == "frame,x,y,w,h,peak,psr,occluded"
     assert [int(row.split(",")[0]) for row in rows[1:]] == list(range(51, 64))
     truth = (sequence / "groundtruth_rect.txt").read_text().splitlines()[50]
     x, y, w, h = (float(v) for v in truth.replace(",", " ").split())
-    assert rows[1] == f"51,{x - 1:.2f},{y - 1:.2f},{w:.2f},{h:.2f},,"
+    assert rows[1] == f"51,{x - 1:.2f},{y - 1:.2f},{w:.2f},{h:.2f},,,"
 
 
 def _crossing_cut(shared_data, tmp_path, frames: int):

@@ -5,12 +5,19 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from tracking.correlation.config import CorrelationConfig, ScaleConfig
-from tracking.correlation.presets import COLOR_FEATURES, PRESETS
+from tracking.correlation.presets import COLOR_FEATURES, DEFAULT_PRESET, PRESETS
 
 if TYPE_CHECKING:
     from tracking.correlation.tracker import CorrelationTracker
 
-__all__ = ["COLOR_FEATURES", "PRESETS", "CorrelationConfig", "CorrelationTracker", "ScaleConfig"]
+__all__ = [
+    "COLOR_FEATURES",
+    "DEFAULT_PRESET",
+    "PRESETS",
+    "CorrelationConfig",
+    "CorrelationTracker",
+    "ScaleConfig",
+]
 
 
 def __getattr__(name: str) -> object:
