@@ -8,13 +8,21 @@ requeued and the worker processes start in the lifespan, and stop with it.
 
 from __future__ import annotations
 
+import asyncio
+import json
 import logging
+import multiprocessing.util
+import shutil
+import signal
 import threading
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from collections.abc import AsyncIterator, Iterator
+from contextlib import asynccontextmanager, contextmanager
+from http import HTTPStatus
 from types import FrameType
+from typing import ClassVar
 from urllib.parse import urlsplit
 
+import anyio
 import uvicorn
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
@@ -24,6 +32,7 @@ from fastapi_offline import FastAPIOffline
 from starlette.exceptions import HTTPException
 from starlette.responses import Response
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
 from service import __version__
 from service.data_folder import DataFolder, claim_data_folder
@@ -90,6 +99,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         settings.job_timeout,
         settings.job_stall_timeout,
         stop_requested=stopping,
+        max_attempts=settings.max_attempts,
     )
     pool.start()
     streams = StreamManager(
@@ -170,9 +180,11 @@ def _problem(item: dict) -> str:
 
 
 class _LimitedBodies:
-    """ASGI middleware: a request body other than a job's upload (which has its own limit,
-    ``VTRACK_MAX_UPLOAD_MB``, and is written to disk as it comes) is read here, up to
-    :data:`BODY_LIMIT`, before the route sees it; a longer one is answered 413."""
+    """ASGI middleware: a request body other than a job's upload (which has its own limits,
+    ``VTRACK_MAX_UPLOAD_BYTES`` and ``VTRACK_UPLOAD_IDLE_SECONDS``, and is written to disk as
+    it comes) is read here, up to :data:`BODY_LIMIT`, before the route sees it; a longer one
+    is answered 413, and one that sends nothing for ``VTRACK_BODY_IDLE_SECONDS`` 408 (a client
+    that announced a body and stalled held its connection for ever)."""
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
@@ -182,10 +194,27 @@ class _LimitedBodies:
         if scope["type"] != "http" or upload or scope.get("method") in ("GET", "HEAD"):
             await self.app(scope, receive, send)
             return
+        settings: Settings | None = scope["app"].state.settings
+        idle = settings.body_idle_seconds if settings is not None else None
         chunks, size = [], 0
         while True:
-            message = await receive()
+            with anyio.move_on_after(idle) as waited:
+                message = await receive()
+            if waited.cancelled_caught:
+                detail = (
+                    f"nothing of the request body arrived for {idle:g} s "
+                    f"(VTRACK_BODY_IDLE_SECONDS) after {size} bytes: send the request again"
+                )
+                _log_refusal(Request(scope), 408, detail)
+                response = JSONResponse({"detail": detail}, status_code=408)
+                response.headers["Connection"] = "close"  # the rest of the body is not read
+                await response(scope, receive, send)
+                return
             if message["type"] == "http.disconnect":
+                # an answer nobody reads, for the middlewares above, which take none for an
+                # internal error ("No response returned") and log its traceback
+                detail = "the client went away before its request body was complete"
+                await JSONResponse({"detail": detail}, status_code=400)(scope, receive, send)
                 return
             chunks.append(message.get("body", b""))
             size += len(chunks[-1])
@@ -366,13 +395,152 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     return app
 
 
+MAX_HEADER_BYTES = 64 * 1024
+"""Most bytes of a request's line and headers (a browser's, cookies and all, are a few KiB)."""
+
+
+class LimitedHttpProtocol(HttpToolsProtocol):
+    """uvicorn's HTTP/1.1 protocol (httptools, which ``uvicorn[standard]`` brings) with the
+    limits uvicorn has no setting for: it times out only a kept-alive connection idle between
+    requests (``timeout_keep_alive``), and its connection cap (``limit_concurrency``) answers
+    in plain text.
+
+    - a request's line and headers must arrive within :attr:`header_seconds` of the
+      connection's opening (on a kept-alive connection, of the request's first byte), and in
+      at most :data:`MAX_HEADER_BYTES`, else the connection is closed with 408 or 431 (without
+      an answer when nothing came): a client that sends them a byte at a time, or connects
+      and sends nothing, held its connection for ever;
+    - a request on a connection beyond :attr:`max_connections` gets 503 (JSON, like every
+      error of the service, with ``Retry-After``) and its connection is closed.
+
+    ``vtrack serve`` gives uvicorn a subclass with the settings' values (:meth:`configured`);
+    ``uvicorn service.app:app --http service.app:LimitedHttpProtocol`` runs these defaults.
+    """
+
+    header_seconds: ClassVar[float] = Settings.model_fields["header_seconds"].default
+    max_connections: ClassVar[int] = Settings.model_fields["max_connections"].default
+
+    @classmethod
+    def configured(cls, settings: Settings) -> type[LimitedHttpProtocol]:
+        """This protocol with ``VTRACK_HEADER_SECONDS`` and ``VTRACK_MAX_CONNECTIONS``."""
+        limits = {
+            "header_seconds": settings.header_seconds,
+            "max_connections": settings.max_connections,
+        }
+        return type(cls.__name__, (cls,), limits)
+
+    def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
+        super().connection_made(transport)
+        self._header_timer: asyncio.TimerHandle | None = None
+        self._header_bytes = 0
+        self._await_headers()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._headers_arrived()
+        super().connection_lost(exc)
+
+    def data_received(self, data: bytes) -> None:
+        super().data_received(data)  # parses: the headers' end stops the timer
+        if self._header_timer is None or self.transport.is_closing():
+            return
+        self._header_bytes += len(data)  # all of it before the headers' end
+        if self._header_bytes > MAX_HEADER_BYTES:
+            self._headers_arrived()
+            self._close(
+                431, f"the request's line and headers are over {MAX_HEADER_BYTES // 1024} KiB"
+            )
+
+    def on_message_begin(self) -> None:
+        super().on_message_begin()
+        self._await_headers()  # a later request on the connection: its deadline starts now
+
+    def on_headers_complete(self) -> None:
+        self._headers_arrived()
+        if len(self.connections) <= self.max_connections:
+            super().on_headers_complete()
+            return
+        # uvicorn starts the request's ASGI task with self.app: this one answers 503
+        app, self.app = self.app, _too_many_connections
+        try:
+            super().on_headers_complete()
+        finally:
+            self.app = app
+
+    def _await_headers(self) -> None:
+        if self._header_timer is None:
+            self._header_bytes = 0
+            self._header_timer = self.loop.call_later(self.header_seconds, self._headers_late)
+
+    def _headers_arrived(self) -> None:
+        if self._header_timer is not None:
+            self._header_timer.cancel()
+            self._header_timer = None
+
+    def _headers_late(self) -> None:
+        self._header_timer = None
+        if self.transport.is_closing():
+            return
+        if not self._header_bytes:  # a connection opened and left silent: nothing to answer
+            self.transport.close()
+            return
+        self._close(
+            408,
+            f"the request's headers did not arrive within {self.header_seconds:g} s "
+            "(VTRACK_HEADER_SECONDS)",
+        )
+
+    def _close(self, status: int, detail: str) -> None:
+        """Answer ``status`` with ``{"detail": ...}`` and close the connection."""
+        client = self.client[0] if self.client else "?"
+        log.info("connection from %s closed (%d): %s", client, status, detail)
+        body = json.dumps({"detail": detail}).encode()
+        head = (
+            f"HTTP/1.1 {status} {HTTPStatus(status).phrase}\r\n"
+            f"content-type: application/json\r\ncontent-length: {len(body)}\r\n"
+            "connection: close\r\n\r\n"
+        )
+        self.transport.write(head.encode() + body)
+        self.transport.close()
+
+
+async def _too_many_connections(scope: Scope, receive: Receive, send: Send) -> None:
+    """The answer to a request on a connection beyond ``VTRACK_MAX_CONNECTIONS``."""
+    detail = (
+        "the service has as many connections open as it serves at once "
+        "(VTRACK_MAX_CONNECTIONS): try again in a moment"
+    )
+    _log_refusal(Request(scope), 503, detail)
+    headers = {"Retry-After": "1", "Connection": "close"}
+    await JSONResponse({"detail": detail}, status_code=503, headers=headers)(scope, receive, send)
+
+
 class StoppingServer(uvicorn.Server):
     """uvicorn's server, telling the app when a stop signal comes (``app.state.stopping``) so
-    that its event streams end and the stop does not wait out the graceful-shutdown timeout."""
+    that its event streams end and the stop does not wait out the graceful-shutdown timeout;
+    and removing multiprocessing's temporary folder when SIGTERM stops it.
+
+    uvicorn ends a graceful stop by raising the stop signal again, with its default action:
+    SIGTERM's kills the process without running ``atexit``, where multiprocessing removes its
+    ``pymp-*`` folder (the fork server's socket) from the system's temporary folder, so every
+    start and stop by a service manager left one there. (Ctrl-C ends in a KeyboardInterrupt,
+    which runs ``atexit``.)
+    """
+
+    _terminated = False
 
     def handle_exit(self, sig: int, frame: FrameType | None) -> None:
         self.config.app.state.stopping.set()
+        self._terminated = self._terminated or sig == signal.SIGTERM
         super().handle_exit(sig, frame)
+
+    @contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        with super().capture_signals():  # raises the signal again as it ends
+            try:
+                yield
+            finally:
+                if self._terminated:  # the workers are gone: the fork server takes no more
+                    shutil.rmtree(multiprocessing.util.get_temp_dir(), ignore_errors=True)
 
 
 app = create_app()

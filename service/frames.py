@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import math
+import os
 import re
 import struct
 from collections.abc import Callable, Iterator, Mapping
@@ -12,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import av
+import av.logging
 import cv2
 import numpy as np
 
@@ -29,10 +32,6 @@ DEFAULT_FPS = 25.0
 
 _NOT_A_FRAME_RATE = 1000.0
 """A stated rate this high is a millisecond time base, not frames per second."""
-
-FAILED_READS_AT_END = 25
-"""Failed reads in a row taken for the end of a video. OpenCV moves past a frame it cannot
-decode (one failed read, the next frame reads), and fails every read at the end of the file."""
 
 MIN_SIDE = 32
 """Fewest pixels a frame's width and height may have, in uploads, folders and streams alike.
@@ -266,11 +265,17 @@ class FrameSource:
         spacing; where the container gives none that advances, the previous frame's plus
         ``1 / fps`` (:class:`_PresentationClock`). Image folders: ``index / fps``. The first
         frame yielded is the first at or after ``start``, and the step counts from it; frames
-        before it and skipped ones are grabbed, not decoded into RGB (OpenCV cannot seek a
-        video to the frame, so they are read); reading stops at the first frame at or after
+        before it and skipped ones are decoded, not converted to RGB (a video cannot be sought
+        to a frame exactly, so they are read); reading stops at the first frame at or after
         ``end`` (``read.reached_end``). A frame that does not decode is passed over (its index
-        stays its own, and ``read.undecodable`` lists it); a video that stops decoding (a
-        truncated file) ends after :data:`FAILED_READS_AT_END` failed reads.
+        stays its own, and ``read.undecodable`` lists it); a truncated file ends where its data
+        does.
+
+        Raises
+        ------
+        FrameSourceError
+            At the first frame over :data:`MAX_PIXELS` (:meth:`_size_problem`), before it is
+            converted.
         """
         if step < 1:
             raise ValueError(f"step must be >= 1, got {step}")
@@ -288,18 +293,21 @@ class FrameSource:
             read.frames, read.end_time = last + 1, last / fps
             read.reached_end = positions.stop < len(self._images)
             return
-        name = _ffmpeg_path(self.path)
-        capture = cv2.VideoCapture(name.name)
-        try:
+        with _ffmpeg_path(self.path) as name, av.open(name) as container:
+            video = container.streams.video[0]
+            video.thread_type = "AUTO"  # frame threads as well as slice threads, as OpenCV has
+            times = _presentation_times(container, video)
             index, failed, first, clock = 0, 0, None, _PresentationClock(fps)
-            while failed < FAILED_READS_AT_END:
-                if not capture.grab():
+            for picture in _pictures(container, video):
+                if picture is None:
                     failed += 1
                     continue
                 if failed:  # frames lost between two that decoded
                     read.undecodable.extend(range(index, index + failed))
                     index, failed = index + failed, 0
-                seconds = clock.time_of(capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
+                if problem := self._size_problem(picture, index):
+                    raise FrameSourceError(problem)
+                seconds = clock.time_of(times(picture))
                 if end is not None and seconds >= end:
                     read.reached_end = True
                     break
@@ -309,15 +317,94 @@ class FrameSource:
                 if seconds >= start and first is None:
                     first = index
                 if first is not None and (index - first) % step == 0:
-                    ok, bgr = capture.retrieve()
-                    if not ok:
-                        failed = 1
-                        continue
-                    yield TimedFrame(index, seconds, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+                    yield TimedFrame(index, seconds, self._upright_rgb(picture))
                 index += 1
-        finally:
-            capture.release()
-            name.close()
+
+    def _size_problem(self, picture: av.VideoFrame, index: int) -> str | None:
+        """Why a decoded frame must not be converted (:data:`MAX_PIXELS`), or None.
+
+        The headers and the first frame were checked when the video was opened; a stream may
+        change its size at any keyframe (an H.264 SPS, each JPEG of an MJPEG stream), and a
+        16000x16000 picture in the middle takes 0.4 GB and a second to decode, and more to
+        scale, again for every such frame. The reading stops at the first, before it is
+        converted: decoding that one is all it cost (FFmpeg decodes none over 268 megapixels).
+        """
+        if picture.width * picture.height <= MAX_PIXELS:
+            return None
+        return (
+            f"frame {index} of {self.path} (counting from 0) is {picture.width}x{picture.height} "
+            f"pixels, more than this service takes ({MAX_PIXELS / 1e6:.0f} megapixels, "
+            f"8192x8192): the video changes its frame size after its start "
+            f"({self.width}x{self.height}); send a video whose frames all keep that size"
+        )
+
+    def _upright_rgb(self, picture: av.VideoFrame) -> np.ndarray:
+        """A decoded frame as RGB ``(height, width, 3)`` in the video's size, upright.
+
+        Turned as the stream's display matrix says (a phone held upright stores its pictures
+        turned), as a player shows them. A frame whose size differs from the first's (a stream
+        that changes its size, within :data:`MAX_PIXELS`) is scaled to it in the same
+        conversion: the trackers and writers take one frame size per video.
+        """
+        turns = round(picture.rotation / 90) % 4  # quarter turns, counterclockwise
+        stored = (self.height, self.width) if turns % 2 else (self.width, self.height)
+        if all(stored) and (picture.width, picture.height) != stored:
+            picture = picture.reformat(*stored)
+        image = picture.to_ndarray(format="rgb24")
+        return np.ascontiguousarray(np.rot90(image, turns)) if turns else image
+
+
+def _pictures(
+    container: av.container.InputContainer, video: av.VideoStream
+) -> Iterator[av.VideoFrame | None]:
+    """The decoded frames of ``video``, in presentation order, with None for each packet that
+    did not decode (damaged data): a frame lost there."""
+    _log_ffmpeg_as_opencv()
+    for packet in container.demux(video):
+        try:
+            pictures = packet.decode()
+        except av.FFmpegError:
+            yield None
+            continue
+        yield from pictures
+
+
+@functools.cache
+def _log_ffmpeg_as_opencv() -> None:
+    """Let PyAV's FFmpeg, which decodes the frames, say what OpenCV's says, which reads the
+    first: at the level of ``OPENCV_FFMPEG_LOGLEVEL`` (:func:`service.logs.quiet_ffmpeg` sets
+    it from the service's level: errors at debug, nothing below), to standard error through
+    FFmpeg's own callback (PyAV's, into Python's logging, takes locks in the decoder's
+    threads). Without the variable, or at a negative level, PyAV keeps FFmpeg quiet."""
+    level = os.environ.get("OPENCV_FFMPEG_LOGLEVEL", "").strip()
+    if level.isdigit():
+        av.logging.set_level(int(level))
+        av.logging.restore_default_callback()
+
+
+def _presentation_times(
+    container: av.container.InputContainer, video: av.VideoStream
+) -> Callable[[av.VideoFrame], float]:
+    """How to read a decoded frame's presentation time, in seconds from the stream's start;
+    NaN where the file has none (:class:`_PresentationClock` then counts frame periods).
+
+    An elementary stream (a raw ``.h264``) has no times: FFmpeg makes them up at 25 per
+    second. AVI stores one time per frame in decoding order, none for presentation: FFmpeg's
+    guesses are out of order once B-frames are reordered, and the decoding times, in order,
+    are the presentation times shifted by the reorder delay (as OpenCV read them).
+    """
+    flags = av.format.Flags(container.format.flags)
+    if av.format.Flags.no_timestamps in flags:
+        return lambda picture: math.nan
+    base = float(video.time_base) if video.time_base else 0.0
+    origin = video.start_time or 0
+    use_dts = "avi" in container.format.name.split(",")
+
+    def seconds(picture: av.VideoFrame) -> float:
+        stamp = picture.dts if use_dts or picture.pts is None else picture.pts
+        return math.nan if stamp is None or not base else (stamp - origin) * base
+
+    return seconds
 
 
 class _PresentationClock:

@@ -96,6 +96,28 @@ class Settings(BaseSettings):
         le=3600,
         description="Seconds an upload may send nothing before it is cut (408, nothing kept).",
     )
+    body_idle_seconds: float = Field(
+        default=10.0,
+        gt=0,
+        le=3600,
+        description="Seconds a request body other than an upload's may send nothing before it "
+        "is cut (408).",
+    )
+    header_seconds: float = Field(
+        default=10.0,
+        gt=0,
+        le=3600,
+        description="Seconds a connection may take to send a request's headers, from its "
+        "opening or, on a kept-alive connection, from the request's first byte; slower ones "
+        "are closed (408).",
+    )
+    max_connections: int = Field(
+        default=256,
+        ge=1,
+        le=100_000,
+        description="HTTP connections served at once; a request on one beyond gets 503 and its "
+        "connection is closed.",
+    )
     max_event_streams: int = Field(
         default=100,
         ge=1,
@@ -115,8 +137,9 @@ class Settings(BaseSettings):
     max_attempts: int = Field(
         default=3,
         ge=1,
-        description="Times the service may die (crash, kill -9) while a job runs before the "
-        "job is failed instead of started again; clean stops (SIGTERM) do not count.",
+        description="Times the service or its fork server may die (crash, kill -9, the OOM "
+        "killer) while a job runs before the job is failed instead of started again; clean "
+        "stops (SIGTERM) do not count.",
     )
     retention_hours: float | None = Field(
         default=None,

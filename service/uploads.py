@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import re
+from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -34,6 +35,10 @@ _ENVELOPE_BYTES = MAX_OPTIONS_BYTES + 16 * 1024
 _DRAIN_BYTES = 64 * 1024 * 1024
 """After a too-large upload, read (and drop) at most this much more, so that the client
 sees the 413 answer rather than a reset connection."""
+_DRAIN_IDLE_SECONDS = 5.0
+"""A refused body is drained only while it keeps coming: a pause this long (or the upload's
+idle timeout, if shorter) ends the draining, and the answer goes. Before, a client that
+announced gigabytes and sent nothing held its connection, unanswered, for ever."""
 
 
 _FORM_ESCAPES = {"%22": '"', "%0D": "\r", "%0A": "\n"}
@@ -41,10 +46,18 @@ _FORM_ESCAPES = {"%22": '"', "%0D": "\r", "%0A": "\n"}
 multipart/form-data encoding), and only those: any other ``%`` is the name's own."""
 
 
-def _client_filename(raw: bytes) -> str:
-    """The client's file name, without folders, from a form part's ``filename``."""
+_CONTROL_CHARACTERS = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+"""Unicode's control characters (C0, DEL, C1): no file name needs one, and a name is shown
+in results, the log and terminals, where a newline forges a line and an escape sequence
+rewrites the screen."""
+
+
+def _client_filename(raw: bytes) -> str | None:
+    """The client's file name, without folders or control characters, from a form part's
+    ``filename``; None when nothing is left."""
     name = Path(raw.decode("utf-8", "replace")).name
-    return re.sub("|".join(_FORM_ESCAPES), lambda m: _FORM_ESCAPES[m[0].upper()], name, flags=re.I)
+    name = re.sub("|".join(_FORM_ESCAPES), lambda m: _FORM_ESCAPES[m[0].upper()], name, flags=re.I)
+    return _CONTROL_CHARACTERS.sub("", name) or None
 
 
 class UploadError(Exception):
@@ -194,14 +207,15 @@ async def receive_upload(
             f"(got Content-Type {content_type or 'none'!r})",
         )
     declared = request.headers.get("content-length")
+    drain_idle = min(idle_seconds, _DRAIN_IDLE_SECONDS)
     if declared and declared.isdigit() and int(declared) > max_bytes + _ENVELOPE_BYTES:
-        await _drain(request)
+        await _drain(request.stream(), drain_idle)
         raise HTTPException(413, too_large(max_bytes))
     receiver = _Receiver(video_path, max_bytes)
     parser = MultipartParser(params[b"boundary"], receiver.callbacks())
     received = 0
+    chunks = request.stream()
     try:
-        chunks = request.stream()
         while True:
             with anyio.move_on_after(idle_seconds) as waited:
                 chunk = await anext(chunks, None)
@@ -223,7 +237,7 @@ async def receive_upload(
         receiver.close()
         video_path.unlink(missing_ok=True)
         if error.status_code == 413:
-            await _drain(request)
+            await _drain(chunks, drain_idle)
         raise HTTPException(error.status_code, error.detail) from None
     except FormParserError as error:
         receiver.close()
@@ -240,7 +254,7 @@ async def receive_upload(
         video_path.unlink(missing_ok=True)
         if problem is None:
             raise
-        await _drain(request)
+        await _drain(chunks, drain_idle)
         raise HTTPException(
             status.HTTP_507_INSUFFICIENT_STORAGE,
             f"{problem.problem}: the upload was not kept; {problem.remedy}, then send the video "
@@ -268,12 +282,21 @@ async def receive_upload(
     return ReceivedUpload(video_path, receiver.filename, receiver.size, options)
 
 
-async def _drain(request: Request) -> None:
+async def _drain(chunks: AsyncIterator[bytes], idle_seconds: float) -> None:
+    """Read and drop what is left of a refused body (at most :data:`_DRAIN_BYTES`), until it
+    pauses for ``idle_seconds``."""
     drained = 0
     try:
-        async for chunk in request.stream():
+        while drained <= _DRAIN_BYTES:
+            with anyio.move_on_after(idle_seconds) as waited:
+                chunk = await anext(chunks, None)
+            if waited.cancelled_caught:
+                log.debug(
+                    "a refused upload paused for %g s: answered without its rest", idle_seconds
+                )
+                return
+            if chunk is None:
+                return
             drained += len(chunk)
-            if drained > _DRAIN_BYTES:
-                break
     except Exception:
         log.debug("client went away while its too-large upload was drained")

@@ -2,7 +2,33 @@
 how they are started (:func:`worker_context`) and how a worker knows that its service still runs,
 the stop signals a worker leaves to the service (and how a supervisor tells a worker that a stop
 signal ended while it started), a lock-free shared flag, single-threaded BLAS in the workers, and
-how a process ended, in words."""
+how a process ended, in words.
+
+Supervision that survives a death (issue 78). The service process starts the fork server; the
+fork server forks every worker, so a worker's parent is the fork server, not the service. Two
+deaths, one chain (:mod:`service.fork_server` sets it up, in the fork server and in every process
+it forks):
+
+- the fork server dies (``kill -9``, the OOM killer): its workers die with it at once, by a
+  parent-death signal (SIGKILL). A worker left running would be an orphan (parent PID 1) that
+  claims jobs beyond the worker limit, with no supervisor to time it out. Its supervisor
+  (:class:`service.jobs.workers.WorkerPool`) no longer gets its exit status from the fork server
+  (:mod:`multiprocessing` reports exit code 255, though the worker may still run); it waits,
+  with a :class:`ProcessWatch` on the worker's pid, until the worker has really ended before it
+  settles its job and starts the replacement, which starts a new fork server
+  (:func:`multiprocessing.forkserver.ensure_running` relaunches one whose pid has ended);
+- the service dies: the fork server, whose parent-death signal is :data:`SERVICE_DEATH_SIGNAL`,
+  ends, and its workers with it. That signal is caught, not SIGKILL: Linux sends it when the
+  *thread* that started the fork server ends, and the service starts a new fork server from
+  whichever thread needs a worker first (a supervisor, a request's thread of a pool that ends
+  idle threads); the handler ends the fork server only when its parent process is another.
+
+A parent-death signal, rather than a pipe each worker watches: it reaches a worker busy inside
+a frame (a decoder that takes seconds, a process stopped with SIGSTOP) and needs no thread in
+the fork server (which forks from a single-threaded state) nor any check in the workers' loops.
+Where there is none (not Linux), the workers still stop between frames once the service is gone
+(:func:`service_alive`) and a supervisor kills a worker whose fork server is gone.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +38,7 @@ import multiprocessing.forkserver
 import os
 import select
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -19,11 +46,15 @@ from multiprocessing.context import ForkServerContext
 from typing import Any
 
 __all__ = [
+    "SERVICE_DEATH_SIGNAL",
+    "ProcessWatch",
     "StopSignalDeaths",
     "describe_exit",
     "ended_by_stop_signal",
+    "fork_server_pid",
     "ignore_stop_signals",
     "service_alive",
+    "set_parent_death_signal",
     "shared_flag",
     "single_threaded_blas",
     "start_fork_server",
@@ -32,6 +63,12 @@ __all__ = [
 
 WORKER_MODULES = ("service.fork_server", "service.jobs.runner", "service.streams.worker")
 """What the fork server imports before it forks a worker: its own signal settings first."""
+
+SERVICE_DEATH_SIGNAL = signal.SIGUSR1
+"""The fork server's parent-death signal: caught, to tell the end of the thread that started it
+from the end of the service (:mod:`service.fork_server`)."""
+
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
 STOP_SIGNAL_GRACE = 3.0
 """Seconds a supervisor holds back the replacement of a worker that a stop signal ended: long
@@ -141,6 +178,95 @@ def start_fork_server() -> None:
     """
     worker_context()
     multiprocessing.forkserver.ensure_running()
+
+
+def fork_server_pid() -> int | None:
+    """The pid of the fork server this process starts its workers from, ``None`` before the
+    first (:mod:`multiprocessing.forkserver` keeps it in its module state, unexported)."""
+    server = getattr(multiprocessing.forkserver, "_forkserver", None)
+    return getattr(server, "_forkserver_pid", None)
+
+
+def set_parent_death_signal(signum: int) -> bool:
+    """Have Linux send ``signum`` to this process when its parent ends (``prctl``
+    ``PR_SET_PDEATHSIG``); ``False`` where that cannot be set (not Linux).
+
+    Linux's "parent" is the thread that started the process: the signal also comes when that
+    thread ends while its process lives on (then caught, see :data:`SERVICE_DEATH_SIGNAL`).
+    Cleared in a process's children, and kept after the signal came. The caller checks
+    ``os.getppid()`` after setting it: a parent that ended before sends nothing.
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return False
+    # prctl is variadic and reads its arguments as unsigned long: passed as such, not as int
+    arguments = (ctypes.c_ulong(signum), ctypes.c_ulong(0), ctypes.c_ulong(0), ctypes.c_ulong(0))
+    return prctl(ctypes.c_int(_PR_SET_PDEATHSIG), *arguments) == 0
+
+
+class ProcessWatch:
+    """Whether a process still runs, for a supervisor that is not its parent (a worker is the
+    fork server's child), and a kill that cannot reach another process given its pid since.
+
+    A pidfd (Linux 5.3) refers to the process itself: it becomes readable when the process
+    ends, whoever reaps it. Where there is none, the pid is probed with signal 0. Open it while
+    the process surely runs (just after it started); :meth:`close` it when done.
+    """
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self._fd: int | None = None
+        self._ended = False
+        try:
+            self._fd = os.pidfd_open(pid)
+        except ProcessLookupError:
+            self._ended = True
+        except (AttributeError, OSError):
+            pass
+
+    def alive(self) -> bool:
+        """Whether the process runs (a zombie has ended)."""
+        return not self.wait(0)
+
+    def wait(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` seconds for the process to end; whether it has."""
+        deadline = time.monotonic() + timeout
+        while not self._ended:
+            if self._fd is not None:
+                # a poll object of its own: one is not to be polled by two threads at once
+                poller = select.poll()
+                poller.register(self._fd, select.POLLIN)
+                left = max(deadline - time.monotonic(), 0.0)
+                self._ended = bool(poller.poll(round(left * 1000)))
+                return self._ended
+            if not _exists(self.pid):
+                self._ended = True
+            elif time.monotonic() >= deadline:
+                return False
+            else:
+                time.sleep(0.02)
+        return True
+
+    def kill(self) -> None:
+        """SIGKILL the process, if it still runs."""
+        if self._ended:
+            return
+        try:
+            if self._fd is not None:
+                signal.pidfd_send_signal(self._fd, signal.SIGKILL)
+            else:
+                os.kill(self.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            self._ended = True
+
+    def close(self) -> None:
+        """Close the pidfd (a watch still in use then probes the pid)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
 
 
 def service_alive(pid: int) -> Callable[[], bool]:

@@ -107,7 +107,7 @@ def _serve(args: argparse.Namespace) -> int:
     # a wrong one is then said at once
     import uvicorn
 
-    from service.app import StoppingServer, create_app
+    from service.app import LimitedHttpProtocol, StoppingServer, create_app
 
     config = uvicorn.Config(
         create_app(settings, data_folder),
@@ -115,6 +115,9 @@ def _serve(args: argparse.Namespace) -> int:
         port=settings.port,
         log_config=uvicorn_log_config(settings.log_level),
         log_level=settings.log_level.lower(),
+        # request headers' deadline and the connection cap (VTRACK_HEADER_SECONDS,
+        # VTRACK_MAX_CONNECTIONS), which uvicorn's own settings do not give
+        http=LimitedHttpProtocol.configured(settings),
         timeout_graceful_shutdown=10,
     )
     StoppingServer(config).run(sockets=[listener])

@@ -410,6 +410,39 @@ class JobStore:
                 self._count_finished(JobState.failed, job_id)
         return cursor.rowcount > 0
 
+    def requeue_dead(self, job_id: str, worker_pid: int, max_attempts: int) -> JobState | None:
+        """A running job whose worker died with the fork server (the OOM killer's usual victim
+        besides the workers): queued again, and the start counted as a death, as
+        :meth:`requeue_orphans` counts a service's; failed once it has died ``max_attempts``
+        times. Returns the job's new state, ``None`` if ``worker_pid`` no longer runs it."""
+        with self._transaction() as db:
+            row = db.execute(
+                "SELECT attempts - stops FROM jobs WHERE id = ? AND state = ? AND worker_pid = ?",
+                (job_id, JobState.running.value, worker_pid),
+            ).fetchone()
+            if row is None:
+                return None
+            if row[0] >= max_attempts:
+                db.execute(
+                    "UPDATE jobs SET state = ?, finished_at = ?, error = ?, worker_pid = NULL"
+                    " WHERE id = ?",
+                    (
+                        JobState.failed.value,
+                        time.time(),
+                        f"the service's fork server died while this job ran, {_times(row[0])}; "
+                        "it is not started again",
+                        job_id,
+                    ),
+                )
+                self._count_finished(JobState.failed, job_id)
+                return JobState.failed
+            db.execute(
+                "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0, fps = NULL"
+                " WHERE id = ?",
+                (JobState.queued.value, job_id),
+            )
+            return JobState.queued
+
     def requeue_running(self, job_id: str, worker_pid: int) -> bool:
         """Put a job back in the queue (its worker was stopped by a clean shutdown); the start
         does not count against ``max_attempts``."""

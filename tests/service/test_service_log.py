@@ -28,5 +28,7 @@ def test_debug_adds_each_jobs_video_and_options_and_ffmpegs_own_errors(
         'options {"detector":{"name":"default","upscale":1.0},"tracker":{"pose":false,'
         '"reid":false},"formats":["json"]}'
     ) in log
-    # FFmpeg's complaint about the cut frame, which info leaves out, with OpenCV's prefix
-    assert "[OPENCV:FFMPEG:16]" in log
+    # FFmpeg's complaint about the cut frame, which info leaves out: from the decoder of the
+    # frames (PyAV's FFmpeg, in FFmpeg's own words; OpenCV's, which reads the first frame, has
+    # the prefix [OPENCV:FFMPEG:16])
+    assert "[mjpeg @ 0x" in log and "EOI missing" in log

@@ -73,6 +73,25 @@ def test_clean_stops_do_not_use_up_a_jobs_attempts(store):
     assert record.attempts == 5 and "died while this job ran, twice;" in record.error
 
 
+def test_a_job_whose_fork_server_dies_too_often_fails(store):
+    """Each death of the fork server under a job counts like a death of the service: the job
+    runs again, then fails once it has happened max_attempts times (a job whose memory makes
+    the OOM killer take the fork server must not do so forever); clean stops do not count."""
+    _job(store)
+    store.claim(1)
+    assert store.requeue_running("a", 1)  # a clean stop
+    store.claim(2)
+    assert store.requeue_dead("a", 3, max_attempts=2) is None  # not the job's worker
+    assert store.requeue_dead("a", 2, max_attempts=2) is JobState.queued
+    store.claim(4)
+    assert store.requeue_dead("a", 4, max_attempts=2) is JobState.failed
+    record = store.get("a")
+    assert record.state == JobState.failed and "fork server died while this job ran, twice;" in (
+        record.error
+    )
+    assert store.counters()["jobs_failed"] == 1
+
+
 def test_a_database_of_an_earlier_release_gets_the_new_columns(tmp_path):
     """A data folder from before the ``stops`` and ``progressed_at`` columns keeps its jobs
     and works."""
