@@ -44,6 +44,7 @@ from service.streams.store import StreamRecord, StreamStore
 from service.streams.tools import trackers_of
 from service.streams.worker import StreamContext, job_options, stream_main
 from service.worker_processes import (
+    ProcessWatch,
     StopSignalDeaths,
     describe_exit,
     shared_flag,
@@ -73,6 +74,7 @@ class StreamNotFound(KeyError):
 class _Stream:
     record: StreamRecord
     process: Any = None
+    watch: ProcessWatch | None = None  # the worker's real end (see _check)
     stop: Any = None
     updates: Any = None
     started_at: float = 0.0
@@ -348,6 +350,7 @@ class StreamManager:
             daemon=True,
         )
         stream.process.start()
+        stream.watch = ProcessWatch(stream.process.pid)
         reports.close()  # the worker has its own copy now
         stream.started_at = time.monotonic()
         stream.worker_error = None
@@ -388,6 +391,8 @@ class StreamManager:
             self._fold(stream)
             process.close()
             stream.process = None
+            if stream.watch is not None:
+                stream.watch.close()
             stream.updates.close()
 
     def _drain(self, stream: _Stream) -> None:
@@ -470,6 +475,13 @@ class StreamManager:
                 stream.quick_deaths = 0
                 stream.error = stream.death = None
             return
+        if stream.watch is not None and stream.watch.alive():
+            # multiprocessing says ended (exit code 255 for every worker of a fork server
+            # that died) while the process still runs: its parent-death signal ends it at
+            # once; a replacement starts only then, so one camera never has two trackers
+            return
+        if stream.watch is not None:
+            stream.watch.close()
         if not self._deaths.replace_now(stream.process.pid, stream.process.exitcode):
             return  # the service stops, or may: shutdown() ends the stream
         how = describe_exit(stream.process.exitcode)

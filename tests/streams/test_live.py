@@ -844,6 +844,57 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
         )
 
 
+def _parent(pid: int) -> int:
+    """A process's parent pid, from /proc (0 once it has gone)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return 0
+    return int(stat.rsplit(")", 1)[1].split()[1])
+
+
+def test_a_stream_whose_fork_server_dies_gets_a_new_worker_and_never_two(
+    server, session, pets_frames
+):
+    """kill -9 of the fork server (the OOM killer's other choice): its stream worker dies with
+    it at once (before: it ran on under PID 1, unsupervised, while multiprocessing reported it
+    dead and the manager started a second tracker for the camera), and the stream gets a new
+    worker from a new fork server."""
+    import os
+    import signal
+
+    camera = "salamander"
+    keys = StreamKeys("vtrack", camera)
+    with server.client() as client:
+        start_stream(client, session, camera)
+        first = status(client, camera)["worker_pid"]
+        fork_server = _parent(first)
+        assert fork_server > 1
+        publish_frames(session, keys, iter(pets_frames[:5]), 10.0, wait_for_subscriber=10)
+        wait_for(lambda: status(client, camera)["counters"]["frames_in"] == 5, 60, "5 frames")
+        os.kill(fork_server, signal.SIGKILL)
+        wait_for(lambda: _parent(first) == 0, 10, "the old worker to end with its fork server")
+        restarted = wait_for(
+            lambda: (
+                (s := status(client, camera))["worker_starts"] == 2
+                and s["state"] == "waiting"
+                and s
+            ),
+            60,
+            "a new worker",
+        )
+        new_parent = _parent(restarted["worker_pid"])
+        assert new_parent not in (0, 1, fork_server), "a new fork server forks the new worker"
+        assert "died" in restarted["error"]
+        assert reach_tracker(session, keys, timeout=30)
+        publish_frames(session, keys, iter(pets_frames[5:10]), 10.0, wait_for_subscriber=10)
+        wait_for(
+            lambda: status(client, camera)["counters"]["frames_in"] == 10,
+            60,
+            "the new worker to count on",
+        )
+
+
 def test_a_stream_worker_leaves_stop_signals_to_the_service(server, session, pets_frames):
     # a SIGTERM or Ctrl-C sent to the service's whole process group must not kill the stream
     # mid-recording: the service stops its streams itself, gracefully
