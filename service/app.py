@@ -31,6 +31,7 @@ from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
 from starlette.exceptions import HTTPException
 from starlette.responses import Response
+from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
@@ -229,6 +230,13 @@ class _LimitedBodies:
             if not message.get("more_body", False):
                 break
         body = b"".join(chunks)
+        if problem := _not_utf8(scope, body):
+            _log_refusal(Request(scope), 422, problem)
+            errors = [{"loc": ["body"], "msg": problem, "type": "unicode_decode"}]
+            await JSONResponse({"detail": problem, "errors": errors}, status_code=422)(
+                scope, receive, send
+            )
+            return
         replayed = False
 
         async def replay() -> Message:
@@ -239,6 +247,45 @@ class _LimitedBodies:
             return {"type": "http.request", "body": body, "more_body": False}
 
         await self.app(scope, replay, send)
+
+
+def _not_utf8(scope: Scope, body: bytes) -> str | None:
+    """Why a JSON body cannot be read, when it is not UTF-8 text (FastAPI's own answer is a
+    400 "There was an error parsing the body", which says neither what nor how to fix it)."""
+    content_type = dict(scope.get("headers") or ()).get(b"content-type", b"")
+    if not body or b"json" not in content_type.lower():
+        return None
+    try:
+        body.decode("utf-8")
+    except UnicodeDecodeError as error:
+        return (
+            f"invalid request: the body is not UTF-8 text (byte {error.start} is "
+            f"0x{body[error.start]:02x}): send JSON encoded in UTF-8"
+        )
+    return None
+
+
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+async def _method_not_allowed(request: Request, error: Exception) -> Response:
+    """405 naming every method the path takes, in ``Allow`` and in the sentence: Starlette's
+    answer lists only the methods of the first route whose path matched, one of several
+    when a path has a route per method (``GET`` and ``POST /v1/jobs``)."""
+    # each method asked of the router as a request of it would be (routers included in the
+    # app keep their routes to themselves)
+    allowed = [
+        method
+        for method in _METHODS
+        if any(
+            route.matches({**request.scope, "method": method})[0] is Match.FULL
+            for route in request.app.routes
+        )
+    ]
+    methods = ", ".join(allowed)
+    detail = f"{request.method} is not allowed on {request.url.path}: use {methods}"
+    _log_refusal(request, 405, detail)
+    return JSONResponse({"detail": detail}, status_code=405, headers={"Allow": methods})
 
 
 class _InternalErrorsAsJson:
@@ -382,6 +429,7 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     # holding the stop for the graceful-shutdown timeout (their clients reconnect elsewhere).
     app.state.stopping = threading.Event()
     app.state.event_streams = 0  # clients following job events now (VTRACK_MAX_EVENT_STREAMS)
+    app.add_exception_handler(405, _method_not_allowed)
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)

@@ -491,3 +491,31 @@ def test_a_full_data_folder_is_reported_and_the_service_goes_on(make_server, sha
         done = wait_for_state(client, job.json()["id"], ("succeeded", "failed"))
         assert done["state"] == "succeeded", done["error"]
         assert "vtrack_workers_replaced_total 0.0" in client.get("/metrics").text
+
+
+def test_a_json_body_that_is_not_utf8_gets_a_422_saying_so(client):
+    # before: 400 "There was an error parsing the body", neither what nor how to fix it
+    response = client.post(
+        "/v1/streams",
+        content=b'{"camera": "\xff\xfe"}',
+        headers={"Content-Type": "application/json"},
+    )
+    assert response.status_code == 422
+    body = ErrorResponse.model_validate(response.json())
+    assert "not UTF-8" in body.detail and "byte 12 is 0xff" in body.detail
+
+
+@pytest.mark.parametrize(
+    ("method", "path", "allowed"),
+    [
+        ("PUT", "/v1/jobs", "GET, POST"),
+        ("PATCH", "/v1/streams/gate", "GET, DELETE"),
+        ("POST", "/healthz", "GET, HEAD"),
+    ],
+)
+def test_a_method_not_allowed_names_every_method_of_the_path(client, method, path, allowed):
+    # before: Allow named the methods of the first route that matched ("POST" of /v1/jobs)
+    response = client.request(method, path)
+    assert response.status_code == 405
+    assert response.headers["allow"] == allowed
+    assert ErrorResponse.model_validate(response.json()).detail.endswith(f"use {allowed}")
