@@ -341,7 +341,7 @@ def row_name(base: str, source: str | None = None, seed: int = 0) -> str:
 def fed_digest(rows: np.ndarray) -> str:
     """Digest of the detections a tracker was given, ``(N, 5)`` ``frame, x, y, w, h`` in file
     units (1-based) in the order given, rounded to 1e-4 px. The peer scripts compute the same
-    (``benchmarks/peers/mot_trackers.py``, ``reid_trackers.py`` mirror this function), so the
+    (``benchmarks/peers/_sequences.py`` mirrors it), so the
     report shows that every tracker of a source got the same boxes."""
     values = np.round(np.asarray(rows, dtype=np.float64).reshape(-1, 5), 4) + 0.0  # no -0.0
     return hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()[:16]

@@ -1,7 +1,8 @@
 """Run a multi-object tracker of Roboflow's ``trackers`` over MOTChallenge sequences; print JSON.
 
 A standalone script for the MOT peer environment (``trackers``, ``supervision``, OpenCV 5; see
-``benchmarks/_mot_env.py``): it imports nothing from the project. ``benchmarks/mot.py`` runs it
+``benchmarks/_mot_env.py``): it imports nothing from the project but its sibling
+``_sequences.py``. ``benchmarks/mot.py`` runs it
 in a subprocess:
 
     .venv-mot/bin/python benchmarks/peers/mot_trackers.py KIND SEQUENCE_DIR [...]
@@ -44,8 +45,7 @@ from __future__ import annotations
 
 import argparse
 import configparser
-import contextlib
-import hashlib
+import functools
 import importlib.metadata
 import inspect
 import json
@@ -58,6 +58,7 @@ import cv2
 import numpy as np
 import supervision as sv
 import trackers
+from _sequences import add_run_arguments, check_run_arguments, fed_digest, run_sequences
 
 KINDS = {
     "sort": trackers.SORTTracker,
@@ -82,13 +83,6 @@ def default_params(kind: str) -> dict[str, object]:
             value = repr(value)
         params[name] = value
     return params
-
-
-def fed_digest(rows: np.ndarray) -> str:
-    """Digest of detections ``frame, x, y, w, h`` (file units), rounded to 1e-4 px; mirrored in
-    ``benchmarks/mot.py`` and ``benchmarks/peers/reid_trackers.py``."""
-    values = np.round(np.asarray(rows, dtype=np.float64).reshape(-1, 5), 4) + 0.0  # no -0.0
-    return hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()[:16]
 
 
 def read_sequence(folder: Path, det_file: Path | None = None) -> dict[str, object]:
@@ -203,45 +197,34 @@ def main(argv: list[str] | None = None) -> int:
         action="append",
         help="detection file of each sequence, in order (default: each one's det/det.txt)",
     )
-    parser.add_argument("--frames", type=int, help="only the first N frames of each sequence")
-    parser.add_argument("--repeats", type=int, default=1, help="timed runs per sequence")
-    parser.add_argument(
-        "--frame-rate",
-        choices=("sequence", "library"),
-        default="sequence",
-        help="frame_rate passed to the tracker: seqinfo.ini's (default) or the library's 30",
+    add_run_arguments(
+        parser, "frame_rate passed to the tracker: seqinfo.ini's (default) or the library's 30"
     )
     args = parser.parse_args(argv)
-    if args.repeats < 1 or (args.frames is not None and args.frames < 1):
-        parser.error("--repeats and --frames must be positive")
+    check_run_arguments(parser, args)
     if args.det is not None and len(args.det) != len(args.sequences):
         parser.error("give one --det per sequence, or none")
     det_files = args.det or [None] * len(args.sequences)
     warnings.simplefilter("ignore", FutureWarning)  # pyDeprecate notices of the library
-    results = []
-    for folder, det_file in zip(args.sequences, det_files, strict=True):
-        try:
-            # the library logs through `logging` and may print: keep stdout for the JSON
-            with contextlib.redirect_stdout(sys.stderr):
-                result = run_sequence(
-                    args.kind,
-                    folder,
-                    args.frames,
-                    args.repeats,
-                    args.frame_rate == "sequence",
-                    det_file,
-                )
-        except (OSError, ValueError, KeyError, cv2.error) as exc:
-            result = {"name": folder.name, "error": f"{type(exc).__name__}: {exc}"}
-            print(f"{args.kind} {folder.name}: {result['error']}", file=sys.stderr)
-        else:
-            fps = result["frames"] / max(float(np.median(result["seconds"])), 1e-12)
-            print(
-                f"{args.kind} {result['name']}: {result['frames']} frames, {len(result['rows'])} "
-                f"boxes, {fps:.0f} fps (median of {args.repeats})",
-                file=sys.stderr,
-            )
-        results.append(result)
+    runs = [
+        (
+            folder.name,
+            functools.partial(
+                run_sequence,
+                args.kind,
+                folder,
+                args.frames,
+                args.repeats,
+                args.frame_rate == "sequence",
+                det_file,
+            ),
+        )
+        for folder, det_file in zip(args.sequences, det_files, strict=True)
+    ]
+    # the library logs through `logging` and may print: run_sequences keeps stdout for the JSON
+    results = run_sequences(
+        args.kind, runs, (OSError, ValueError, KeyError, cv2.error), args.repeats
+    )
     params = default_params(args.kind)
     params["frame_rate"] = "seqinfo.ini frameRate" if args.frame_rate == "sequence" else 30.0
     versions = {

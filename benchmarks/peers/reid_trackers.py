@@ -1,7 +1,8 @@
 """Run a BoxMOT tracker with a learned appearance model over MOTChallenge sequences; print JSON.
 
 A standalone script for the re-id peer environment (``boxmot``, PyTorch, OpenCV 4; see
-``benchmarks/_reid_env.py``): it imports nothing from the project. ``benchmarks/mot.py`` runs it
+``benchmarks/_reid_env.py``): it imports nothing from the project but its sibling
+``_sequences.py``. ``benchmarks/mot.py`` runs it
 in a subprocess:
 
     .venv-reid/bin/python benchmarks/peers/reid_trackers.py KIND SEQUENCE_DIR [...]
@@ -54,7 +55,7 @@ from __future__ import annotations
 import argparse
 import configparser
 import contextlib
-import hashlib
+import functools
 import importlib.metadata
 import json
 import logging
@@ -69,6 +70,7 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing is to be fetched; fail r
 import cv2
 import numpy as np
 import torch
+from _sequences import add_run_arguments, check_run_arguments, fed_digest, run_sequences
 from boxmot import create_tracker
 from boxmot.structures import Boxes, Detections
 from boxmot.trackers.config import load_tracker_config
@@ -76,13 +78,6 @@ from boxmot.trackers.specs import TrackerSpec
 
 KINDS = {"deepocsort": "deepocsort", "strongsort": "strongsort", "botsort_reid": "botsort"}
 FRAME_RATE_PARAM = {"botsort_reid": "frame_rate"}  # the others have none
-
-
-def fed_digest(rows: np.ndarray) -> str:
-    """Digest of detections ``frame, x, y, w, h`` (file units), rounded to 1e-4 px; mirrored in
-    ``benchmarks/mot.py`` and ``benchmarks/peers/mot_trackers.py``."""
-    values = np.round(np.asarray(rows, dtype=np.float64).reshape(-1, 5), 4) + 0.0  # no -0.0
-    return hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest()[:16]
 
 
 def read_sequence(folder: Path, det_file: Path, embeddings_file: Path) -> dict[str, object]:
@@ -221,47 +216,33 @@ def main(argv: list[str] | None = None) -> int:
         required=True,
         help=".npy embeddings aligned with the detection file's rows, per sequence",
     )
-    parser.add_argument("--frames", type=int, help="only the first N frames of each sequence")
-    parser.add_argument("--repeats", type=int, default=1, help="timed runs per sequence")
-    parser.add_argument(
-        "--frame-rate",
-        choices=("sequence", "library"),
-        default="sequence",
-        help="BoT-SORT's frame_rate: seqinfo.ini's (default) or the library's 30",
-    )
+    add_run_arguments(parser, "BoT-SORT's frame_rate: seqinfo.ini's (default) or the library's 30")
     args = parser.parse_args(argv)
-    if args.repeats < 1 or (args.frames is not None and args.frames < 1):
-        parser.error("--repeats and --frames must be positive")
+    check_run_arguments(parser, args)
     if not len(args.det) == len(args.embeddings) == len(args.sequences):
         parser.error("give one --det and one --embeddings per sequence")
     warnings.simplefilter("ignore", FutureWarning)
     logging.disable(logging.WARNING)  # BoxMOT's per-tracker INFO lines and ECC warnings
-    results = []
-    for folder, det_file, embeddings_file in zip(
-        args.sequences, args.det, args.embeddings, strict=True
-    ):
-        try:
-            with contextlib.redirect_stdout(sys.stderr):  # keep stdout for the JSON
-                result = run_sequence(
-                    args.kind,
-                    folder,
-                    det_file,
-                    embeddings_file,
-                    args.frames,
-                    args.repeats,
-                    args.frame_rate == "sequence",
-                )
-        except (OSError, ValueError, KeyError, RuntimeError, cv2.error) as exc:
-            result = {"name": folder.name, "error": f"{type(exc).__name__}: {exc}"}
-            print(f"{args.kind} {folder.name}: {result['error']}", file=sys.stderr)
-        else:
-            fps = result["frames"] / max(float(np.median(result["seconds"])), 1e-12)
-            print(
-                f"{args.kind} {result['name']}: {result['frames']} frames, {len(result['rows'])} "
-                f"boxes, {fps:.0f} fps (median of {args.repeats})",
-                file=sys.stderr,
-            )
-        results.append(result)
+    runs = [
+        (
+            folder.name,
+            functools.partial(
+                run_sequence,
+                args.kind,
+                folder,
+                det_file,
+                embeddings_file,
+                args.frames,
+                args.repeats,
+                args.frame_rate == "sequence",
+            ),
+        )
+        for folder, det_file, embeddings_file in zip(
+            args.sequences, args.det, args.embeddings, strict=True
+        )
+    ]
+    errors = (OSError, ValueError, KeyError, RuntimeError, cv2.error)
+    results = run_sequences(args.kind, runs, errors, args.repeats)
     with contextlib.redirect_stdout(sys.stderr):
         params = load_tracker_config(KINDS[args.kind], None, None)
     params = {k: v if isinstance(v, str | int | float | bool | type(None)) else repr(v)
