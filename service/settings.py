@@ -26,10 +26,13 @@ from service.models.resolve import (
     check_model_setting,
     model_setting_path,
 )
+from service.streams.security import TlsFiles, ZenohSecurity, build_security
 from service.streams.session import (
     DEFAULT_LISTEN,
+    MESSAGE_MARGIN,
     ZenohOptions,
     ZenohUnavailable,
+    endpoint_address,
     load_config_file,
     zenoh_endpoint,
 )
@@ -51,6 +54,11 @@ _WITHOUT = {
     "pose_model": "the default pose model of VTRACK_MODELS_DIR, or give a model name or file",
     "reid_model": "the default re-identification model of VTRACK_MODELS_DIR, or give a model "
     "name or file",
+    "zenoh_tls_certificate": "no TLS certificate, or give its PEM file",
+    "zenoh_tls_private_key": "no TLS key, or give its PEM file",
+    "zenoh_tls_root_ca": "no root CA, or give its PEM file",
+    "zenoh_users_file": "no Zenoh authentication, or give the user:password file",
+    "zenoh_user": "no Zenoh user name, or give one",
 }
 """What an optional setting means when unset, for the message about an empty one."""
 
@@ -238,6 +246,53 @@ class Settings(BaseSettings):
         description="A Zenoh JSON5 configuration file to start from (the settings above apply "
         "over it; multicast scouting stays as the file says).",
     )
+    zenoh_tls_certificate: Path | None = Field(
+        default=None,
+        description="PEM certificate the service's Zenoh session presents on tls/ endpoints "
+        "(`vtrack zenoh certificates` makes a local CA and certificates).",
+    )
+    zenoh_tls_private_key: Path | None = Field(
+        default=None, description="PEM private key of VTRACK_ZENOH_TLS_CERTIFICATE."
+    )
+    zenoh_tls_root_ca: Path | None = Field(
+        default=None,
+        description="PEM certificate of the authority that signed the other side's "
+        "certificates (the router's, or the clients' with VTRACK_ZENOH_TLS_CLIENT_AUTH).",
+    )
+    zenoh_tls_client_auth: bool = Field(
+        default=False,
+        description="Mutual TLS: accept only Zenoh clients whose certificate the root CA "
+        "signed; without VTRACK_ZENOH_USERS_FILE their common names are the principals of "
+        "VTRACK_ZENOH_CAMERAS and VTRACK_ZENOH_READERS.",
+    )
+    zenoh_user: str | None = Field(
+        default=None,
+        description="User name the service's Zenoh sessions present (user/password "
+        "authentication; also what `vtrack publish` and `vtrack subscribe` present).",
+    )
+    zenoh_password: SecretStr | None = Field(
+        default=None, description="Password of VTRACK_ZENOH_USER."
+    )
+    zenoh_users_file: Path | None = Field(
+        default=None,
+        description="Whom the service's Zenoh session accepts: one user:password per line. "
+        "Turns authentication and access control on.",
+    )
+    zenoh_cameras: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="With authentication: which principal publishes which cameras' frames "
+        'and detections, e.g. {"gate-cam": ["gate"], "gateway": ["*"]}; nobody else may.',
+    )
+    zenoh_readers: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="With authentication: which principal reads which cameras' tracks, e.g. "
+        '{"dashboard": ["*"]}; nobody else may.',
+    )
+    zenoh_allow_open: bool = Field(
+        default=False,
+        description="Let Zenoh listen beyond loopback without authentication (anyone who "
+        "reaches it can publish frames and read tracks): a warning at every start.",
+    )
     zenoh_prefix: str = Field(
         default="vtrack",
         pattern=PREFIX_PATTERN,
@@ -255,7 +310,15 @@ class Settings(BaseSettings):
         "as malformed).",
     )
 
-    @field_validator("dpm_model", "color_names", "zenoh_config")
+    @field_validator(
+        "dpm_model",
+        "color_names",
+        "zenoh_config",
+        "zenoh_tls_certificate",
+        "zenoh_tls_private_key",
+        "zenoh_tls_root_ca",
+        "zenoh_users_file",
+    )
     @classmethod
     def _existing_file(cls, value: Path | None) -> Path | None:
         if value is not None and not value.is_file():
@@ -339,6 +402,11 @@ class Settings(BaseSettings):
         "cnn_model",
         "pose_model",
         "reid_model",
+        "zenoh_tls_certificate",
+        "zenoh_tls_private_key",
+        "zenoh_tls_root_ca",
+        "zenoh_users_file",
+        "zenoh_user",
         mode="before",
     )
     @classmethod
@@ -360,6 +428,55 @@ class Settings(BaseSettings):
             )
         return value
 
+    @model_validator(mode="after")
+    def _zenoh_secure_or_said(self) -> Settings:
+        # Each problem names its variables (load_settings passes such messages on as they are).
+        if not self.zenoh_enabled:
+            return self
+        enforced = self.zenoh_security.enforced
+        exposed = self.zenoh_exposed_endpoints
+        if exposed and not enforced and not self.zenoh_allow_open:
+            raise ValueError(
+                f"VTRACK_ZENOH_LISTEN: {', '.join(exposed)} is beyond loopback, and without "
+                "authentication anyone who reaches it can publish frames, read tracks and stop "
+                "the tracking of a camera: give VTRACK_ZENOH_USERS_FILE or "
+                "VTRACK_ZENOH_TLS_CLIENT_AUTH (docs/streams.md, Security), listen on 127.0.0.1, "
+                "or set VTRACK_ZENOH_ALLOW_OPEN=true to accept it"
+            )
+        return self
+
+    @property
+    def zenoh_security(self) -> ZenohSecurity:
+        """TLS, credentials and access rules from the VTRACK_ZENOH_* settings (ValueError
+        naming the variables for a combination that cannot work)."""
+        password = self.zenoh_password.get_secret_value() if self.zenoh_password else None
+        return build_security(
+            prefix=self.zenoh_prefix,
+            tls=TlsFiles(
+                self.zenoh_tls_certificate,
+                self.zenoh_tls_private_key,
+                self.zenoh_tls_root_ca,
+                self.zenoh_tls_client_auth,
+            ),
+            user=self.zenoh_user,
+            password=password,
+            users_file=self.zenoh_users_file,
+            cameras=self.zenoh_cameras,
+            readers=self.zenoh_readers,
+            listen=self.zenoh_listen if self.zenoh_mode == "peer" else [],
+        )
+
+    @property
+    def zenoh_exposed_endpoints(self) -> list[str]:
+        """Listen endpoints beyond loopback (none when a Zenoh configuration file decides)."""
+        if self.zenoh_config is not None or self.zenoh_mode != "peer":
+            return []
+        return [
+            endpoint
+            for endpoint in self.zenoh_listen
+            if (address := endpoint_address(endpoint)) is not None and not is_loopback(address)
+        ]
+
     @property
     def zenoh(self) -> ZenohOptions:
         return ZenohOptions(
@@ -367,6 +484,10 @@ class Settings(BaseSettings):
             listen=tuple(self.zenoh_listen),
             connect=tuple(self.zenoh_connect),
             config_file=self.zenoh_config,
+            security=self.zenoh_security,
+            # a sample this far over the frame limit is dropped by Zenoh before it is put
+            # together in memory (smaller ones are counted as malformed by the stream)
+            max_message_size=self.stream_frame_limit + MESSAGE_MARGIN,
         )
 
     def _network_path(self, setting: ModelSetting) -> Path | None:

@@ -1,5 +1,6 @@
 """The ``vtrack`` command line: ``track`` one target, ``analyze`` a video, ``serve`` the API,
-``publish`` a video as a Zenoh camera and ``subscribe`` to its tracks."""
+``publish`` a video as a Zenoh camera and ``subscribe`` to its tracks, and make what secured
+``zenoh`` links need."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import signal
 import sys
 
 from service import __version__
-from service.cli import analyze, models, serve, track
+from service.cli import analyze, models, serve, track, zenoh
 from service.cli.common import CLOSED_OUTPUT, stopped, terminate
 from service.logs import quiet_ffmpeg
 from service.streams.cli import add_commands as add_stream_commands
@@ -28,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_command(commands)
     models.add_command(commands)  # models fetch, models list
     add_stream_commands(commands)  # publish, subscribe
+    zenoh.add_command(commands)  # zenoh certificates, zenoh router-config
     return parser
 
 

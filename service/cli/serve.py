@@ -99,6 +99,8 @@ def _serve(args: argparse.Namespace) -> int:
         file=sys.stderr,
         flush=True,
     )
+    if settings.zenoh_enabled:
+        print(f"vtrack: {_zenoh_posture(settings)}", file=sys.stderr, flush=True)
     for warning in _exposure_warnings(settings, where):
         print(f"vtrack: warning: {warning}", file=sys.stderr, flush=True)
     quiet_ffmpeg(settings.log_level)  # for the workers, which inherit the fork server's
@@ -124,6 +126,30 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _zenoh_posture(settings: Settings) -> str:
+    """One line on who may use the live streams' Zenoh side: open (the default, on loopback),
+    or authenticated with the access rules, or whatever the router in front decides."""
+    options = settings.zenoh
+    security = options.security
+    if options.mode == "client":
+        return (
+            f"Zenoh: a client of {', '.join(options.connect)}; whom it lets in and what they "
+            "may do is the router's configuration (`vtrack zenoh router-config` writes one "
+            "with this service's rules)"
+        )
+    where = ", ".join(options.listen)
+    if security.access is None:
+        return (
+            f"Zenoh on {where} is open: no authentication, no access control; any process "
+            "that reaches it may publish frames and read tracks (docs/streams.md, Security)"
+        )
+    how = "user/password" if security.users_file is not None else "mutual TLS"
+    return (
+        f"Zenoh on {where}: a router with {how} authentication and access control; "
+        f"{security.access.summary()}"
+    )
+
+
 def _exposure_warnings(settings: Settings, where: str) -> list[str]:
     """What anyone on the network can do with a service listening beyond loopback: the whole
     API without a token, and the Zenoh side always (the token does not cover it; only Zenoh's
@@ -137,16 +163,14 @@ def _exposure_warnings(settings: Settings, where: str) -> list[str]:
             "upload, download and delete jobs and stream recordings; set VTRACK_API_TOKEN "
             "(docs/service.md, Security)"
         )
-    if settings.zenoh_enabled and settings.zenoh_config is None:
-        from service.streams.session import endpoint_address
-
-        for endpoint in settings.zenoh_listen:
-            address = endpoint_address(endpoint)
-            if address is not None and not is_loopback(address):
-                warnings.append(
-                    f"Zenoh listens on {endpoint} without access control: anyone who reaches "
-                    "it can read every camera's frames and tracks and send frames of their "
-                    "own (VTRACK_API_TOKEN does not cover Zenoh); give Zenoh TLS and access "
-                    "control with VTRACK_ZENOH_CONFIG, or listen on 127.0.0.1"
-                )
+    exposed = settings.zenoh_exposed_endpoints if settings.zenoh_enabled else []
+    # only VTRACK_ZENOH_ALLOW_OPEN lets such a service start
+    if exposed and not settings.zenoh_security.enforced:
+        warnings.append(
+            f"Zenoh listens on {', '.join(exposed)} without authentication "
+            "(VTRACK_ZENOH_ALLOW_OPEN): anyone who reaches it can read every camera's "
+            "frames and tracks, send frames of their own and stop the tracking of a camera "
+            "(VTRACK_API_TOKEN does not cover Zenoh); give VTRACK_ZENOH_USERS_FILE or "
+            "VTRACK_ZENOH_TLS_CLIENT_AUTH (docs/streams.md, Security), or listen on 127.0.0.1"
+        )
     return warnings

@@ -64,7 +64,13 @@ def _session(args: argparse.Namespace, command: str) -> tuple[zenoh.Session, Str
     try:
         session = member_session(options)
     except ZenohUnavailable as error:
-        print(f"vtrack {command}: {error}", file=sys.stderr)
+        hint = ""
+        if options.security.configured:  # a refused login and a wrong CA look alike from here
+            hint = (
+                " (with TLS or a user: check VTRACK_ZENOH_USER and VTRACK_ZENOH_PASSWORD, and "
+                "that VTRACK_ZENOH_TLS_ROOT_CA signed the service's certificate)"
+            )
+        print(f"vtrack {command}: {error}{hint}", file=sys.stderr)
         return None
     if not wait_for_neighbour(session, REACH_SECONDS):
         endpoints = ", ".join(options.member_endpoints())

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import av
 import numpy as np
 
+from service.frames import MAX_PIXELS
 from service.outputs.h264 import IDR, SPS, nal_unit_types, picture_count
 from service.streams.capture_clock import CaptureClock, Captured
 
@@ -232,6 +233,14 @@ class CameraConnection:
             except av.InvalidDataError:
                 continue  # a damaged packet (lost data): the next key frame repairs the picture
             for picture in pictures:
+                # checked before conversion: a camera (or a forged stream) can state
+                # 16000x16000 in a few bytes, 0.8 GB once converted
+                if picture.width * picture.height > MAX_PIXELS:
+                    reason = (
+                        f"a frame of {picture.width}x{picture.height} pixels, more than this "
+                        f"service takes ({MAX_PIXELS / 1e6:.0f} megapixels, 8192x8192)"
+                    )
+                    raise CameraUnavailable(f"{redacted(self._url)}: {reason}", reason)
                 yield picture.to_ndarray(format="rgb24"), picture.time
 
     def _access_units(self) -> Iterator[tuple[bytes, float | None]]:

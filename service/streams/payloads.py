@@ -25,6 +25,14 @@ RAW = "application/octet-stream"
 H264 = "video/h264"
 
 
+MAX_ATTACHMENT_BYTES = 4096
+"""A frame's attachment is some 100 bytes of JSON; one this large is no attachment of ours."""
+
+MAX_DETECTIONS_BYTES = 1024**2
+"""Some 10,000 detections of one frame: more is a broken or hostile sender, refused before it
+is parsed (the frame limit bounds frames; this bounds the other key's messages)."""
+
+
 class PayloadError(ValueError):
     """A sample that is not a usable frame or detection message."""
 
@@ -39,6 +47,11 @@ def parse_attachment(attachment: bytes | None) -> FrameAttachment:
     """The frame's :class:`FrameAttachment`; raises :class:`PayloadError`."""
     if not attachment:
         raise PayloadError("frame without attachment: sequence and timestamp are required")
+    if len(attachment) > MAX_ATTACHMENT_BYTES:
+        raise PayloadError(
+            f"frame attachment of {len(attachment)} bytes is over the limit of "
+            f"{MAX_ATTACHMENT_BYTES}: it holds sequence and timestamp (and a raw frame's size)"
+        )
     try:
         return FrameAttachment.model_validate_json(attachment)
     except ValidationError as error:
@@ -174,6 +187,11 @@ def image_size(data: bytes) -> tuple[int, int] | None:
 
 def parse_detections(payload: bytes) -> UpstreamDetections:
     """An upstream detections message; raises :class:`PayloadError`."""
+    if len(payload) > MAX_DETECTIONS_BYTES:
+        raise PayloadError(
+            f"detections message of {len(payload)} bytes is over the limit of "
+            f"{MAX_DETECTIONS_BYTES}"
+        )
     try:
         return UpstreamDetections.model_validate_json(payload)
     except ValidationError as error:

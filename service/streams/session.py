@@ -6,6 +6,9 @@ other through it without multicast scouting and without a router. Every other se
 to the hub (and to ``VTRACK_ZENOH_CONNECT``, e.g. the compose file's router) and, in peer mode,
 listens on an ephemeral loopback port so that the peers it learns of by gossip can reach it
 directly. A forked session is dead, so each worker opens its own after it starts (DESIGN.md §7).
+
+With TLS, authentication or access control configured (:mod:`service.streams.security`) the hub
+is a router and every other session its client, so that no two sessions meet around its rules.
 """
 
 from __future__ import annotations
@@ -21,7 +24,12 @@ from typing import Literal
 
 import zenoh
 
+from service.streams.security import ZenohSecurity
+
 DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
+
+MESSAGE_MARGIN = 1024**2
+"""Bytes a Zenoh message may carry beyond the frame limit (attachment, encoding, headers)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,32 +46,48 @@ class ZenohOptions:
         Endpoints every session connects to (a router, other hubs).
     config_file:
         A Zenoh JSON5 configuration to start from; the fields above are applied over it.
+    security:
+        TLS, credentials and access rules.
+    max_message_size:
+        The largest message a session takes off a link, in bytes (Zenoh's default is 1 GiB;
+        a larger sample is dropped by Zenoh before it is reassembled in memory).
     """
 
     mode: Literal["peer", "client"] = "peer"
     listen: tuple[str, ...] = DEFAULT_LISTEN
     connect: tuple[str, ...] = ()
     config_file: Path | None = field(default=None)
+    security: ZenohSecurity = field(default_factory=ZenohSecurity)
+    max_message_size: int | None = None
+
+    @property
+    def hub_mode(self) -> Literal["peer", "client", "router"]:
+        """The hub's Zenoh mode: a router where security is configured (see the module)."""
+        return "router" if self.mode == "peer" and self.security.configured else self.mode
 
     def hub_config(self) -> zenoh.Config:
         """The service process's session: listens for the others (``ZenohUnavailable`` for a
         configuration Zenoh refuses)."""
         with _reported():
-            config = self._base()
+            config = self._base(self.hub_mode)
             if self.mode == "peer" and self.listen:
                 config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
             if self.connect:
                 config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
+            # a client of a separate router presents credentials; that router has the rules
+            self.security.apply(config, hub=self.mode == "peer")
         return config
 
     def member_config(self) -> zenoh.Config:
         """A stream worker's or a CLI tool's session: connects to the hub and the router."""
         with _reported():
-            config = self._base()
-            if self.mode == "peer":
+            peer = self.mode == "peer" and not self.security.configured
+            config = self._base("peer" if peer else "client")
+            if peer:
                 config.insert_json5("listen/endpoints", json.dumps(["tcp/127.0.0.1:0"]))
             if endpoints := self.member_endpoints():
                 config.insert_json5("connect/endpoints", json.dumps(endpoints))
+            self.security.apply(config, hub=False)
         return config
 
     def member_endpoints(self) -> list[str]:
@@ -71,9 +95,11 @@ class ZenohOptions:
         hub = [_reachable(e) for e in self.listen] if self.mode == "peer" else []
         return [*hub, *self.connect]
 
-    def _base(self) -> zenoh.Config:
+    def _base(self, mode: str) -> zenoh.Config:
         config = load_config_file(self.config_file) if self.config_file else zenoh.Config()
-        config.insert_json5("mode", json.dumps(self.mode))
+        config.insert_json5("mode", json.dumps(mode))
+        if self.max_message_size is not None:
+            config.insert_json5("transport/link/rx/max_message_size", str(self.max_message_size))
         # Multicast scouting would make every instance on the LAN talk to every camera: off,
         # unless a configuration file turns it on.
         if self.config_file is None:

@@ -440,6 +440,8 @@ def test_serve_says_what_a_service_open_to_the_network_exposes(
            "VTRACK_ZENOH_LISTEN": f'["tcp/{zenoh_host}:{free_port()}"]'}  # fmt: skip
     if token:
         env["VTRACK_API_TOKEN"] = token
+    if zenoh_host == "0.0.0.0":  # refused without it (tests/streams/test_security.py)
+        env["VTRACK_ZENOH_ALLOW_OPEN"] = "true"
     service = subprocess.Popen(
         [sys.executable, "-m", "service.cli", "serve", "--host", host, "--port", str(port)],
         stderr=subprocess.PIPE,

@@ -13,6 +13,7 @@ The compose file must parse and name files that exist.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import fnmatch
 import importlib.metadata
 import json
@@ -20,6 +21,8 @@ import os
 import shlex
 import shutil
 import subprocess
+import sys
+import time
 import venv
 from pathlib import Path
 
@@ -252,16 +255,14 @@ def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path, s
         server.wait(timeout=30)
 
 
-def _json5(path: Path) -> dict:
-    """Our JSON5 files are JSON plus whole-line // comments."""
-    lines = [line for line in path.read_text().splitlines() if not line.strip().startswith("//")]
-    return json.loads("\n".join(lines))
+PKI = "/etc/vtrack/zenoh"
+"""Where the compose file's services see the certificates volume."""
 
 
 def test_compose_file_parses_and_names_files_that_exist(dockerfile):
     compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
     services = compose["services"]
-    assert set(services) == {"vtrack", "zenoh"}
+    assert set(services) == {"vtrack", "zenoh", "zenoh-setup"}
     service = services["vtrack"]
     context = (DOCKER / service["build"]["context"]).resolve()
     assert context == REPO_ROOT.resolve()
@@ -279,13 +280,36 @@ def test_compose_file_parses_and_names_files_that_exist(dockerfile):
         assert key.startswith("VTRACK_") and isinstance(value, str)
     zenoh = services["zenoh"]
     assert zenoh["image"].startswith("eclipse/zenoh:")
-    config_path = zenoh["command"][zenoh["command"].index("-c") + 1]
-    mounted = {v.split(":")[1]: v.split(":")[0] for v in zenoh["volumes"]}
-    config = _json5(DOCKER / mounted[config_path])
-    assert config["mode"] == "router"
-    assert config["listen"]["endpoints"] == ["tcp/0.0.0.0:7447"]
-    assert config["scouting"]["multicast"]["enabled"] is False
+    assert zenoh["command"] == ["-c", f"{PKI}/router.json5"]
+    assert f"zenoh-pki:{PKI}:ro" in zenoh["volumes"]
+    assert zenoh["depends_on"]["zenoh-setup"]["condition"] == "service_completed_successfully"
     assert zenoh["ports"] == ["7447:7447"]
+    # the service and the setup that writes the router's rules read the same Zenoh settings
+    setup = services["zenoh-setup"]
+    assert setup["environment"].items() <= service["environment"].items()
+    assert setup["image"] == service["image"]
+
+
+def _compose_setup(folder: Path, **granted: str) -> dict[str, str]:
+    """Run the compose file's zenoh-setup command here, with ``folder`` for the certificates
+    volume and ``granted`` settings over its environment (as the operator edits them); the
+    environment it ran with."""
+    setup = yaml.safe_load((DOCKER / "compose.yaml").read_text())["services"]["zenoh-setup"]
+    env = {k: v.replace(PKI, str(folder)) for k, v in setup["environment"].items()}
+    env.update({f"VTRACK_{k.upper()}": v for k, v in granted.items()})
+    script = setup["command"][-1].replace(PKI, str(folder))
+    vtrack = f"{shlex.quote(str(Path(sys.executable)))} -m service.cli"
+    clean = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
+    result = subprocess.run(
+        ["sh", "-c", script.replace("vtrack ", f"{vtrack} ")],
+        cwd=REPO_ROOT,
+        env=clean | env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    return env
 
 
 def test_compose_environment_names_real_settings():
@@ -299,15 +323,17 @@ def test_compose_environment_names_real_settings():
     assert set(compose["services"]["vtrack"]["environment"]) <= known
 
 
-def test_compose_environment_parses_and_reaches_the_router(monkeypatch):
+def test_compose_environment_parses_and_reaches_the_router(monkeypatch, tmp_path):
     from service.settings import Settings
 
     compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+    _compose_setup(tmp_path)  # the certificates the settings name
     for key, value in compose["services"]["vtrack"]["environment"].items():
-        monkeypatch.setenv(key, value)
+        monkeypatch.setenv(key, value.replace(PKI, str(tmp_path)))
     settings = Settings()
     router = compose["services"]["zenoh"]["ports"][0].split(":")[1]
-    assert settings.zenoh.connect == (f"tcp/zenoh:{router}",)
+    assert settings.zenoh.connect == (f"tls/zenoh:{router}",)
+    assert settings.zenoh.mode == "client" and settings.zenoh.security.tls.client_auth
 
 
 def test_compose_router_is_of_the_release_line_the_project_installs():
@@ -329,31 +355,58 @@ def test_compose_router_is_of_the_release_line_the_project_installs():
     assert importlib.metadata.version("eclipse-zenoh").split(".")[:2] == [str(major), str(minor)]
 
 
-def test_the_router_configuration_relays_between_the_service_and_a_camera():
+def test_the_compose_router_relays_a_granted_camera_and_no_one_else(tmp_path, monkeypatch):
+    # The router's configuration is what zenoh-setup writes from the compose settings, with a
+    # camera granted as the compose file's comment says; the router runs in a router of the
+    # eclipse-zenoh package of that release, the service as compose runs it (a client).
     import zenoh
 
-    from service.streams.session import ZenohOptions, load_config_file, open_session
+    from service.settings import Settings
+    from service.streams.security import TlsFiles, ZenohSecurity
+    from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
 
-    router_endpoint = f"tcp/127.0.0.1:{free_port()}"
-    config = load_config_file(DOCKER / "zenoh-router.json5")  # the router of compose.yaml
+    certificates = [sys.executable, "-m", "service.cli", "zenoh", "certificates"]
+    certificates += [str(tmp_path), "--client", "gate-cam", "--client", "intruder"]
+    subprocess.run(certificates, cwd=REPO_ROOT, check=True, capture_output=True, timeout=60)
+    env = _compose_setup(tmp_path, zenoh_cameras='{"gate-cam": ["door"]}')
+    router_endpoint = f"tls/127.0.0.1:{free_port()}"
+    config = zenoh.Config.from_file(str(tmp_path / "router.json5"))
     config.insert_json5("listen/endpoints", json.dumps([router_endpoint]))
-    # as compose.yaml's service (a peer connected to the router) and a camera using it alone
-    service = ZenohOptions(listen=(f"tcp/127.0.0.1:{free_port()}",), connect=(router_endpoint,))
-    camera = ZenohOptions(mode="client", listen=(), connect=(router_endpoint,))
+    for key, value in env.items():
+        monkeypatch.setenv(key, value)
+    service = Settings().zenoh
+    service = dataclasses.replace(service, connect=(router_endpoint,))
+
+    def camera(name: str | None) -> ZenohOptions:
+        files = TlsFiles(
+            tmp_path / f"{name}.pem" if name else None,
+            tmp_path / f"{name}.key" if name else None,
+            tmp_path / "ca.pem",
+            client_auth=name is not None,
+        )
+        return ZenohOptions("client", (), (router_endpoint,), security=ZenohSecurity(files))
+
     received: list[bytes] = []
     with contextlib.ExitStack() as stack:
         stack.callback(zenoh.open(config).close)
         hub = open_session(service.hub_config())
         stack.callback(hub.close)
-        member = open_session(camera.member_config())  # a client: it reaches the router only
+        with pytest.raises(ZenohUnavailable):  # no client certificate
+            open_session(camera(None).member_config())
+        member = open_session(camera("gate-cam").member_config())
         stack.callback(member.close)
+        intruder = open_session(camera("intruder").member_config())
+        stack.callback(intruder.close)
         subscriber = hub.declare_subscriber(
             "vtrack/cameras/door/frames", lambda sample: received.append(sample.payload.to_bytes())
         )
         stack.callback(subscriber.undeclare)
 
         def delivered() -> bool:
+            intruder.put("vtrack/cameras/door/frames", b"forged")
             member.put("vtrack/cameras/door/frames", b"frame")
             return bool(received)
 
         wait_for(delivered, 10, "a camera's frame relayed by the router", interval=0.2)
+        time.sleep(0.5)
+        assert set(received) == {b"frame"}  # the intruder's certificate is good, its right none

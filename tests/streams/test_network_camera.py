@@ -50,6 +50,7 @@ from service.streams.tools import video_frames
 from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO
+from tests.service.test_limits import OVER, write_mjpeg
 
 pytestmark = pytest.mark.realtime  # cameras send at their frame rate; delays are measured
 
@@ -94,6 +95,22 @@ def decoded(stream: bytes) -> list[np.ndarray]:
     """Every frame of a video held in memory, as FFmpeg decodes it from a file."""
     with av.open(io.BytesIO(stream)) as container:
         return [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+
+
+def test_a_camera_frame_over_the_size_limit_is_refused_before_it_is_converted(tmp_path):
+    # before: `vtrack publish` converted whatever size a camera stated (8208x8192 here; a few
+    # bytes of H.264 can state 16000x16000, 0.8 GB once converted)
+    write_mjpeg(tmp_path / "huge.avi", [(64, 48), (64, 48), OVER, (64, 48)])
+    server = FileServer(tmp_path)
+    try:
+        connection = CameraConnection(server.url("huge.avi"), CameraSettings(), False)
+        items = connection.items()
+        assert [next(items)[0].shape for _ in range(2)] == [(48, 64, 3)] * 2
+        with pytest.raises(CameraUnavailable) as refused:
+            next(items)
+    finally:
+        server.close()
+    assert refused.value.reason.startswith("a frame of 8208x8192 pixels, more than this service")
 
 
 def test_stream_urls_are_told_from_paths_and_passwords_are_hidden():

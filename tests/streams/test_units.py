@@ -3,6 +3,7 @@ configuration, the stream schemas, and one real Zenoh round trip through the pub
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import socket
 import threading
@@ -40,11 +41,17 @@ from service.streams.payloads import (
     parse_detections,
     to_detections,
 )
-from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
+from service.streams.security import AccessRules, TlsFiles, ZenohSecurity
+from service.streams.session import (
+    ZenohOptions,
+    ZenohUnavailable,
+    open_session,
+    wait_for_neighbour,
+)
 from service.streams.simulated_cameras import access_units
 from service.streams.store import StreamStore
 from service.streams.worker import Incoming, LatestFrame, UpstreamBuffer
-from service.testing import free_port
+from service.testing import free_port, wait_for
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
 
@@ -75,6 +82,16 @@ def raw_attachment(width: int, height: int, fmt: str, sequence: int = 0) -> Fram
 def test_parse_attachment_missing(attachment):
     with pytest.raises(PayloadError, match="attachment"):
         parse_attachment(attachment)
+
+
+def test_parse_attachment_and_detections_have_size_limits():
+    # before: any size was parsed (a 30 MB attachment with every frame, in JSON)
+    padded = b'{"sequence": 1, "timestamp": 1.0, "note": "' + b"x" * 5000 + b'"}'
+    with pytest.raises(PayloadError, match="frame attachment of 5045 bytes is over the limit"):
+        parse_attachment(padded)
+    many = b'{"sequence": 1, "detections": [' + b'{"x":1,"y":1,"w":2,"h":2,"score":1},' * 40000
+    with pytest.raises(PayloadError, match=r"detections message of \d+ bytes is over the limit"):
+        parse_detections(many + b"{}]}")
 
 
 def test_parse_attachment_invalid_json():
@@ -565,6 +582,56 @@ def test_client_mode_configs():
         assert client_listens(config) == []
         assert config_value(config, "connect/endpoints") == ["tcp/10.0.0.1:7447"]
         assert config_value(config, "scouting/multicast/enabled") is False
+
+
+def test_secured_configs_make_the_hub_a_router_and_the_members_its_clients(tmp_path):
+    # In peer mode two peers can meet around the hub's rules; through a router they cannot.
+    rules = AccessRules.from_maps("vtrack", "svc", {"cam": ["gate"]}, {})
+    security = ZenohSecurity(
+        TlsFiles(tmp_path / "s.pem", tmp_path / "s.key", tmp_path / "ca.pem"),
+        user="svc",
+        password="pw",
+        users_file=tmp_path / "users.txt",
+        access=rules,
+    )
+    options = ZenohOptions(listen=("tls/127.0.0.1:7500",), security=security)
+    hub, member = options.hub_config(), options.member_config()
+    assert config_value(hub, "mode") == "router" and config_value(member, "mode") == "client"
+    assert client_listens(member) == []
+    assert config_value(member, "connect/endpoints") == ["tls/127.0.0.1:7500"]
+    assert config_value(hub, "transport/link/tls/listen_certificate") == str(tmp_path / "s.pem")
+    assert config_value(member, "transport/link/tls/listen_certificate") is None
+    assert config_value(member, "transport/link/tls/root_ca_certificate") == str(
+        tmp_path / "ca.pem"
+    )
+    assert config_value(hub, "transport/auth/usrpwd/dictionary_file") == str(tmp_path / "users.txt")
+    assert config_value(member, "transport/auth/usrpwd/dictionary_file") is None
+    assert config_value(member, "transport/auth/usrpwd/user") == "svc"
+    assert config_value(hub, "access_control/enabled") is True
+    assert config_value(member, "access_control/enabled") is False
+    # a client of a separate router presents its credentials; the rules are the router's
+    client = dataclasses.replace(options, mode="client", connect=("tls/10.0.0.1:7447",))
+    assert config_value(client.hub_config(), "access_control/enabled") is False
+    assert config_value(client.hub_config(), "mode") == "client"
+
+
+def test_a_message_over_the_size_limit_is_dropped_and_the_link_stays():
+    # Zenoh's default takes messages up to 1 GiB, put together in memory before any check
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    hub = open_session(ZenohOptions(listen=(endpoint,), max_message_size=2**20).hub_config())
+    member = open_session(ZenohOptions(listen=(endpoint,)).member_config())
+    try:
+        sizes: list[int] = []
+        hub.declare_subscriber("limit/test", lambda sample: sizes.append(len(sample.payload)))
+        assert wait_for_neighbour(member, 5)
+        wait_for(lambda: member.put("limit/test", b"x") or sizes, 10, "the first message")
+        member.put("limit/test", b"x" * 2**21)
+        member.put("limit/test", b"x" * 200)
+        wait_for(lambda: 200 in sizes, 10, "the message after the large one")
+        assert 2**21 not in sizes
+    finally:
+        member.close()
+        hub.close()
 
 
 def test_open_session_on_a_busy_port():
