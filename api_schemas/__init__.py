@@ -4,7 +4,8 @@ No algorithm code. ``python -m api_schemas.export`` writes the JSON Schema of th
 to ``api_schemas/schema.json``.
 """
 
-from api_schemas.common import BoxModel, ErrorResponse, FirstBox
+from api_schemas.common import BoxModel, ErrorResponse, FailedCheck, FirstBox
+from api_schemas.health import Health, Readiness
 from api_schemas.jobs import (
     ALL_FORMATS,
     DetectorOptions,
@@ -46,9 +47,11 @@ __all__ = [
     "BoxModel",
     "DetectorOptions",
     "ErrorResponse",
+    "FailedCheck",
     "FirstBox",
     "FrameAttachment",
     "FrameTracksMessage",
+    "Health",
     "JobCreated",
     "JobList",
     "JobOptions",
@@ -60,6 +63,7 @@ __all__ = [
     "PeopleTrackerOptions",
     "PixelFormat",
     "ProgressEvent",
+    "Readiness",
     "StreamCounters",
     "StreamDetail",
     "StreamList",

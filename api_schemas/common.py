@@ -2,10 +2,21 @@
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
-from typing import Annotated, Any
+from types import UnionType
+from typing import Annotated, Any, ClassVar, Union, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, Field, PlainSerializer, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    GetJsonSchemaHandler,
+    PlainSerializer,
+    model_validator,
+)
+from pydantic.json_schema import JsonSchemaValue
+from pydantic_core import CoreSchema
 
 
 def rounded(digits: int) -> PlainSerializer:
@@ -42,7 +53,8 @@ class FirstBox(BoxModel):
     """The box a single target is followed from: at least 1 pixel each way (the tracker's
     patch is sampled around it) and overlapping the frame."""
 
-    model_config = ConfigDict(title="FirstBox")
+    # strict, as the options around it are: true or "1" is no coordinate
+    model_config = ConfigDict(title="FirstBox", strict=True)
 
     # one sentence for 0, negative and sub-pixel sizes alike, as `vtrack track` words it
     w: float = Field(description="Width in pixels, at least 1.", json_schema_extra={"minimum": 1})
@@ -55,12 +67,91 @@ class FirstBox(BoxModel):
         return self
 
 
+def _takes_int(annotation: object) -> bool:
+    return annotation is int or (
+        get_origin(annotation) in (Union, UnionType) and int in get_args(annotation)
+    )
+
+
+class RulesAcrossFields(BaseModel):
+    """A request model whose validators enforce rules across its fields, stated in its JSON
+    Schema too; its strict integer fields take a number without a fraction (``2.0``).
+
+    :attr:`schema_rules` (JSON Schema subschemas, ``if``/``then`` mostly) go into the model's
+    schema as ``allOf`` in validation mode, the schema of what is accepted, so
+    that a client (or a generator of test requests) sees the rules the validators apply. Not in
+    serialization mode: a record read back from storage skips the rules added since it was
+    accepted (``from_stored``), so what the service returns need not follow them. A rule that
+    JSON Schema cannot state (one number after another) is said in its field's description.
+    """
+
+    schema_rules: ClassVar[tuple[dict[str, Any], ...]] = ()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _whole_numbers(cls, data: Any) -> Any:
+        # An integer field strict about types refuses 2.0, which JSON Schema's integer takes
+        # (a number without a fraction; JavaScript writes no other): made an int here, before
+        # the field's own validation, which keeps its schema (an annotated int would lose
+        # its minimum and maximum to pydantic's schema of an optional).
+        if not isinstance(data, dict):
+            return data
+        whole = {
+            name: int(value)
+            for name, value in data.items()
+            if isinstance(value, float)
+            and value.is_integer()
+            and name in cls.model_fields
+            and _takes_int(cls.model_fields[name].annotation)
+        }
+        return {**data, **whole} if whole else data
+
+    @classmethod
+    def __get_pydantic_json_schema__(
+        cls, core_schema: CoreSchema, handler: GetJsonSchemaHandler
+    ) -> JsonSchemaValue:
+        schema = super().__get_pydantic_json_schema__(core_schema, handler)
+        if handler.mode == "validation" and cls.schema_rules:
+            target = handler.resolve_ref_schema(schema)
+            target["allOf"] = [copy.deepcopy(rule) for rule in cls.schema_rules]
+        return schema
+
+
+def left_unset(*names: str) -> dict[str, Any]:
+    """A JSON Schema saying that each of ``names`` is absent or null: left to its default."""
+    return {"properties": {name: {"type": "null"} for name in names}}
+
+
+def given(name: str) -> dict[str, Any]:
+    """A JSON Schema (for ``if``) matching objects where ``name`` is present and not null."""
+    return {"required": [name], "properties": {name: {"not": {"type": "null"}}}}
+
+
+def equal(name: str, value: object) -> dict[str, Any]:
+    """A JSON Schema (for ``if`` or ``then``) matching objects where ``name`` is ``value``."""
+    return {"required": [name], "properties": {name: {"const": value}}}
+
+
+class FailedCheck(BaseModel):
+    """One check a request failed."""
+
+    loc: list[str | int] = Field(
+        description="Where: 'body', 'query' or 'options' (an upload's options part), then the "
+        "path of the field in it, e.g. ['options', 'tracker', 'particles']."
+    )
+    msg: str = Field(description="What was wrong with it.")
+    type: str = Field(
+        description="The kind of failure, e.g. 'missing', 'extra_forbidden', "
+        "'greater_than_equal', 'value_error' (a rule across fields)."
+    )
+
+
 class ErrorResponse(BaseModel):
     """What every 4xx and 5xx answer carries: a sentence saying what went wrong and what to do."""
 
     detail: str = Field(description="What went wrong, and what to change.")
-    errors: list[dict[str, Any]] | None = Field(
-        default=None, description="For validation errors: each failed check (location, message)."
+    errors: list[FailedCheck] | None = Field(
+        default=None, description="For validation errors (422): each failed check."
     )
 
 

@@ -15,6 +15,7 @@ from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
 from api_schemas.common import ErrorResponse
+from api_schemas.health import Health, Readiness
 from api_schemas.jobs import JobCreated, JobList, JobOptions, JobStatus, ProgressEvent
 from api_schemas.streams import (
     FrameAttachment,
@@ -45,6 +46,8 @@ PUBLIC_MODELS: tuple[type[BaseModel], ...] = (
     StreamTracksMessage,
     StreamTracksEnded,
     ErrorResponse,
+    Health,
+    Readiness,
 )
 SCHEMA_PATH = Path(__file__).with_name("schema.json")
 

@@ -21,7 +21,7 @@ from pydantic import (
     model_validator,
 )
 
-from api_schemas.common import FirstBox
+from api_schemas.common import FirstBox, RulesAcrossFields, equal, given, left_unset
 
 
 class OutputFormat(StrEnum):
@@ -57,6 +57,15 @@ class JobState(StrEnum):
 MODEL_FILE_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$"
 """A model of the service's models folder, by catalog name or as a path inside the folder."""
 
+# a path segment other than "..": empty, not starting with a dot, "." alone or before a
+# character other than a dot, or ".." before at least one more character
+_SEGMENT = (
+    r"(?:[A-Za-z0-9_-][A-Za-z0-9_.-]*|\.(?:[A-Za-z0-9_-][A-Za-z0-9_.-]*)?|\.\.[A-Za-z0-9_.-]+)?"
+)
+MODEL_FILE_SCHEMA_PATTERN = rf"^[A-Za-z0-9_][A-Za-z0-9_.-]*(?:/{_SEGMENT})*$"
+""":data:`MODEL_FILE_PATTERN` without a ``..`` segment, as the schema states it: the models
+validate with the short pattern and refuse ``..`` on their own, saying why in words."""
+
 
 def _inside_the_folder(value: str | None) -> str | None:
     if value is not None and ".." in value.split("/"):
@@ -64,7 +73,7 @@ def _inside_the_folder(value: str | None) -> str | None:
     return value
 
 
-class DetectorOptions(BaseModel):
+class DetectorOptions(RulesAcrossFields):
     """The person detector of a people-tracking job.
 
     Numbers and flags of every options model are strict: ``true`` is not a frame step nor
@@ -72,7 +81,16 @@ class DetectorOptions(BaseModel):
     422 naming the field instead of a job that runs with a value nobody meant.
     """
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    # examples of whole objects: a model's name alone, without its detector, breaks a rule
+    model_config = ConfigDict(
+        extra="forbid",
+        allow_inf_nan=False,
+        json_schema_extra={"examples": [{"name": "cnn", "model": "person-detection-0202"}]},
+    )
+    schema_rules = (
+        {"if": given("levels_per_octave"), "then": equal("name", "dpm")},
+        {"if": given("model"), "then": equal("name", "cnn")},
+    )
 
     name: Literal["auto", "cnn", "default", "dpm"] = Field(
         default="auto",
@@ -88,12 +106,13 @@ class DetectorOptions(BaseModel):
         min_length=1,
         max_length=200,
         pattern=MODEL_FILE_PATTERN,
-        description="'cnn' only: a model of the service's models folder (VTRACK_MODELS_DIR), by "
-        "name as `vtrack models list` shows it (person-detection-0202, person-detection-0200, "
-        "person-detection-retail-0013) or as a path inside that folder to an OpenVINO .xml or "
+        json_schema_extra={"pattern": MODEL_FILE_SCHEMA_PATTERN},
+        description="'cnn' only (name 'cnn' given with it): a model of the service's models "
+        "folder (VTRACK_MODELS_DIR), by name as `vtrack models list` shows it "
+        "(person-detection-0202, person-detection-0200, person-detection-retail-0013) or as a "
+        "path inside that folder to an OpenVINO .xml or "
         "an .onnx file (yolox-nano/yolox_nano.onnx). None: the service's model "
         "(VTRACK_CNN_MODEL, by default person-detection-0202).",
-        examples=["person-detection-0202"],
     )
     upscale: float | None = Field(
         strict=True,
@@ -119,9 +138,10 @@ class DetectorOptions(BaseModel):
         default=None,
         ge=1,
         le=20,
-        description="DPM only: sizes of person searched per doubling of size (the feature "
-        "pyramid's levels per octave). None: the model's own, 10 for voc-release5 models. 5 "
-        "searches each frame in about half the time and finds slightly fewer people: tracking "
+        description="DPM only (name 'dpm' given with it): sizes of person searched per doubling "
+        "of size (the feature pyramid's levels per octave). None: the model's own, 10 for "
+        "voc-release5 models. 5 searches each frame in about half the time and finds slightly "
+        "fewer people: tracking "
         "PETS09-S2L1 and TUD-Stadtmitte ran 1.5-1.7x as fast for 2.6 and 0.8 points of HOTA. "
         "2 runs the DPM at least as fast as OpenCV's HOG people detector on the same frames "
         "(docs/benchmarks.md).",
@@ -150,10 +170,27 @@ class DetectorOptions(BaseModel):
         return _inside_the_folder(value)
 
 
-class PeopleTrackerOptions(BaseModel):
+class PeopleTrackerOptions(RulesAcrossFields):
     """Multi-person tracker parameters; each None keeps the tracker's default."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = ConfigDict(
+        extra="forbid",
+        allow_inf_nan=False,
+        json_schema_extra={
+            "examples": [
+                {
+                    "pose": True,
+                    "pose_model": "human-pose-estimation-0001",
+                    "reid": True,
+                    "reid_model": "person-reidentification-retail-0287",
+                }
+            ]
+        },
+    )
+    schema_rules = (
+        {"if": given("pose_model"), "then": equal("pose", True)},
+        {"if": given("reid_model"), "then": equal("reid", True)},
+    )
 
     particles: int | None = Field(
         strict=True, default=None, ge=2, le=1024, description="Particles per person."
@@ -186,14 +223,17 @@ class PeopleTrackerOptions(BaseModel):
         default=None,
         ge=0,
         le=60,
-        description="Seconds without detection after which a track ends.",
+        description="Seconds without detection after which a track ends (tracker's default "
+        "1.5); at most occluded_max_missing, given or its default (a rule across fields JSON "
+        "Schema cannot state: refused with 422).",
     )
     occluded_max_missing: float | None = Field(
         strict=True,
         default=None,
         ge=0,
         le=120,
-        description="The same while the person is occluded.",
+        description="The same while the person is occluded (tracker's default 3.0); at least "
+        "max_missing, given or its default.",
     )
     report_missing: float | None = Field(
         strict=True,
@@ -236,12 +276,12 @@ class PeopleTrackerOptions(BaseModel):
         min_length=1,
         max_length=200,
         pattern=MODEL_FILE_PATTERN,
+        json_schema_extra={"pattern": MODEL_FILE_SCHEMA_PATTERN},
         description="With pose true only: a model of the service's models folder "
         "(VTRACK_MODELS_DIR), by name (human-pose-estimation-0001) or as a path inside that "
         "folder to an OpenVINO .xml or an .onnx file (an OpenPose network: 19 heatmaps and 38 "
         "part affinity fields). None: the service's model (VTRACK_POSE_MODEL, by default "
         "human-pose-estimation-0001).",
-        examples=["human-pose-estimation-0001"],
     )
     reid: bool | None = Field(
         strict=True,
@@ -259,13 +299,13 @@ class PeopleTrackerOptions(BaseModel):
         min_length=1,
         max_length=200,
         pattern=MODEL_FILE_PATTERN,
+        json_schema_extra={"pattern": MODEL_FILE_SCHEMA_PATTERN},
         description="With reid true only: a model of the service's models folder "
         "(VTRACK_MODELS_DIR), by name (person-reidentification-retail-0287; -0277, the most "
         "accurate and slowest; -0288, the smallest and fastest) or as a path inside that "
         "folder to an OpenVINO .xml or an .onnx file (one person crop in, one embedding out). "
         "None: the service's model (VTRACK_REID_MODEL, by default "
         "person-reidentification-retail-0287).",
-        examples=["person-reidentification-retail-0287"],
     )
 
     @field_validator("pose_model", "reid_model")
@@ -299,13 +339,54 @@ _MODE_OF = {
 """The mode each mode-specific option belongs to, and why it means nothing in the other."""
 
 
-class JobOptions(BaseModel):
+_TRACKER_FIELDS = tuple(PeopleTrackerOptions.model_fields)
+
+_DETECTOR_UNSET = {
+    "properties": {
+        "name": {"enum": ["auto", "default"]},
+        **left_unset("model", "upscale", "levels_per_octave")["properties"],
+    }
+}
+"""A detector left as it is by default (name 'auto', or 'default' as earlier jobs' options
+have it, and nothing else set): what a single-target job may give."""
+
+
+class JobOptions(RulesAcrossFields):
     """Options of a tracking job: the ``options`` JSON part of ``POST /v1/jobs``.
 
     Unknown fields are rejected, so a misspelt option fails loudly instead of being ignored.
+    An option of the other mode is refused unless left at its default, and end must come
+    after start (the one rule JSON Schema cannot state).
     """
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    schema_rules = (
+        {
+            "if": equal("mode", "single_target"),
+            "then": {
+                "required": ["first_box"],
+                "properties": {
+                    "first_box": {"not": {"type": "null"}},
+                    "detector": _DETECTOR_UNSET,
+                    "tracker": left_unset(*_TRACKER_FIELDS),
+                    "fill_gaps": {"const": 0},
+                },
+            },
+            "else": {
+                "properties": {
+                    "first_box": {"type": "null"},
+                    "preset": {"enum": [None, DEFAULT_PRESET, FORMER_DEFAULT_PRESET]},
+                }
+            },
+        },
+        {
+            "if": {
+                "required": ["formats"],
+                "properties": {"formats": {"not": {"contains": {"const": "mcap"}}}},
+            },
+            "then": {"properties": {"mcap_images": {"const": "h264"}}},
+        },
+    )
 
     mode: Literal["people", "single_target"] = Field(
         default="people",
@@ -313,7 +394,8 @@ class JobOptions(BaseModel):
         " one object followed from first_box by a correlation tracker.",
     )
     first_box: FirstBox | None = Field(
-        default=None, description="single_target only: the object's box in the first frame."
+        default=None,
+        description="single_target only, and required there: the object's box in the first frame.",
     )
     preset: str | None = Field(
         default=None,
@@ -327,11 +409,14 @@ class JobOptions(BaseModel):
     formats: list[OutputFormat] = Field(
         default_factory=lambda: list(ALL_FORMATS),
         min_length=1,
-        description="Results to write. Each costs time: mcap and mp4 encode every frame.",
+        json_schema_extra={"uniqueItems": True},
+        description="Results to write, each once. Each costs time: mcap and mp4 encode every "
+        "frame.",
     )
     mcap_images: Literal["h264", "jpeg"] = Field(
         default="h264",
-        description="How the mcap result stores the frames: 'h264' as foxglove.CompressedVideo "
+        description="How the mcap result stores the frames (other than 'h264' only when "
+        "formats has mcap): 'h264' as foxglove.CompressedVideo "
         "(a key frame every second; a fifth of the bytes at 360 px and 10 fps), 'jpeg' as "
         "foxglove.CompressedImage (each frame on its own, for tools that read images only).",
     )
@@ -357,8 +442,8 @@ class JobOptions(BaseModel):
         strict=True,
         default=None,
         gt=0,
-        description="Seconds into the video where tracking stops: frames at or after this time "
-        "are not read. None: to the video's end.",
+        description="Seconds into the video where tracking stops, after start: frames at or "
+        "after this time are not read. None: to the video's end.",
     )
     fill_gaps: float = Field(
         strict=True,
@@ -379,6 +464,8 @@ class JobOptions(BaseModel):
     ] = Field(
         default_factory=dict,
         max_length=20,
+        # keys that do not match the pattern are refused, not free
+        json_schema_extra={"additionalProperties": False},
         description="Your own names for the video, copied into its results (the json's options, "
         "the mcap's metadata) and listed with the job, for joining them with your records: "
         "the camera, the site, when the recording began... Up to 20; keys of 1-64 ASCII "

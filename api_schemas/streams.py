@@ -27,6 +27,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
+from api_schemas.common import RulesAcrossFields, equal
 from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions, stored
 from api_schemas.tracks import FrameTracksMessage
 
@@ -181,10 +182,29 @@ class StreamState(StrEnum):
     """Stopped on request (``DELETE``); the record stays until deleted again."""
 
 
-class StreamSpec(BaseModel):
-    """A stream to track: the body of ``POST /v1/streams`` (or one entry of VTRACK_STREAMS)."""
+_RECORDING_DEFAULTS = {"record_segment": 300.0, "record_keep": 0, "record_images": "h264"}
+"""The recording options' defaults, all a stream that does not record may give."""
 
-    model_config = ConfigDict(extra="forbid")
+
+class StreamSpec(RulesAcrossFields):
+    """A stream to track: the body of ``POST /v1/streams`` (or one entry of VTRACK_STREAMS).
+
+    The recording options other than ``record`` are refused unless ``record`` is true or
+    they are left at their defaults. Numbers and flags are strict, as a job's options are:
+    ``false`` is no number of seconds, nor ``"yes"`` a flag.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    schema_rules = (
+        {
+            "if": {"not": equal("record", True)},
+            "then": {
+                "properties": {
+                    name: {"const": value} for name, value in _RECORDING_DEFAULTS.items()
+                }
+            },
+        },
+    )
 
     camera: str = Field(
         pattern=CAMERA_PATTERN,
@@ -194,31 +214,38 @@ class StreamSpec(BaseModel):
     detector: DetectorOptions = Field(default_factory=DetectorOptions)
     tracker: PeopleTrackerOptions = Field(default_factory=PeopleTrackerOptions)
     record: bool = Field(
+        strict=True,
         default=False,
         description="Record frames and tracks to MCAP files, one per segment: a segment ends "
         "after record_segment seconds of stream time, when the tracks end and when the stream "
         "stops, and is downloadable from then on.",
     )
     record_segment: float = Field(
-        default=300.0,
+        strict=True,
+        default=_RECORDING_DEFAULTS["record_segment"],
         ge=1,
         le=86400,
-        description="Seconds of stream time (frame capture times) per recording file.",
+        description="Recording only (without record true, its default only): seconds of "
+        "stream time (frame capture times) per recording file.",
     )
     record_keep: int = Field(
-        default=0,
+        strict=True,
+        default=_RECORDING_DEFAULTS["record_keep"],
         ge=0,
-        description="Finished recordings kept per stream, the oldest deleted first; 0 keeps all.",
+        description="Recording only (without record true, its default only): finished "
+        "recordings kept per stream, the oldest deleted first; 0 keeps all.",
     )
     record_images: Literal["h264", "jpeg"] = Field(
-        default="h264",
-        description="How recordings store the frames, as a job's mcap_images: 'h264' "
+        default=_RECORDING_DEFAULTS["record_images"],
+        description="Recording only (without record true, its default only): how recordings "
+        "store the frames, as a job's mcap_images: 'h264' "
         "(foxglove.CompressedVideo) or 'jpeg' (foxglove.CompressedImage).",
     )
     idle_after: float = Field(
-        default=2.0, gt=0, le=600, description="Seconds without a frame before 'idle'."
+        strict=True, default=2.0, gt=0, le=600, description="Seconds without a frame before 'idle'."
     )
     end_tracks_after: float = Field(
+        strict=True,
         default=10.0,
         gt=0,
         le=3600,
@@ -226,6 +253,7 @@ class StreamSpec(BaseModel):
         "later starts new tracks.",
     )
     detections_wait: float = Field(
+        strict=True,
         default=0.05,
         ge=0,
         le=5,

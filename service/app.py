@@ -23,6 +23,7 @@ from typing import ClassVar
 from urllib.parse import urlsplit
 
 import anyio
+import psycopg
 import uvicorn
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
@@ -35,6 +36,7 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
+from api_schemas.common import error_message
 from service import __version__
 from service.data_folder import DataFolder, claim_data_folder
 from service.deps import token_refusal
@@ -47,7 +49,7 @@ from service.jobs.workers import WorkerPool
 from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
 from service.pipelines import PipelineResources
-from service.routers import health, jobs, metrics, streams
+from service.routers import contract, health, jobs, metrics, streams
 from service.settings import Settings, ip_address, is_loopback
 from service.storage import storage_problem
 from service.streams.manager import StreamManager
@@ -61,6 +63,12 @@ text and an annotated MP4. Jobs run in worker processes and survive a restart of
 
 Or track cameras live: frames published on Zenoh in, tracks published back as they are computed
 (`/v1/streams`).
+
+Every error answers JSON, an `ErrorResponse`: `detail`, a sentence saying what went wrong and
+what to do, and for a request that fails its schema (422) `errors`, each failed check. Each
+operation lists every status it can answer, those that any request can meet included (a
+missing token, a request too slow or too large, too many connections). A method a path does not
+take is answered 405, with `Allow` naming those it takes.
 """
 
 
@@ -73,7 +81,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     # `vtrack serve` claimed the folder already, to refuse a bad one in a line before it serves;
     # under `uvicorn service.app:app` a DataFolderError stops the start-up here, with its reason
     claimed_here = None if app.state.data_folder is not None else claim_data_folder(settings)
-    store = JobStore(settings.database_path)
+    store = JobStore(settings.job_database, folder=settings.data_dir)
     requeued, failed = store.requeue_orphans(settings.max_attempts)
     for job_id in requeued:
         log.warning("job %s queued again: the service died while it ran", job_id)
@@ -86,10 +94,13 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         )
     sweep(settings, store, orphans=True)
     config = WorkerConfig(
-        database_path=settings.database_path,
+        database=settings.job_database,
+        data_dir=settings.data_dir,
         poll_interval=settings.poll_interval,
         resources=PipelineResources.from_settings(settings),
         log_level=settings.log_level,
+        instance=settings.instance,
+        lease=settings.job_lease_seconds if store.shared else None,
     )
     # no worker is replaced once a stop signal came: the service is stopping them
     stopping = app.state.stopping
@@ -104,7 +115,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     )
     pool.start()
     streams = StreamManager(
-        StreamStore(settings.database_path),
+        StreamStore(settings.job_database),
         settings.zenoh,
         settings.zenoh_prefix,
         settings.streams_dir,
@@ -112,6 +123,8 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         frame_limit=settings.stream_frame_limit,
         log_level=settings.log_level,
         stop_requested=stopping,
+        # instances of one database share the streams: spread over them by name
+        spread_as=settings.instance if store.shared else None,
     )
     if settings.zenoh_enabled:
         streams.start(settings.streams)
@@ -122,7 +135,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.store = store
     app.state.pool = pool
     app.state.streams = streams
-    app.state.registry = make_registry(store, pool, streams, settings.data_dir)
+    app.state.registry = make_registry(store, pool, streams, settings.data_dir, settings.instance)
     log.info("data in %s; worker processes: %d", settings.data_dir.resolve(), settings.workers)
     housekeeper = Housekeeper(settings, store)
     housekeeper.start()
@@ -157,12 +170,23 @@ async def _http_error(request: Request, error: Exception) -> Response:
     return await http_exception_handler(request, error)
 
 
+async def _database_away(request: Request, error: Exception) -> JSONResponse:
+    """503 while the shared job database cannot be reached (a server restarting): the client
+    may try again; the service and its jobs go on."""
+    detail = (
+        "the job database (VTRACK_DATABASE_URL) cannot be reached just now; try again in a "
+        "few seconds"
+    )
+    _log_refusal(request, 503, f"{detail} ({str(error).strip().splitlines()[0]})")
+    return JSONResponse({"detail": detail}, status_code=503, headers={"Retry-After": "5"})
+
+
 async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     """422 with one sentence naming each bad field, and the checks that failed."""
     errors = error.errors() if isinstance(error, RequestValidationError) else []
     problems = [_problem(item) for item in errors]
     listed = [
-        {"loc": list(item.get("loc", ())), "msg": str(item.get("msg")), "type": item.get("type")}
+        {"loc": list(item.get("loc", ())), "msg": error_message(item), "type": item.get("type")}
         for item in errors
     ]
     detail = "invalid request: " + "; ".join(problems)
@@ -177,7 +201,7 @@ def _problem(item: dict) -> str:
     if item.get("type") == "json_invalid" and len(loc) == 2:
         reason = (item.get("ctx") or {}).get("error", "not JSON")
         return f"the body is not valid JSON: {reason} at character {loc[1]}"
-    return f"{'.'.join(str(p) for p in loc)}: {item.get('msg')}"
+    return f"{'.'.join(str(p) for p in loc)}: {error_message(item)}"
 
 
 class _LimitedBodies:
@@ -433,6 +457,7 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(InvalidOptions, _invalid_options)
+    app.add_exception_handler(psycopg.OperationalError, _database_away)
     app.add_middleware(_LimitedBodies)
     app.middleware("http")(_refusals_before_anything_else)  # outside the limit: first
     app.add_middleware(_InternalErrorsAsJson)  # added last: outside the others, to catch theirs
@@ -440,6 +465,7 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app.include_router(jobs.router)
     app.include_router(streams.router)
     app.include_router(metrics.router)
+    contract.install(app)  # every status each operation can answer, in /openapi.json
     return app
 
 

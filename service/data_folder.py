@@ -14,6 +14,11 @@ one sentence, a folder:
   service never leaves a stale lock behind; the file stays, holding the pid of its last owner;
 - whose job database does not open or take a write.
 
+With a shared job database (``VTRACK_DATABASE_URL``) the folder is shared storage that every
+instance of the service uses at once: each takes a *shared* lock, so that instances share it
+while a service with its own SQLite database (which takes the exclusive lock) cannot join
+them, nor they it; the database is reached and written once before the service starts.
+
 A folder it creates is readable by the service's user alone (``0700``): it holds footage and
 people's tracks. An existing folder keeps the permissions its operator gave it.
 """
@@ -44,6 +49,10 @@ class DataFolderError(Exception):
 
 class DataFolderInUse(DataFolderError):
     """Another service holds the data folder's lock."""
+
+
+class JobDatabaseError(DataFolderError):
+    """The shared job database (``VTRACK_DATABASE_URL``) cannot be reached or written."""
 
 
 class DataFolder:
@@ -77,13 +86,17 @@ def claim_data_folder(settings: Settings) -> DataFolder:
     folder = _writable_folder(settings.data_dir)
     if new:  # footage and people's tracks: the service's user alone reads them
         folder.chmod(0o700)
-    lock_fd = _lock(folder)
+    shared = settings.database_url is not None
+    lock_fd = _lock(folder, shared)
     claim = DataFolder(folder, lock_fd)
     try:
         # only once the lock is ours: a second service must not touch the first one's files
         for subfolder in (settings.uploads_dir, settings.results_dir, settings.streams_dir):
             _writable_folder(subfolder)
-        _writable_database(settings.database_path)
+        if shared:
+            _reachable_database(settings)
+        else:
+            _writable_database(settings.database_path)
     except BaseException:
         claim.release()
         raise
@@ -97,29 +110,51 @@ def _writable_folder(path: Path) -> Path:
         raise DataFolderError(str(error)) from None
 
 
-def _lock(folder: Path) -> int:
-    """The descriptor of the data folder's lock file, locked, with this process's pid in it."""
+def _lock(folder: Path, shared: bool = False) -> int:
+    """The descriptor of the data folder's lock file, locked, with this process's pid in it
+    (``shared``: a shared lock, which instances of one shared database take together)."""
     path = folder / LOCK_NAME
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)  # not inheritable (PEP 446)
     except OSError as error:
         raise DataFolderError(f"cannot write its lock file {path}: {error.strerror}") from None
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
     except OSError as error:
         holder = os.pread(fd, 32, 0).decode(errors="replace").strip()
         os.close(fd)
         if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
             pid = f" (pid {holder})" if holder.isdigit() else ""
+            if shared:
+                raise DataFolderInUse(
+                    f"a vtrack serve with its own SQLite database uses {folder}{pid}: instances "
+                    "of a shared database (VTRACK_DATABASE_URL) need a folder of their own"
+                ) from None
             raise DataFolderInUse(
                 f"another vtrack serve uses {folder}{pid}: stop it, or give this one another "
-                "--data-dir"
+                "--data-dir (instances that share VTRACK_DATABASE_URL share a folder)"
             ) from None
         # a file system without locks (some network mounts) cannot keep two services apart
         raise DataFolderError(f"cannot lock {path}: {error.strerror}") from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    if not shared:  # the pid of the one holder; shared holders are many
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     return fd
+
+
+def _reachable_database(settings: Settings) -> None:
+    """Open the shared job database (its schema brought up to date) and make one write."""
+    import psycopg
+
+    try:
+        store = JobStore(settings.job_database, folder=settings.data_dir)
+        try:
+            store.count_start()
+        finally:
+            store.close()
+    except (psycopg.Error, RuntimeError) as error:
+        # psycopg's first line names the server and the reason, never the password
+        raise JobDatabaseError(str(error).strip().splitlines()[0]) from None
 
 
 def _writable_database(path: Path) -> None:

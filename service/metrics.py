@@ -28,14 +28,34 @@ from service.streams.manager import StreamManager
 
 class ServiceCollector(Collector):
     def __init__(
-        self, store: JobStore, pool: WorkerPool, streams: StreamManager, data_dir: Path
+        self,
+        store: JobStore,
+        pool: WorkerPool,
+        streams: StreamManager,
+        data_dir: Path,
+        instance: str = "",
     ) -> None:
+        self._instance = instance
         self._store = store
         self._pool = pool
         self._streams = streams
         self._data_dir = data_dir
 
     def collect(self):
+        info = GaugeMetricFamily(
+            "vtrack_instance",
+            "This instance (VTRACK_INSTANCE_NAME), and whether its job database is shared with "
+            "other instances (VTRACK_DATABASE_URL): the job gauges are the database's, the "
+            "same from every instance; vtrack_jobs_here is this instance's.",
+            labels=["instance", "shared"],
+        )
+        info.add_metric([self._instance, str(self._store.shared).lower()], 1)
+        yield info
+        yield GaugeMetricFamily(
+            "vtrack_jobs_here",
+            "Running jobs this instance's workers run.",
+            value=len(self._store.running(self._instance if self._store.shared else None)),
+        )
         jobs = GaugeMetricFamily(
             "vtrack_jobs", "Jobs in the job store, by state.", labels=["state"]
         )
@@ -128,8 +148,8 @@ class ServiceCollector(Collector):
 
 
 def make_registry(
-    store: JobStore, pool: WorkerPool, streams: StreamManager, data_dir: Path
+    store: JobStore, pool: WorkerPool, streams: StreamManager, data_dir: Path, instance: str = ""
 ) -> CollectorRegistry:
     registry = CollectorRegistry(auto_describe=False)
-    registry.register(ServiceCollector(store, pool, streams, data_dir))
+    registry.register(ServiceCollector(store, pool, streams, data_dir, instance))
     return registry

@@ -6,6 +6,7 @@ import difflib
 import ipaddress
 import os
 import re
+import socket
 import sys
 from collections.abc import Collection, Mapping
 from pathlib import Path
@@ -47,6 +48,7 @@ def _default_workers() -> int:
 
 _WITHOUT = {
     "retention_hours": "finished jobs kept until deleted, or give hours",
+    "database_url": "the data folder's own SQLite database, or give a postgresql:// URL",
     "dpm_model": "no DPM (the embedded detector), or give the model file's path",
     "color_names": "the embedded colour naming, or give the w2c.mat path",
     "models_dir": "no CNN models folder (the embedded detector), or give the folder",
@@ -85,7 +87,28 @@ class Settings(BaseSettings):
 
     data_dir: Path = Field(
         default=Path("vtrack-data"),
-        description="Folder of the job database (jobs.sqlite3), uploads and results.",
+        description="Folder of the job database (jobs.sqlite3), uploads and results; with "
+        "VTRACK_DATABASE_URL, a folder every instance reaches (a network file system mount).",
+    )
+    database_url: SecretStr | None = Field(
+        default=None,
+        description="postgresql://user:password@host:port/database: jobs in PostgreSQL, shared "
+        "by every service instance given the same URL and data folder (scale-out); unset, "
+        "jobs.sqlite3 of the data folder, for this service alone.",
+    )
+    job_lease_seconds: float = Field(
+        default=15.0,
+        ge=1,
+        le=3600,
+        description="With VTRACK_DATABASE_URL: how long an instance's claim on a running job "
+        "holds unless renewed (every third of it); the jobs of an instance that died are "
+        "queued again by the others this long after its last renewal.",
+    )
+    instance_name: str | None = Field(
+        default=None,
+        pattern=r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$",
+        description="This instance's name in /readyz, /metrics and the jobs it runs (default: "
+        "the host name and process id).",
     )
     host: str = Field(default="127.0.0.1", description="Address `vtrack serve` binds.")
     port: int = Field(default=8000, ge=0, le=65535, description="Port `vtrack serve` binds.")
@@ -396,6 +419,7 @@ class Settings(BaseSettings):
 
     @field_validator(
         "retention_hours",
+        "database_url",
         "dpm_model",
         "color_names",
         "models_dir",
@@ -415,6 +439,18 @@ class Settings(BaseSettings):
         # that "" is no number, and do not take it as unset (the operator meant a value).
         if isinstance(value, str) and not value.strip():
             raise ValueError(f"is set but empty: unset it for {_WITHOUT[info.field_name]}")
+        return value
+
+    @field_validator("database_url")
+    @classmethod
+    def _postgres_url(cls, value: SecretStr | None) -> SecretStr | None:
+        if value is not None and not value.get_secret_value().startswith(
+            ("postgresql://", "postgres://")
+        ):
+            raise ValueError(
+                "give a PostgreSQL URL, postgresql://user:password@host:5432/database, or unset "
+                "it for the data folder's own SQLite database"
+            )
         return value
 
     @field_validator("api_token")
@@ -526,6 +562,18 @@ class Settings(BaseSettings):
     @property
     def database_path(self) -> Path:
         return self.data_dir / "jobs.sqlite3"
+
+    @property
+    def job_database(self) -> str | Path:
+        """Where the jobs are: the PostgreSQL URL, or the data folder's SQLite file."""
+        if self.database_url is not None:
+            return self.database_url.get_secret_value()
+        return self.database_path
+
+    @property
+    def instance(self) -> str:
+        """This instance's name (VTRACK_INSTANCE_NAME, or host name and pid)."""
+        return self.instance_name or f"{socket.gethostname()}-{os.getpid()}"
 
     @property
     def uploads_dir(self) -> Path:

@@ -81,6 +81,9 @@ class Server:
     own_group:
         Start the service in a process group of its own, which :meth:`signal_group` signals
         as a service manager or a terminal's Ctrl-C does.
+    name:
+        The log's name, ``<name>-server.log`` (default: the data folder's): instances that
+        share a data folder keep logs of their own.
     **settings:
         Service settings by name, passed as ``VTRACK_<NAME>`` (``api_token="..."``,
         ``zenoh_listen='["tcp/..."]'``...). ``zenoh_listen`` defaults to a free loopback port.
@@ -94,6 +97,7 @@ class Server:
         file_size_limit: int | None = None,
         prefix: tuple[str, ...] = (),
         own_group: bool = False,
+        name: str | None = None,
         **settings: object,
     ) -> None:
         self.data_dir = data_dir
@@ -106,7 +110,7 @@ class Server:
         self.settings = settings
         self.token = settings.get("api_token")
         self.port = free_port()
-        self.log_path = data_dir.parent / f"{data_dir.name}-server.log"
+        self.log_path = data_dir.parent / f"{name or data_dir.name}-server.log"
         self.process: subprocess.Popen | None = None
 
     @property

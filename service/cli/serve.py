@@ -36,7 +36,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from service.data_folder import DataFolderError, claim_data_folder
+    from service.data_folder import DataFolderError, JobDatabaseError, claim_data_folder
     from service.logs import quiet_ffmpeg, uvicorn_log_config
     from service.settings import InvalidSettings, load_settings
     from service.worker_processes import start_fork_server
@@ -61,6 +61,9 @@ def _serve(args: argparse.Namespace) -> int:
     try:
         # writable (with its subfolders and job database) and ours alone, locked until we exit
         data_folder = claim_data_folder(settings)
+    except JobDatabaseError as error:
+        print(f"vtrack: the job database (VTRACK_DATABASE_URL): {error}", file=sys.stderr)
+        return 2
     except DataFolderError as error:
         print(f"vtrack: the data folder (--data-dir, VTRACK_DATA_DIR): {error}", file=sys.stderr)
         return 2

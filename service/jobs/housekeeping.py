@@ -22,6 +22,7 @@ import shutil
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 from service.jobs.result_folders import tidy
 from service.jobs.store import JobRecord, JobStore
@@ -83,7 +84,10 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
     if settings.uploads_dir.is_dir():
         for path in settings.uploads_dir.iterdir():
             record = store.get(path.name.split(".", 1)[0])
-            if (record is None and orphans) or (record is not None and record.state.finished):
+            # on shared storage an upload without a job may be another instance's, arriving:
+            # only one untouched for a while is no one's
+            stray = record is None and orphans and (not store.shared or _untouched(path))
+            if stray or (record is not None and record.state.finished):
                 path.unlink(missing_ok=True)
                 uploads += record is not None
                 strays += record is None
@@ -112,6 +116,18 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
             ", ".join(sorted(unknown)[:10]) + (", ..." if len(unknown) > 10 else ""),
         )
     return Swept(uploads + strays, jobs, recordings)
+
+
+UNTOUCHED_SECONDS = 600.0
+"""An upload written to no more for this long is no upload in progress (uploads that pause
+for VTRACK_UPLOAD_IDLE_SECONDS, 60 by default, are cut)."""
+
+
+def _untouched(path: Path) -> bool:
+    try:
+        return time.time() - path.stat().st_mtime > UNTOUCHED_SECONDS
+    except FileNotFoundError:
+        return False
 
 
 def _expire_recordings(settings: Settings, cutoff: float) -> int:

@@ -20,6 +20,7 @@ from pathlib import Path
 from api_schemas.jobs import JobOptions, JobState, OutputFormat
 from service.analysis import AnalysisStopped, analyze, publish
 from service.frames import FrameSourceError
+from service.jobs.database import DATABASE_ERRORS
 from service.jobs.result_folders import (
     attempt_folder,
     discard,
@@ -38,11 +39,22 @@ log = logging.getLogger(__name__)
 class WorkerConfig:
     """What a worker process needs (picklable: it crosses the process boundary)."""
 
-    database_path: Path
+    database: str | Path
+    """The job database: the SQLite file, or the PostgreSQL URL."""
+    data_dir: Path
     poll_interval: float
     resources: PipelineResources
     log_level: str = "info"
     progress_interval: float = 0.5
+    instance: str | None = None
+    """The service instance the worker belongs to (its claims name it)."""
+    lease: float | None = None
+    """Seconds a claim holds on a shared database unless the instance renews it."""
+
+
+SHARED_IDLE_WAIT = 2.0
+"""Seconds an idle worker of a shared database waits for a notification before it looks at
+the queue, its stop flag and its service again."""
 
 
 class Orphaned(Exception):
@@ -60,17 +72,26 @@ def worker_main(config: WorkerConfig, service_pid: int, stop, ready) -> None:
         format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",
     )
     service_runs = service_alive(service_pid)
-    store = JobStore(config.database_path)
+    store = JobStore(config.database, folder=config.data_dir)
     pid = os.getpid()
+    # on a shared database a queued job wakes the worker (NOTIFY): it need not look often
+    idle_wait = config.poll_interval
+    if store.shared:
+        idle_wait = max(idle_wait, SHARED_IDLE_WAIT)
     ready.value = True
     try:
         while not stop.value:
             if not service_runs():
                 log.warning("the service process is gone; this worker stops")
                 return
-            job = store.claim(pid)
+            try:
+                job = store.claim(pid, config.instance, config.lease)
+            except DATABASE_ERRORS as error:  # a database server restarting: look again later
+                log.warning("the job database is unavailable (%s); looking again", _line(error))
+                store.wait_for_work(idle_wait)
+                continue
             if job is None:
-                time.sleep(config.poll_interval)
+                store.wait_for_work(idle_wait)
                 continue
             try:
                 run_job(store, job, config, service_runs)
@@ -96,9 +117,14 @@ def run_job(
         nonlocal reported
         if not service_runs():
             raise Orphaned
-        new = frames_processed - reported
+        try:
+            own = store.report_progress(job, pid, frames_read, fps, frames_processed - reported)
+        except DATABASE_ERRORS as error:
+            # the job goes on; a later report says whether it is still this attempt's
+            log.warning("job %s: progress not recorded (%s)", job.id, _line(error))
+            return True
         reported = frames_processed
-        return store.report_progress(job, pid, frames_read, fps, new)
+        return own
 
     try:
         options = JobOptions.from_stored(job.options)
@@ -156,7 +182,8 @@ def run_job(
     if OutputFormat.json in files:
         write_gzip_copy(files[OutputFormat.json])
     remove_attempts(job.result_dir)
-    store.finish(
+    _patiently(
+        store.finish,
         job,
         pid,
         JobState.succeeded,
@@ -171,10 +198,33 @@ def run_job(
         log.info("job %s: warning: %s", job.id, warning)
 
 
+DATABASE_PATIENCE = 120.0
+"""Seconds a worker tries to record a job's end while the database is away (a server that
+restarts); then the worker gives up and ends, and its supervisor settles the job."""
+
+
+def _patiently(write: Callable[..., bool], *args, **kwargs) -> bool:
+    """``write(*args, **kwargs)``, tried again every second while the database is away."""
+    deadline = time.monotonic() + DATABASE_PATIENCE
+    while True:
+        try:
+            return write(*args, **kwargs)
+        except DATABASE_ERRORS as error:
+            if time.monotonic() > deadline:
+                raise
+            log.warning("the job database is unavailable (%s); trying again", _line(error))
+            time.sleep(1.0)
+
+
+def _line(error: Exception) -> str:
+    """An error's first line (psycopg's messages run over several)."""
+    return (str(error).strip().splitlines() or [type(error).__name__])[0]
+
+
 def _failed(store: JobStore, job: JobRecord, error: str) -> None:
     """Record the attempt's failure; the job's result folder goes with it (nothing there was
     published), but only when the job was still this attempt's to fail."""
-    if store.finish(job, os.getpid(), JobState.failed, error=error):
+    if _patiently(store.finish, job, os.getpid(), JobState.failed, error=error):
         discard(job.result_dir)
 
 

@@ -1,4 +1,5 @@
-"""The job store: one SQLite database file (WAL mode) beside the uploads and results.
+"""The job store: one SQLite database file (WAL mode) beside the uploads and results, or a
+PostgreSQL database that many service instances share (:mod:`service.jobs.database`).
 
 Accepted jobs survive a restart: the API process writes a job when the upload is accepted,
 worker processes claim queued jobs, report progress and finish them, each through its own
@@ -10,16 +11,13 @@ attempt that replaced it.
 from __future__ import annotations
 
 import json
-import sqlite3
-import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from api_schemas.jobs import JobState
+from service.jobs.database import Row, Statements, open_database
 
 DURATION_BUCKETS = (1.0, 5.0, 15.0, 60.0, 300.0, 900.0, 3600.0, 14400.0)
 """Upper bounds (seconds) of the job processing-time histogram kept in the counters table."""
@@ -49,9 +47,15 @@ CREATE TABLE IF NOT EXISTS jobs (
 CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs (state, created_at);
 CREATE TABLE IF NOT EXISTS counters (name TEXT PRIMARY KEY, value REAL NOT NULL);
 """
-_ADDED_COLUMNS = {"stops": "INTEGER NOT NULL DEFAULT 0", "progressed_at": "REAL"}
+_ADDED_COLUMNS = {
+    "stops": "INTEGER NOT NULL DEFAULT 0",
+    "progressed_at": "REAL",
+    "instance": "TEXT",
+    "lease_until": "REAL",
+}
 """Columns of ``jobs`` newer than the first release, with their definitions: starts a clean
-stop of the service ended; when the running attempt last read a frame (or started)."""
+stop of the service ended; when the running attempt last read a frame (or started); the
+service instance whose worker runs the job, and until when its claim holds unless renewed."""
 
 
 _JOB_FILES = ("uploads", "results")
@@ -100,9 +104,11 @@ class JobRecord:
     cancel_requested: bool = False
     worker_pid: int | None = None
     progressed_at: float | None = None
+    instance: str | None = None
+    """The service instance whose worker runs the job (a shared database's)."""
 
     @classmethod
-    def from_row(cls, row: sqlite3.Row, folder: Path) -> JobRecord:
+    def from_row(cls, row: Row, folder: Path) -> JobRecord:
         """The record of ``row`` in the database of the data folder ``folder``."""
         return cls(
             id=row["id"],
@@ -124,64 +130,46 @@ class JobRecord:
             cancel_requested=bool(row["cancel_requested"]),
             worker_pid=row["worker_pid"],
             progressed_at=row["progressed_at"],
+            instance=row.get("instance"),
         )
 
 
 class JobStore:
-    """Jobs in a SQLite file. Safe to share between threads of one process; every process
-    (the API, each worker) opens its own."""
+    """Jobs in a SQLite file or a PostgreSQL database. Safe to share between threads of one
+    process; every process (the API, each worker) opens its own.
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        self.folder = self.path.parent  # the data folder, which job files are stored within
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._lock = threading.RLock()
-        self._db = sqlite3.connect(
-            self.path, timeout=30.0, isolation_level=None, check_same_thread=False
-        )
-        self._db.row_factory = sqlite3.Row
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=NORMAL")
-        self._db.execute("PRAGMA busy_timeout=30000")
-        self._db.execute("PRAGMA secure_delete=ON")  # see delete()
-        with self._lock:
-            self._db.executescript(_SCHEMA)
-            self._add_missing_columns()
+    Parameters
+    ----------
+    where:
+        The SQLite file (``jobs.sqlite3`` of the data folder), or a ``postgresql://`` URL.
+    folder:
+        The data folder, which job files are stored relative to (default: the SQLite file's).
+    """
 
-    def _add_missing_columns(self) -> None:
-        """Columns added since a data folder's database was created (it keeps its jobs)."""
-        have = {row["name"] for row in self._db.execute("PRAGMA table_info(jobs)")}
-        for name, definition in _ADDED_COLUMNS.items():
-            if name not in have:
-                with suppress(sqlite3.OperationalError):  # another process's race
-                    self._db.execute(f"ALTER TABLE jobs ADD COLUMN {name} {definition}")
+    def __init__(self, where: str | Path, folder: Path | None = None) -> None:
+        self._db = open_database(where)
+        self.path: Path | None = None if self.shared else Path(where)
+        """The SQLite file (None for a PostgreSQL database)."""
+        self.folder = folder if folder is not None else Path(where).parent
+        self._db.migrate(_SCHEMA, _ADDED_COLUMNS)
+
+    @property
+    def shared(self) -> bool:
+        """Whether other service instances may use this database (PostgreSQL)."""
+        return self._db.order == "seq"
 
     def close(self) -> None:
-        """Close the database; its write-ahead log moved into the database file first, so that
-        after a clean stop ``jobs.sqlite3`` alone holds every job (a copy or backup of it
-        misses nothing). Best effort: a process still reading keeps its part of the log."""
-        with self._lock:
-            with suppress(sqlite3.Error):
-                self._db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
-            self._db.close()
+        """Close the database (SQLite: its write-ahead log moved into the file first)."""
+        self._db.close()
 
-    @contextmanager
-    def _transaction(self) -> Iterator[sqlite3.Connection]:
-        """A write transaction that takes the database lock at once (no upgrade deadlocks)."""
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                yield self._db
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-            self._db.execute("COMMIT")
+    def wait_for_work(self, timeout: float) -> None:
+        """An idle worker's wait: ``timeout`` seconds, or less when a job is queued."""
+        self._db.wait_for_work(timeout)
 
     # -- reads ---------------------------------------------------------------------------------
 
     def get(self, job_id: str) -> JobRecord | None:
-        with self._lock:
-            row = self._db.execute("SELECT * FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        row = self._db.one("SELECT * FROM jobs WHERE id = ?", (job_id,))
         return JobRecord.from_row(row, self.folder) if row else None
 
     def list(
@@ -199,6 +187,7 @@ class JobStore:
         KeyError
             ``before`` names no job.
         """
+        order = self._db.order
         where, args = [], []
         if state is not None:
             where.append("state = ?")
@@ -206,20 +195,19 @@ class JobStore:
         if finished_after is not None:
             # to the microsecond, as finished_at is shown: a client that asks from a job's
             # finished_at must not get that job again
-            where.append("round(finished_at, 6) > ?")
+            where.append(f"{self._db.rounded('finished_at', 6)} > ?")
             args.append(round(finished_after, 6))
-        with self._lock:
-            if before is not None:
-                row = self._db.execute(
-                    "SELECT created_at, rowid FROM jobs WHERE id = ?", (before,)
-                ).fetchone()
-                if row is None:
-                    raise KeyError(before)
-                where.append("(created_at < ? OR (created_at = ? AND rowid < ?))")
-                args += [row[0], row[0], row[1]]
-            query = "SELECT * FROM jobs" + (" WHERE " + " AND ".join(where) if where else "")
-            query += " ORDER BY created_at DESC, rowid DESC LIMIT ?"
-            rows = self._db.execute(query, (*args, limit)).fetchall()
+        if before is not None:
+            row = self._db.one(
+                f"SELECT created_at, {order} AS place FROM jobs WHERE id = ?", (before,)
+            )
+            if row is None:
+                raise KeyError(before)
+            where.append(f"(created_at < ? OR (created_at = ? AND {order} < ?))")
+            args += [row["created_at"], row["created_at"], row["place"]]
+        query = "SELECT * FROM jobs" + (" WHERE " + " AND ".join(where) if where else "")
+        query += f" ORDER BY created_at DESC, {order} DESC LIMIT ?"
+        rows = self._db.all(query, (*args, limit))
         return [JobRecord.from_row(row, self.folder) for row in rows]
 
     def queued_ahead(self, record: JobRecord) -> int | None:
@@ -228,61 +216,56 @@ class JobStore:
             return None
         # a count on the (state, created_at) index: every event follower asks this four times
         # a second, and reading the whole queue each time grew with the queue
-        with self._lock:
-            (count,) = self._db.execute(
-                "SELECT count(*) FROM jobs WHERE state = ? AND (created_at < ? OR "
-                "(created_at = ? AND rowid < (SELECT rowid FROM jobs WHERE id = ?)))",
-                (JobState.queued.value, record.created_at, record.created_at, record.id),
-            ).fetchone()
-        return count
+        order = self._db.order
+        row = self._db.one(
+            "SELECT count(*) AS ahead FROM jobs WHERE state = ? AND (created_at < ? OR "
+            f"(created_at = ? AND {order} < (SELECT {order} FROM jobs WHERE id = ?)))",
+            (JobState.queued.value, record.created_at, record.created_at, record.id),
+        )
+        return row["ahead"] if row else 0
 
     def queue_positions(self) -> dict[str, int]:
         """Each queued job's place in the queue, 0 for the one :meth:`claim` takes next, in
         the order :meth:`queued_ahead` counts (one query for a whole page of a listing)."""
-        with self._lock:
-            rows = self._db.execute(
-                "SELECT id FROM jobs WHERE state = ? ORDER BY created_at, rowid",
-                (JobState.queued.value,),
-            ).fetchall()
-        return {row[0]: place for place, row in enumerate(rows)}
+        rows = self._db.all(
+            f"SELECT id FROM jobs WHERE state = ? ORDER BY created_at, {self._db.order}",
+            (JobState.queued.value,),
+        )
+        return {row["id"]: place for place, row in enumerate(rows)}
 
-    def running(self) -> list[JobRecord]:
-        return self.list(limit=1_000_000, state=JobState.running)
+    def running(self, instance: str | None = None) -> list[JobRecord]:
+        """Running jobs; with ``instance``, only those its workers run."""
+        jobs = self.list(limit=1_000_000, state=JobState.running)
+        return [job for job in jobs if instance is None or job.instance == instance]
 
     def finished_before(self, cutoff: float) -> list[JobRecord]:
         """Jobs that finished (succeeded, failed, cancelled) before ``cutoff`` (epoch seconds)."""
         ended = [state.value for state in JobState if state.finished]
         marks = ", ".join("?" * len(ended))
-        with self._lock:
-            rows = self._db.execute(
-                f"SELECT * FROM jobs WHERE state IN ({marks}) AND finished_at < ?",
-                (*ended, cutoff),
-            ).fetchall()
+        rows = self._db.all(
+            f"SELECT * FROM jobs WHERE state IN ({marks}) AND finished_at < ?", (*ended, cutoff)
+        )
         return [JobRecord.from_row(row, self.folder) for row in rows]
 
     def counts_by_state(self) -> dict[JobState, int]:
-        with self._lock:
-            rows = self._db.execute("SELECT state, COUNT(*) FROM jobs GROUP BY state").fetchall()
+        rows = self._db.all("SELECT state, COUNT(*) AS n FROM jobs GROUP BY state")
         counts = dict.fromkeys(JobState, 0)
-        counts.update({JobState(state): n for state, n in rows})
+        counts.update({JobState(row["state"]): row["n"] for row in rows})
         return counts
 
     def waits(self) -> tuple[float | None, float | None]:
         """When the oldest queued job was created, and the earliest time a running job last
         read a frame (or started): what waits longest, for the metrics. ``None``: no such job."""
-        with self._lock:
-            row = self._db.execute(
-                "SELECT MIN(CASE WHEN state = ? THEN created_at END),"
-                " MIN(CASE WHEN state = ? THEN COALESCE(progressed_at, started_at) END)"
-                " FROM jobs WHERE state IN (?, ?)",
-                (JobState.queued.value, JobState.running.value) * 2,
-            ).fetchone()
-        return row[0], row[1]
+        row = self._db.one(
+            "SELECT MIN(CASE WHEN state = ? THEN created_at END) AS queued,"
+            " MIN(CASE WHEN state = ? THEN COALESCE(progressed_at, started_at) END) AS running"
+            " FROM jobs WHERE state IN (?, ?)",
+            (JobState.queued.value, JobState.running.value) * 2,
+        )
+        return (row["queued"], row["running"]) if row else (None, None)
 
     def counters(self) -> dict[str, float]:
-        with self._lock:
-            rows = self._db.execute("SELECT name, value FROM counters").fetchall()
-        return {name: value for name, value in rows}
+        return {row["name"]: row["value"] for row in self._db.all("SELECT * FROM counters")}
 
     # -- the API's writes ----------------------------------------------------------------------
 
@@ -293,8 +276,8 @@ class JobStore:
         cannot write (another user's file or ``-wal`` file, a read-only mount) read-only and
         without complaint, and only a write shows it.
         """
-        with self._transaction():
-            self._add_counter("service_starts", 1)
+        with self._db.transaction() as db:
+            _add_counter(db, "service_starts", 1)
 
     def create(
         self,
@@ -305,21 +288,21 @@ class JobStore:
         video_filename: str | None = None,
         frames_total: int | None = None,
     ) -> JobRecord:
-        with self._lock:
-            self._db.execute(
-                "INSERT INTO jobs (id, state, options, video_filename, video_path, result_dir,"
-                " created_at, frames_total) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                (
-                    job_id,
-                    JobState.queued.value,
-                    json.dumps(options),
-                    video_filename,
-                    _portable(video_path, self.folder),
-                    _portable(result_dir, self.folder),
-                    time.time(),
-                    frames_total,
-                ),
-            )
+        self._db.run(
+            "INSERT INTO jobs (id, state, options, video_filename, video_path, result_dir,"
+            " created_at, frames_total) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (
+                job_id,
+                JobState.queued.value,
+                json.dumps(options),
+                video_filename,
+                _portable(video_path, self.folder),
+                _portable(result_dir, self.folder),
+                time.time(),
+                frames_total,
+            ),
+        )
+        self._db.notify_queued()
         record = self.get(job_id)
         if record is None:  # pragma: no cover - the insert just happened
             raise RuntimeError(f"job {job_id} vanished after its insert")
@@ -328,68 +311,86 @@ class JobStore:
     def request_cancel(self, job_id: str) -> JobState | None:
         """Cancel a queued job at once, or ask a running one to stop; returns the new state
         (``running`` until its worker stops), ``None`` for an unknown job."""
-        with self._transaction() as db:
-            row = db.execute("SELECT state FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        with self._db.transaction() as db:
+            row = db.one(f"SELECT state FROM jobs WHERE id = ?{self._db.lock_rows}", (job_id,))
             if row is None:
                 return None
-            state = JobState(row[0])
+            state = JobState(row["state"])
             if state == JobState.queued:
-                db.execute(
+                db.run(
                     "UPDATE jobs SET state = ?, finished_at = ?, cancel_requested = 1,"
                     " error = 'cancelled before it started' WHERE id = ?",
                     (JobState.cancelled.value, time.time(), job_id),
                 )
-                self._count_finished(JobState.cancelled, job_id)
+                _count_finished(db, JobState.cancelled, job_id)
                 state = JobState.cancelled
             elif state == JobState.running:
-                db.execute("UPDATE jobs SET cancel_requested = 1 WHERE id = ?", (job_id,))
+                db.run("UPDATE jobs SET cancel_requested = 1 WHERE id = ?", (job_id,))
             return state
 
     def delete(self, job_id: str) -> bool:
         """Delete the job's row, leaving no copy of it in the database's files: its client's
-        file name is personal data. ``secure_delete`` zeroes the freed bytes in the database;
-        the write-ahead log still holds the pages the row was written in until a checkpoint
-        moves them into the database and empties the log."""
-        with self._lock:
-            cursor = self._db.execute("DELETE FROM jobs WHERE id = ?", (job_id,))
-            # as far as no reader still needs the log: a worker's open read is rare and short,
-            # and the next deletion empties what it kept
-            self._db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
-        return cursor.rowcount > 0
+        file name is personal data. SQLite's ``secure_delete`` zeroes the freed bytes in the
+        database; the write-ahead log still holds the pages the row was written in until a
+        checkpoint moves them into the database and empties the log."""
+        deleted = self._db.run("DELETE FROM jobs WHERE id = ?", (job_id,))
+        self._db.checkpoint()
+        return deleted > 0
 
     def requeue_orphans(self, max_attempts: int) -> tuple[list[str], list[str]]:
         """Jobs left running by a service that died: queued again, or failed once a service
         has died under them ``max_attempts`` times (a job that takes the service down with it
         must not do so forever). Starts that a clean stop ended do not count: a job survives
-        any number of restarts. Call before any worker of this service starts."""
+        any number of restarts. Call before any worker of this service starts.
+
+        On a shared database the running jobs may be other instances' and alive: only those
+        whose lease ran out are taken (:meth:`requeue_expired`)."""
+        if self.shared:
+            return self.requeue_expired(max_attempts)
+        return self._requeue_dead_starts(
+            "state = ?", (JobState.running.value,), max_attempts, "the service died"
+        )
+
+    def requeue_expired(self, max_attempts: int) -> tuple[list[str], list[str]]:
+        """Running jobs whose instance stopped renewing their lease (:meth:`renew_leases`):
+        its machine died or lost the database. As :meth:`requeue_orphans`, counted as a death
+        of the job's start."""
+        return self._requeue_dead_starts(
+            "state = ? AND lease_until < ?",
+            (JobState.running.value, time.time()),
+            max_attempts,
+            "the service instance running it was lost",
+        )
+
+    def _requeue_dead_starts(
+        self, where: str, args: tuple[Any, ...], max_attempts: int, what: str
+    ) -> tuple[list[str], list[str]]:
         requeued, failed = [], []
-        with self._transaction() as db:
-            rows = db.execute(
-                "SELECT id, attempts - stops FROM jobs WHERE state = ?", (JobState.running.value,)
-            ).fetchall()
-            for job_id, deaths in rows:
+        with self._db.transaction() as db:
+            rows = db.all(
+                f"SELECT id, attempts - stops AS deaths FROM jobs WHERE {where}"
+                f"{self._db.skip_locked}",
+                args,
+            )
+            for row in rows:
+                job_id, deaths = row["id"], row["deaths"]
                 if deaths >= max_attempts:
-                    db.execute(
-                        "UPDATE jobs SET state = ?, finished_at = ?, error = ?,"
-                        " worker_pid = NULL WHERE id = ?",
-                        (
-                            JobState.failed.value,
-                            time.time(),
-                            f"the service died while this job ran, {_times(deaths)}; "
-                            "it is not started again",
-                            job_id,
-                        ),
-                    )
-                    self._count_finished(JobState.failed, job_id)
+                    _fail(db, job_id, f"{what} while this job ran, {_times(deaths)}")
                     failed.append(job_id)
                 else:
-                    db.execute(
-                        "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0,"
-                        " fps = NULL WHERE id = ?",
-                        (JobState.queued.value, job_id),
-                    )
+                    _queue_again(db, job_id)
                     requeued.append(job_id)
+        if requeued:
+            self._db.notify_queued()
         return requeued, failed
+
+    def renew_leases(self, instance: str, seconds: float) -> int:
+        """Extend the claims of the jobs ``instance``'s workers run by ``seconds`` from now;
+        the number of jobs. The instance's supervisor calls it well within ``seconds``."""
+        return self._db.run(
+            "UPDATE jobs SET lease_until = ? WHERE instance = ? AND state = ?",
+            (time.time() + seconds, instance, JobState.running.value),
+        )
 
     def fail_running(self, job_id: str, reason: str, worker_pid: int | None = None) -> bool:
         """Fail a running job from outside its worker (crash, time limit)."""
@@ -404,76 +405,79 @@ class JobStore:
         if worker_pid is not None:
             query += " AND worker_pid = ?"
             args = (*args, worker_pid)
-        with self._lock:
-            cursor = self._db.execute(query, args)
-            if cursor.rowcount:
-                self._count_finished(JobState.failed, job_id)
-        return cursor.rowcount > 0
+        with self._db.transaction() as db:
+            changed = db.run(query, args)
+            if changed:
+                _count_finished(db, JobState.failed, job_id)
+        return changed > 0
 
     def requeue_dead(self, job_id: str, worker_pid: int, max_attempts: int) -> JobState | None:
         """A running job whose worker died with the fork server (the OOM killer's usual victim
         besides the workers): queued again, and the start counted as a death, as
         :meth:`requeue_orphans` counts a service's; failed once it has died ``max_attempts``
         times. Returns the job's new state, ``None`` if ``worker_pid`` no longer runs it."""
-        with self._transaction() as db:
-            row = db.execute(
-                "SELECT attempts - stops FROM jobs WHERE id = ? AND state = ? AND worker_pid = ?",
+        with self._db.transaction() as db:
+            row = db.one(
+                "SELECT attempts - stops AS deaths FROM jobs WHERE id = ? AND state = ?"
+                f" AND worker_pid = ?{self._db.lock_rows}",
                 (job_id, JobState.running.value, worker_pid),
-            ).fetchone()
+            )
             if row is None:
                 return None
-            if row[0] >= max_attempts:
-                db.execute(
-                    "UPDATE jobs SET state = ?, finished_at = ?, error = ?, worker_pid = NULL"
-                    " WHERE id = ?",
-                    (
-                        JobState.failed.value,
-                        time.time(),
-                        f"the service's fork server died while this job ran, {_times(row[0])}; "
-                        "it is not started again",
-                        job_id,
-                    ),
-                )
-                self._count_finished(JobState.failed, job_id)
+            if row["deaths"] >= max_attempts:
+                what = "the service's fork server died"
+                _fail(db, job_id, f"{what} while this job ran, {_times(row['deaths'])}")
                 return JobState.failed
-            db.execute(
-                "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0, fps = NULL"
-                " WHERE id = ?",
-                (JobState.queued.value, job_id),
-            )
-            return JobState.queued
+            _queue_again(db, job_id)
+        self._db.notify_queued()
+        return JobState.queued
 
     def requeue_running(self, job_id: str, worker_pid: int) -> bool:
         """Put a job back in the queue (its worker was stopped by a clean shutdown); the start
         does not count against ``max_attempts``."""
-        with self._lock:
-            cursor = self._db.execute(
-                "UPDATE jobs SET state = ?, worker_pid = NULL, frames_done = 0, fps = NULL,"
-                " stops = stops + 1 WHERE id = ? AND state = ? AND worker_pid = ?",
-                (JobState.queued.value, job_id, JobState.running.value, worker_pid),
-            )
-        return cursor.rowcount > 0
+        changed = self._db.run(
+            "UPDATE jobs SET state = ?, worker_pid = NULL, instance = NULL, lease_until = NULL,"
+            " frames_done = 0, fps = NULL, stops = stops + 1"
+            " WHERE id = ? AND state = ? AND worker_pid = ?",
+            (JobState.queued.value, job_id, JobState.running.value, worker_pid),
+        )
+        if changed:
+            self._db.notify_queued()
+        return changed > 0
 
     # -- a worker's writes ---------------------------------------------------------------------
 
-    def claim(self, worker_pid: int) -> JobRecord | None:
+    def claim(
+        self, worker_pid: int, instance: str | None = None, lease: float | None = None
+    ) -> JobRecord | None:
         """Take the oldest queued job: it becomes running, attempted once more, owned by
-        ``worker_pid``."""
-        with self._transaction() as db:
-            row = db.execute(
-                "SELECT id FROM jobs WHERE state = ? ORDER BY created_at, rowid LIMIT 1",
+        ``worker_pid`` of ``instance``, whose claim holds for ``lease`` seconds unless renewed
+        (:meth:`renew_leases`). Claimers of a shared database skip the rows others are taking
+        (``FOR UPDATE SKIP LOCKED``) rather than wait for them."""
+        with self._db.transaction() as db:
+            row = db.one(
+                f"SELECT id FROM jobs WHERE state = ? ORDER BY created_at, {self._db.order}"
+                f" LIMIT 1{self._db.skip_locked}",
                 (JobState.queued.value,),
-            ).fetchone()
+            )
             if row is None:
                 return None
             now = time.time()
-            db.execute(
+            db.run(
                 "UPDATE jobs SET state = ?, started_at = ?, progressed_at = ?,"
-                " attempts = attempts + 1, worker_pid = ?, frames_done = 0, fps = NULL"
-                " WHERE id = ?",
-                (JobState.running.value, now, now, worker_pid, row[0]),
+                " attempts = attempts + 1, worker_pid = ?, frames_done = 0, fps = NULL,"
+                " instance = ?, lease_until = ? WHERE id = ?",
+                (
+                    JobState.running.value,
+                    now,
+                    now,
+                    worker_pid,
+                    instance,
+                    None if lease is None else now + lease,
+                    row["id"],
+                ),
             )
-        return self.get(row[0])
+        return self.get(row["id"])
 
     def report_progress(
         self, job: JobRecord, worker_pid: int, frames_done: int, fps: float | None, new_frames: int
@@ -481,24 +485,21 @@ class JobStore:
         """Record progress; ``False`` when the job is no longer this attempt's or is to stop
         (cancelled, failed from outside, requeued). A report with more frames read than the
         last one moves ``progressed_at`` (the supervisor's stall limit reads it)."""
-        with self._transaction() as db:
-            cursor = db.execute(
+        with self._db.transaction() as db:
+            changed = db.run(
                 "UPDATE jobs SET progressed_at = CASE WHEN frames_done = ? THEN progressed_at"
                 " ELSE ? END, frames_done = ?, fps = ? WHERE id = ? AND attempts = ?"
                 " AND worker_pid = ? AND state = ? AND cancel_requested = 0",
                 (frames_done, time.time(), frames_done, fps, job.id, job.attempts, worker_pid,
                  JobState.running.value),
             )  # fmt: skip
-            if cursor.rowcount and new_frames:
-                self._add_counter("frames_processed", new_frames)
-        return cursor.rowcount > 0
+            if changed and new_frames:
+                _add_counter(db, "frames_processed", new_frames)
+        return changed > 0
 
     def cancel_requested(self, job_id: str) -> bool:
-        with self._lock:
-            row = self._db.execute(
-                "SELECT cancel_requested FROM jobs WHERE id = ?", (job_id,)
-            ).fetchone()
-        return row is None or bool(row[0])
+        row = self._db.one("SELECT cancel_requested FROM jobs WHERE id = ?", (job_id,))
+        return row is None or bool(row["cancel_requested"])
 
     def finish(
         self,
@@ -512,11 +513,11 @@ class JobStore:
         frames_total: int | None = None,
     ) -> bool:
         """End the worker's attempt; ``False`` when the job was no longer its own."""
-        with self._transaction() as db:
-            cursor = db.execute(
+        with self._db.transaction() as db:
+            changed = db.run(
                 "UPDATE jobs SET state = ?, finished_at = ?, error = ?, results = ?, warnings = ?,"
-                " frames_total = COALESCE(?, frames_total) WHERE id = ? AND attempts = ?"
-                " AND worker_pid = ? AND state = ?",
+                " frames_total = COALESCE(?, frames_total), lease_until = NULL"
+                " WHERE id = ? AND attempts = ? AND worker_pid = ? AND state = ?",
                 (
                     state.value,
                     time.time(),
@@ -530,31 +531,50 @@ class JobStore:
                     JobState.running.value,
                 ),
             )
-            if cursor.rowcount:
-                self._count_finished(state, job.id)
-        return cursor.rowcount > 0
+            if changed:
+                _count_finished(db, state, job.id)
+        return changed > 0
 
-    # -- counters ------------------------------------------------------------------------------
 
-    def _count_finished(self, state: JobState, job_id: str) -> None:
-        row = self._db.execute(
-            "SELECT started_at, finished_at FROM jobs WHERE id = ?", (job_id,)
-        ).fetchone()
-        self._add_counter(f"jobs_{state.value}", 1)
-        if row and row[0] and row[1]:
-            seconds = row[1] - row[0]
-            self._add_counter("processing_seconds", seconds)
-            self._add_counter("processing_count", 1)
-            for bound in DURATION_BUCKETS:
-                if seconds <= bound:
-                    self._add_counter(f"processing_le_{bound:g}", 1)
+# -- statements inside a transaction --------------------------------------------------------------
 
-    def _add_counter(self, name: str, delta: float) -> None:
-        self._db.execute(
-            "INSERT INTO counters (name, value) VALUES (?, ?)"
-            " ON CONFLICT (name) DO UPDATE SET value = value + excluded.value",
-            (name, delta),
-        )
+
+def _queue_again(db: Statements, job_id: str) -> None:
+    db.run(
+        "UPDATE jobs SET state = ?, worker_pid = NULL, instance = NULL, lease_until = NULL,"
+        " frames_done = 0, fps = NULL WHERE id = ?",
+        (JobState.queued.value, job_id),
+    )
+
+
+def _fail(db: Statements, job_id: str, what: str) -> None:
+    """Fail a job that died under its start too often; it is not started again."""
+    db.run(
+        "UPDATE jobs SET state = ?, finished_at = ?, error = ?, worker_pid = NULL,"
+        " lease_until = NULL WHERE id = ?",
+        (JobState.failed.value, time.time(), f"{what}; it is not started again", job_id),
+    )
+    _count_finished(db, JobState.failed, job_id)
+
+
+def _count_finished(db: Statements, state: JobState, job_id: str) -> None:
+    row = db.one("SELECT started_at, finished_at FROM jobs WHERE id = ?", (job_id,))
+    _add_counter(db, f"jobs_{state.value}", 1)
+    if row and row["started_at"] and row["finished_at"]:
+        seconds = row["finished_at"] - row["started_at"]
+        _add_counter(db, "processing_seconds", seconds)
+        _add_counter(db, "processing_count", 1)
+        for bound in DURATION_BUCKETS:
+            if seconds <= bound:
+                _add_counter(db, f"processing_le_{bound:g}", 1)
+
+
+def _add_counter(db: Statements, name: str, delta: float) -> None:
+    db.run(
+        "INSERT INTO counters (name, value) VALUES (?, ?)"
+        " ON CONFLICT (name) DO UPDATE SET value = counters.value + excluded.value",
+        (name, delta),
+    )
 
 
 def _times(count: int) -> str:

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from api_schemas.jobs import JobState
+from service.jobs.database import DATABASE_ERRORS
 from service.jobs.result_folders import discard
 from service.jobs.runner import WorkerConfig, worker_main
 from service.jobs.store import JobRecord, JobStore
@@ -55,6 +56,7 @@ log = logging.getLogger(__name__)
 SPAWN_RETRY = 1.0
 """Seconds before a worker that could not be started is tried again (a fork server that died
 a moment ago may still refuse; its successor then starts)."""
+
 
 LOST_FORK_SERVER = 255
 """The exit code :mod:`multiprocessing` gives a worker whose fork server ended before it could
@@ -93,6 +95,12 @@ class WorkerPool:
     ) -> None:
         self._store = store
         self._max_attempts = max_attempts
+        # on a shared database: the leases of this instance's jobs, renewed; other instances'
+        # expired ones, queued again
+        self._instance = config.instance if store.shared and config.lease else None
+        self._lease = config.lease or 0.0
+        self._leases_due = 0.0
+        self._database_said = 0.0  # when an unavailable database may be logged again
         self._config = config
         self._size = workers
         self._job_timeout = job_timeout
@@ -134,7 +142,7 @@ class WorkerPool:
         self._stop_workers.value = True
         with self._lock:
             slots = [slot for slot in self._slots if slot is not None]
-        busy = {job.worker_pid: job for job in self._store.running()}
+        busy = {job.worker_pid: job for job in self._running()}
         for slot in slots:
             if slot.pid in busy:
                 slot.watch.kill()  # workers ignore SIGTERM (ignore_stop_signals)
@@ -205,10 +213,32 @@ class WorkerPool:
     def _supervise(self) -> None:
         while not self._stopping.wait(self._check_interval):
             try:
+                self._keep_leases()
                 self._replace_dead()
                 self._enforce_time_limit()
+            except DATABASE_ERRORS as error:  # a server restarting: no traceback 4 times a second
+                if time.monotonic() >= self._database_said:
+                    log.warning("the job database is unavailable (%s); trying again", error)
+                    self._database_said = time.monotonic() + 10.0
             except Exception:
                 log.exception("worker supervision failed; trying again")
+
+    def _keep_leases(self) -> None:
+        """On a shared database: renew this instance's claims a few times within a lease, and
+        queue again the jobs of instances that stopped renewing theirs (a dead machine)."""
+        if self._instance is None or time.monotonic() < self._leases_due:
+            return
+        self._leases_due = time.monotonic() + self._lease / 3
+        self._store.renew_leases(self._instance, self._lease)
+        requeued, failed = self._store.requeue_expired(self._max_attempts)
+        for job_id in requeued:
+            log.warning("job %s queued again: the instance running it was lost", job_id)
+        for job_id in failed:
+            log.error("job %s failed: the instances running it were lost too often", job_id)
+
+    def _running(self) -> list[JobRecord]:
+        """The running jobs of this instance (of the database, when it is not shared)."""
+        return self._store.running(self._instance)
 
     def _replace_dead(self) -> None:
         # every ended worker's job first: starting a replacement may take seconds (a new fork
@@ -255,7 +285,7 @@ class WorkerPool:
         how = describe_exit(exitcode) if exitcode is not None else "exit status unknown"
         server = slot.fork_server
         with_fork_server = exitcode == LOST_FORK_SERVER and not _fork_server_runs(server)
-        for job in self._store.running():
+        for job in self._running():
             if job.worker_pid != pid:
                 continue
             if with_fork_server:
@@ -293,7 +323,7 @@ class WorkerPool:
         now = time.time()
         with self._lock:
             ours = {slot.pid: slot for slot in self._slots if slot is not None}
-        for job in self._store.running():
+        for job in self._running():
             slot = ours.get(job.worker_pid or -1)
             if slot is None or job.started_at is None:
                 continue

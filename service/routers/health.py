@@ -7,7 +7,8 @@ import os
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions
+from api_schemas.health import DefaultDetector, Health, NetworkModel, Readiness
+from api_schemas.jobs import DetectorOptions, JobState, PeopleTrackerOptions
 from service.deps import PoolDep, SettingsDep, StoreDep, StreamsDep
 from service.pipelines import PipelineResources, choose_detector, choose_networks
 from service.settings import Settings
@@ -20,8 +21,8 @@ router = APIRouter(tags=["health"])
 
 @router.head("/healthz", include_in_schema=False)
 @router.get("/healthz", summary="The process answers")
-def healthz() -> dict[str, str]:
-    return {"status": "ok"}
+def healthz() -> Health:
+    return Health(status="ok")
 
 
 @router.head("/readyz", include_in_schema=False)
@@ -29,10 +30,13 @@ def healthz() -> dict[str, str]:
     "/readyz",
     summary="The service can take jobs: the store opens, a worker is ready, the folders are "
     "writable",
+    response_model=Readiness,
     responses={
         503: {
+            "model": Readiness,
             "description": "Not ready: no worker process is ready (yet), or the data folder "
-            "cannot be written or its disk is full (``detail`` says which and what to do)."
+            "cannot be written or its disk is full (``status`` says which, ``detail`` what to "
+            "do).",
         }
     },
 )
@@ -44,46 +48,47 @@ def readyz(
     full = _full(settings)
     workers_ready = pool.ready()
     ready = workers_ready > 0 and unwritable is None and full is None
-    body = {
-        "status": "ready" if ready else "starting",
-        "workers": pool.size,
-        "workers_ready": workers_ready,  # a count, as workers is (was true once one was)
-        "jobs": {state.value: n for state, n in counts.items()},
-        "streams": streams.counts(),
-        "zenoh": streams.unavailable or "ok",
-        "detector": _default_detector(settings),
+    here = len(store.running(settings.instance)) if store.shared else counts[JobState.running]
+    readiness = Readiness(
+        status="ready" if ready else "starting",
+        instance=settings.instance,
+        jobs_here=here,
+        workers=pool.size,
+        workers_ready=workers_ready,  # a count, as workers is (was true once one was)
+        jobs=counts,
+        streams=streams.counts(),
+        zenoh=streams.unavailable or "ok",
+        detector=_default_detector(settings),
         **_default_networks(settings),
-    }
+    )
     if unwritable is not None:
-        body["status"] = "unwritable"
-        body["detail"] = unwritable
+        readiness.status, readiness.detail = "unwritable", unwritable
     elif full is not None:
-        body["status"] = "full"
-        body["detail"] = full
+        readiness.status, readiness.detail = "full", full
     elif not ready:
-        body["detail"] = "no worker process is ready yet; try again in a few seconds"
+        readiness.detail = "no worker process is ready yet; try again in a few seconds"
+    # detail only when there is something to say, as before the model
+    body = readiness.model_dump(mode="json", exclude={"detail"} if ready else None)
     return JSONResponse(body, status_code=200 if ready else 503)
 
 
-def _default_detector(settings: Settings) -> dict[str, str | None]:
+def _default_detector(settings: Settings) -> DefaultDetector:
     """What a job's detector 'auto' runs now: the CNN and its model, or the embedded detector
     and how to install the model (a models folder can be filled while the service runs)."""
     choice = choose_detector(DetectorOptions(), PipelineResources.from_settings(settings))
-    return {
-        "name": choice.options.name,
-        "model": choice.options.model,
-        "warning": choice.warning,
-    }
+    return DefaultDetector(
+        name=choice.options.name, model=choice.options.model, warning=choice.warning
+    )
 
 
-def _default_networks(settings: Settings) -> dict[str, dict[str, str] | None]:
-    """What a people job's tracker.pose and tracker.reid left unset run now: ``{"model":
-    name}`` when the service has the network's model, else None (the tracker goes without)."""
+def _default_networks(settings: Settings) -> dict[str, NetworkModel | None]:
+    """What a people job's tracker.pose and tracker.reid left unset run now: the model's name
+    when the service has the network's model, else None (the tracker goes without)."""
     tracker = choose_networks(
         PeopleTrackerOptions(), PipelineResources.from_settings(settings)
     ).tracker
     return {
-        network: {"model": getattr(tracker, f"{network}_model")}
+        network: NetworkModel(model=getattr(tracker, f"{network}_model"))
         if getattr(tracker, network)
         else None
         for network in ("pose", "reid")

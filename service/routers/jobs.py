@@ -15,7 +15,15 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 from pydantic import AwareDatetime, BeforeValidator
 
-from api_schemas.jobs import JobCreated, JobList, JobState, JobStatus, OutputFormat
+from api_schemas.jobs import (
+    JobCreated,
+    JobList,
+    JobOptions,
+    JobState,
+    JobStatus,
+    OutputFormat,
+    ProgressEvent,
+)
 from api_schemas.tracks import Trajectories
 from service.deps import AuthDep, KnownQueryDep, SettingsDep, StoreDep
 from service.jobs.housekeeping import remove_job
@@ -25,6 +33,7 @@ from service.jobs.submit import submit
 from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
 from service.outputs.base import MEDIA_TYPES
 from service.routers import BINARY_CONTENT, error_responses
+from service.routers.contract import schema_ref
 from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download, accepts_gzip
 
 log = logging.getLogger(__name__)
@@ -50,6 +59,7 @@ _UPLOAD_BODY = {
                 "schema": {
                     "type": "object",
                     "required": ["video"],
+                    "additionalProperties": False,  # another part is refused (422)
                     "properties": {
                         "video": {
                             "type": "string",
@@ -57,7 +67,9 @@ _UPLOAD_BODY = {
                             "description": "The video file (MP4, AVI, MKV...).",
                         },
                         "options": {
-                            "$ref": "#/components/schemas/JobOptions",
+                            # what is accepted, the rules across options included (a job's
+                            # status shows its options as accepted, by the rules of then)
+                            "$ref": schema_ref(JobOptions),
                             "description": "Job options as JSON (optional).",
                         },
                     },
@@ -67,6 +79,49 @@ _UPLOAD_BODY = {
         },
     }
 }
+
+NO_SUCH_JOB = {404: "No such job: it never existed or was deleted."}
+_TOO_MANY_FOLLOWERS = (
+    "As many clients follow job events as the service serves (VTRACK_MAX_EVENT_STREAMS): poll "
+    "the job instead, or try again after Retry-After seconds."
+)
+
+_UPLOAD_ERRORS = {
+    413: "The upload is over VTRACK_MAX_UPLOAD_BYTES (or its options part over 64 KiB); "
+    "nothing was kept.",
+    415: "Not multipart/form-data, or a video part that is empty or not a video this service "
+    "can decode.",
+    422: "Options the schema refuses (`errors` lists each failed check, located under "
+    "`options`), options this service cannot run on this video (a model it lacks, a first_box "
+    "outside the frame, frames too small...), a missing `video` part or a part sent twice, a "
+    "malformed multipart body.",
+    503: "The service is stopping: send the video again once it is back.",
+    507: "The data folder's disk is full or cannot be written: nothing was kept.",
+}
+
+_EVENT = {
+    "type": "object",
+    "required": ["event", "data"],
+    "properties": {
+        "event": {"enum": ["progress", "end"]},
+        "data": {
+            "type": "string",
+            "contentMediaType": "application/json",
+            "contentSchema": {
+                "anyOf": [
+                    {"$ref": schema_ref(ProgressEvent, "serialization")},
+                    {
+                        "type": "object",
+                        "required": ["id", "deleted"],
+                        "properties": {"id": {"type": "string"}, "deleted": {"const": True}},
+                    },
+                ]
+            },
+        },
+    },
+}
+"""One server-sent event of a job's stream, as schemathesis and OpenAPI 3.2's ``itemSchema``
+read it (fields by name, ``data`` a JSON document)."""
 
 EVENT_POLL_SECONDS = 0.25
 KEEPALIVE_SECONDS = 15.0
@@ -89,7 +144,7 @@ def _job(store: JobStore, job_id: str) -> JobRecord:
     description="multipart/form-data: the video as the `video` file part, and optionally the "
     "job options (JobOptions, JSON) as the `options` part. The upload streams to disk; the "
     "answer says where to poll.",
-    responses=error_responses(413, 415, 422, 503, 507),
+    responses=error_responses(*_UPLOAD_ERRORS, why=_UPLOAD_ERRORS),
     openapi_extra=_UPLOAD_BODY,
 )
 async def create_job(
@@ -105,6 +160,12 @@ async def create_job(
     )
 
 
+_RFC3339 = re.compile(
+    r"\d{4}-\d{2}-\d{2}[Tt]\d{2}:\d{2}:\d{2}(?:\.\d+)?(?:[Zz]|[+-]\d{2}:\d{2})", re.ASCII
+)
+"""A date-time with its offset, as RFC 3339 (and JSON Schema's ``date-time``) writes it."""
+
+
 def _plus_restored(value: object) -> object:
     """A time written into a URL by hand (``...T08:00:00+01:00``) comes with its ``+`` read as
     a space, as query strings encode spaces: an offset after a space is taken as written."""
@@ -113,7 +174,27 @@ def _plus_restored(value: object) -> object:
     return value
 
 
-@router.get("", summary="Jobs, newest first, a page at a time", responses=error_responses(404, 422))
+def _rfc3339(value: object) -> object:
+    """Only what the parameter's schema says, a ``date-time``: pydantic also reads a number as
+    a Unix time (and one over 2e10 as milliseconds), a time without seconds, a space for the
+    ``T``; a client that sent those would get jobs of another time than it meant."""
+    if isinstance(value, str) and not _RFC3339.fullmatch(value):
+        number = re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", value.strip())
+        raise ValueError(
+            "must be a date-time with its timezone offset, as RFC 3339 writes it "
+            "(2026-11-26T08:00:00Z, 2026-11-26T09:00:00+01:00)"
+            + (": a number is not read as a Unix time" if number else "")
+        )
+    return value
+
+
+@router.get(
+    "",
+    summary="Jobs, newest first, a page at a time",
+    responses=error_responses(
+        404, why={404: "No job `before` to page from: it was deleted since the previous page."}
+    ),
+)
 def list_jobs(
     store: StoreDep,
     state: Annotated[JobState | None, Query(description="Only jobs in this state.")] = None,
@@ -122,11 +203,12 @@ def list_jobs(
         str | None, Query(description="Only jobs older than this one: the `next` link's cursor.")
     ] = None,
     finished_after: Annotated[
-        Annotated[AwareDatetime, BeforeValidator(_plus_restored)] | None,
+        Annotated[AwareDatetime, BeforeValidator(_rfc3339), BeforeValidator(_plus_restored)] | None,
         Query(
-            description="Only jobs that finished after this time (ISO 8601 with its time zone, "
-            "e.g. 2026-11-26T08:00:00Z): to take in new results, ask again from a little before "
-            "the previous ask and skip the ids you have."
+            description="Only jobs that finished after this time: a date-time with its timezone "
+            "offset (RFC 3339, e.g. 2026-11-26T08:00:00Z; a + typed into the URL unencoded, "
+            "which reads as a space, is taken as the +): to take in new results, ask again "
+            "from a little before the previous ask and skip the ids you have."
         ),
     ] = None,
 ) -> JobList:
@@ -150,7 +232,11 @@ def list_jobs(
     return JobList(jobs=[job_status(r, places.get(r.id)) for r in page], next=following)
 
 
-@router.get("/{job_id}", summary="A job's state and progress", responses=error_responses(404))
+@router.get(
+    "/{job_id}",
+    summary="A job's state and progress",
+    responses=error_responses(404, why=NO_SUCH_JOB),
+)
 def get_job(job_id: str, store: StoreDep) -> JobStatus:
     record = _job(store, job_id)
     return job_status(record, store.queued_ahead(record))
@@ -231,7 +317,16 @@ def get_result(
     description="`event: progress` with a ProgressEvent (JSON) whenever the job changes, then "
     "`event: end` with the final one, after which the stream closes.",
     response_class=StreamingResponse,
-    responses={**error_responses(404), 200: {"content": {"text/event-stream": {}}}},
+    responses={
+        **error_responses(404, 503, why={**NO_SUCH_JOB, 503: _TOO_MANY_FOLLOWERS}),
+        200: {
+            "description": "The event stream: `progress` events, then one `end` event, each "
+            "with a ProgressEvent as JSON in its `data` (the `end` of a job deleted meanwhile: "
+            '`{"id": ..., "deleted": true}`), and `: keep-alive` comments. The schema is that '
+            "of one event (OpenAPI 3.1 has no other way to say it).",
+            "content": {"text/event-stream": {"schema": _EVENT}},
+        },
+    },
 )
 async def job_events(
     job_id: str, request: Request, store: StoreDep, settings: SettingsDep
@@ -287,7 +382,8 @@ async def job_events(
     summary="Cancel a queued or running job, or delete a finished one with its files",
     status_code=status.HTTP_200_OK,
     responses={
-        **error_responses(404),
+        **error_responses(404, why=NO_SUCH_JOB),
+        200: {"model": JobStatus, "description": "Queued: cancelled (state cancelled)."},
         202: {"model": JobStatus, "description": "Running: asked to stop (state follows)."},
         204: {"description": "Finished: deleted with its upload and results."},
     },

@@ -21,6 +21,15 @@ router = APIRouter(prefix="/v1/streams", tags=["streams"], dependencies=[AuthDep
 
 T = TypeVar("T")
 
+NO_SUCH_STREAM = {404: "No such stream: it was never started or was deleted."}
+_START_ERRORS = {
+    409: "The camera is tracked already, by this service or (its liveliness token says) by "
+    "another instance.",
+    422: "A body the schema refuses (`errors` lists each failed check), or options this "
+    "service cannot run (a model it lacks, tracker options that contradict each other).",
+    503: "Live streams are off (VTRACK_ZENOH_ENABLED=false) or Zenoh is unavailable.",
+}
+
 
 def _not_found(stream_id: str) -> HTTPException:
     return HTTPException(
@@ -42,7 +51,7 @@ def _call(stream_id: str, method: Callable[[str], T]) -> T:
     "",
     status_code=status.HTTP_201_CREATED,
     response_model=StreamStatus,
-    responses=error_responses(409, 422, 503),
+    responses=error_responses(*_START_ERRORS, why=_START_ERRORS),
     summary="Start tracking a camera",
 )
 def create_stream(spec: StreamSpec, streams: StreamsDep, response: Response) -> StreamStatus:
@@ -69,7 +78,7 @@ def list_streams(streams: StreamsDep) -> StreamList:
 @router.get(
     "/{stream_id}",
     response_model=StreamDetail,
-    responses=error_responses(404),
+    responses=error_responses(404, why=NO_SUCH_STREAM),
     summary="A stream's status and current tracks",
 )
 def get_stream(stream_id: str, streams: StreamsDep) -> StreamDetail:
@@ -79,7 +88,15 @@ def get_stream(stream_id: str, streams: StreamsDep) -> StreamDetail:
 @router.delete(
     "/{stream_id}",
     response_model=StreamStatus,
-    responses={**error_responses(404, 409), 204: {"description": "A stopped stream was deleted."}},
+    responses={
+        **error_responses(
+            404,
+            409,
+            why={**NO_SUCH_STREAM, 409: "It runs again (started since it was stopped)."},
+        ),
+        200: {"description": "A running stream was stopped: its final status."},
+        204: {"description": "A stopped stream was deleted with its recordings."},
+    },
     summary="Stop a stream (then, a second time, delete it)",
 )
 def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Response:
@@ -102,7 +119,15 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
     "/{stream_id}/recordings/{name}",
     response_class=Download,
     responses={
-        **error_responses(400, 404, 416, why=RANGE_ERRORS),
+        **error_responses(
+            400,
+            404,
+            416,
+            why={
+                **RANGE_ERRORS,
+                404: "No such stream, or no such finished recording of it.",
+            },
+        ),
         200: {"content": {MEDIA_TYPES[OutputFormat.mcap]: BINARY_CONTENT}},
         **NOT_MODIFIED,
     },

@@ -7,10 +7,21 @@ that died, waiting longer after each quick death, and gives up (state ``failed``
 :data:`MAX_QUICK_DEATHS` in a row. An arbiter thread keeps one tracker per camera across
 instances: a stream whose camera another instance tracks stands by until that instance's
 liveliness token disappears.
+
+Instances that share a job database (``VTRACK_DATABASE_URL``) share the streams too: each
+reads the streams table at every look of the arbiter, and the cameras are spread over the live
+instances by rendezvous hashing (highest random weight): a camera belongs to the instance, of
+those whose ``<prefix>/instances/<name>`` liveliness token is there, with the highest hash of
+camera and name. Every instance computes the same owner from the same tokens, with no
+coordinator and no table to keep; an instance that leaves moves only its own cameras (to the
+others, spread again), one that joins takes only the cameras that now hash to it. A camera
+moves without being tracked twice: its tracker stops and stands by first, and the new owner
+starts once no tracker's token is left (two looks in a row, as a standby takes over).
 """
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import shutil
@@ -60,6 +71,9 @@ STOP_GRACE = 10.0
 """Seconds a stopping worker gets to close its recording and session before it is killed."""
 ARBITRATION_INTERVAL = 2.0
 """Seconds between two looks at the cameras' liveliness tokens."""
+UNOWNED_LOOKS = 5
+"""Looks in a row that found a spread camera tracked by no one (its owner cannot start it:
+a missing model there, say) before any instance may take it."""
 
 
 class StreamConflict(Exception):
@@ -88,6 +102,7 @@ class _Stream:
     yield_to: list[str] | None = None  # instances its stopping worker makes way for
     discovering: bool = False  # not started until the arbiter has looked for other instances
     untracked: int = 0  # looks in a row that found no other instance tracking the camera
+    unowned: bool = False  # taken although another instance owns the camera (which did not)
     worker_error: str | None = None  # what the current worker said before it ended
     report: dict[str, Any] = field(default_factory=dict)
     # the counters of the stream's earlier workers, to which the current one's add
@@ -109,8 +124,12 @@ class StreamManager:
         log_level: str = "info",
         check_interval: float = 0.1,
         stop_requested: threading.Event | None = None,
+        spread_as: str | None = None,
     ) -> None:
         self._store = store
+        # this instance's name among those that share the streams table; None: it is its own
+        self._name = spread_as
+        self._presence: Any = None  # its liveliness token, <prefix>/instances/<name>
         self._zenoh = zenoh
         self._prefix = prefix
         self._streams_dir = streams_dir
@@ -146,6 +165,8 @@ class StreamManager:
                 )
             log.error("%s; live streams are off", self.unavailable)
             return
+        if self._name is not None:
+            self._presence = self._hub.liveliness().declare_token(self._instance_key(self._name))
         for spec in configured:
             self._store.put(spec)
         for record in self._store.all():
@@ -153,7 +174,7 @@ class StreamManager:
             if record.stopped_at is not None:
                 stream.state = StreamState.stopped
             self._streams[record.id] = stream
-            if record.stopped_at is None and self._zenoh.connect:
+            if record.stopped_at is None and (self._zenoh.connect or self._name is not None):
                 # Joining a network: other instances' tokens arrive once gossip has connected
                 # this hub to their workers; the arbiter's first look, a moment later, decides.
                 stream.discovering = True
@@ -178,6 +199,8 @@ class StreamManager:
         with self._lock:
             streams = list(self._streams.values())
         self._halt(*streams)
+        if self._presence is not None:
+            self._presence.undeclare()
         if self._hub is not None:
             self._hub.close()
             self._hub = None
@@ -215,7 +238,12 @@ class StreamManager:
                 raise StreamConflict(f"camera {spec.camera} is tracked already by this service")
             stream = _Stream(self._store.put(spec))
             self._streams[spec.camera] = stream
-            self._spawn(stream)
+        owner = self._owner(spec.camera)
+        with self._lock:
+            if owner == self._name or self._name is None:
+                self._spawn(stream)
+            else:  # the owner reads the table at its next look and starts it
+                self._stand_by(stream, [owner])
             return self._status(stream)
 
     def stop(self, stream_id: str) -> StreamStatus:
@@ -295,6 +323,61 @@ class StreamManager:
             raise StreamNotFound(stream_id)
         return stream
 
+    def _instance_key(self, name: str) -> str:
+        return f"{self._prefix}/instances/{name}"
+
+    def _live_instances(self) -> list[str]:
+        """The names of the instances that share the streams table and are alive (their
+        liveliness tokens); empty when this instance shares nothing."""
+        if self._name is None or self._hub is None:
+            return []
+        prefix = self._instance_key("")
+        names = {self._name}
+        for reply in self._hub.liveliness().get(self._instance_key("*"), timeout=1.0):
+            if reply.ok is not None:
+                names.add(str(reply.ok.key_expr).removeprefix(prefix))
+        return sorted(names)
+
+    def _owner(self, camera: str) -> str | None:
+        """The instance a camera belongs to (None: this instance shares nothing)."""
+        live = self._live_instances()
+        return _owner_of(camera, live) if live else None
+
+    def _follow_table(self) -> None:
+        """Take in what other instances changed in the shared streams table: streams created
+        there (standing by until the arbiter decides), stopped there, or deleted."""
+        records = {record.id: record for record in self._store.all()}
+        halted = []
+        with self._lock:
+            for stream_id, record in records.items():
+                stream = self._streams.get(stream_id)
+                if stream is None or stream.record.created_at != record.created_at:
+                    if stream is not None and stream.process is not None:
+                        halted.append(stream)  # replaced by a new spec elsewhere
+                    fresh = _Stream(record)
+                    if record.stopped_at is None:
+                        fresh.state, fresh.discovering = StreamState.standby, True
+                    else:
+                        fresh.state = StreamState.stopped
+                    self._streams[stream_id] = fresh
+                elif record.stopped_at is not None and stream.state is not StreamState.stopped:
+                    stream.stopping = True
+                    halted.append(stream)
+            for stream_id in [i for i in self._streams if i not in records]:
+                stream = self._streams.pop(stream_id)
+                if stream.process is not None:
+                    stream.stopping = True
+                    halted.append(stream)
+        if halted:
+            self._halt(*halted)
+            with self._lock:
+                for stream in halted:
+                    if (record := records.get(stream.record.id)) is not None:
+                        stream.record = record
+                    stream.state = StreamState.stopped
+                    stream.stopping = False
+                    stream.restart_at = stream.yield_to = stream.death = None
+
     def _other_trackers(self, camera: str) -> list[str]:
         """Other instances whose liveliness token says they track ``camera`` (a query: call it
         without holding the lock)."""
@@ -302,6 +385,7 @@ class StreamManager:
 
     def _stand_by(self, stream: _Stream, others: list[str]) -> None:
         self._fold(stream)
+        stream.unowned = False
         stream.report = {}  # the other instance's tracks are the current ones
         stream.state = StreamState.standby
         stream.restart_at = stream.yield_to = stream.death = None
@@ -426,12 +510,17 @@ class StreamManager:
         was restarting), the younger stops its worker and stands by."""
         while not self._stopping.wait(ARBITRATION_INTERVAL):
             try:
+                if self._name is not None:
+                    self._follow_table()
+                live = self._live_instances()
                 with self._lock:
                     streams = list(self._streams.values())
                 for stream in streams:
                     if stream.state in (StreamState.stopped, StreamState.failed):
                         continue
-                    others = self._other_trackers(stream.record.spec.camera)
+                    camera = stream.record.spec.camera
+                    others = self._other_trackers(camera)
+                    owner = _owner_of(camera, live) if live else None
                     with self._lock:
                         if (
                             stream.stopping
@@ -439,16 +528,30 @@ class StreamManager:
                             or self._streams.get(stream.record.id) is not stream
                         ):
                             continue  # stopped, failed or removed meanwhile
+                        theirs = owner is not None and owner != self._name
                         if stream.discovering:
                             stream.discovering = False
-                            self._stand_by_or_spawn(stream, others)
+                            self._stand_by_or_spawn(stream, others or ([owner] if theirs else []))
                             continue
                         if stream.state is StreamState.standby:
                             # Untracked at two looks in a row: a tracker whose worker is
-                            # restarting (1-2 s) is not taken over, one that is gone is.
+                            # restarting (1-2 s) is not taken over, one that is gone is. A
+                            # spread camera is taken by its owner (by anyone, when its owner
+                            # has not taken it for UNOWNED_LOOKS looks).
                             stream.untracked = 0 if others else stream.untracked + 1
-                            if stream.untracked >= 2:
+                            waited = UNOWNED_LOOKS if theirs else 2
+                            if stream.untracked >= waited:
+                                stream.unowned = theirs
                                 self._stand_by_or_spawn(stream, others)
+                            continue
+                        if theirs and not others and not stream.yield_to and not stream.unowned:
+                            # another instance joined, and the camera hashes to it now
+                            log.info("stream %s: moves to instance %s", stream.record.id, owner)
+                            if stream.process is None:
+                                self._stand_by(stream, [owner])
+                            else:
+                                stream.yield_to = [owner]
+                                stream.stop.value = True
                             continue
                         first = [i for i in others if i < self.instance]  # older instances
                         if not first or stream.yield_to:
@@ -562,3 +665,9 @@ class StreamManager:
 
 def _utc(timestamp: float) -> datetime:
     return datetime.fromtimestamp(timestamp, tz=UTC)
+
+
+def _owner_of(camera: str, instances: list[str]) -> str:
+    """Rendezvous hashing: of ``instances``, the one with the highest weight for ``camera``
+    (SHA-256 of both: the same on every instance and across restarts)."""
+    return max(instances, key=lambda name: hashlib.sha256(f"{camera}\0{name}".encode()).digest())

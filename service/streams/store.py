@@ -1,7 +1,9 @@
 """The streams table: which streams exist, so that they start again with the service.
 
-It lives in the job database file (its own table and connection). A stream stopped with
-``DELETE`` keeps its row (``stopped_at`` set) until it is deleted a second time.
+It lives in the job database (its own tables and connection): the data folder's SQLite file,
+or the PostgreSQL database that instances of the service share (:mod:`service.jobs.database`).
+A stream stopped with ``DELETE`` keeps its row (``stopped_at`` set) until it is deleted a
+second time.
 
 Beside it, ``stream_track_ids`` holds per camera the highest track id a worker may have
 published (ids are reserved in blocks, see :mod:`service.streams.worker`): a worker that starts
@@ -12,13 +14,12 @@ too, so a consumer that keeps tracks by camera and id never sees one id name two
 
 from __future__ import annotations
 
-import sqlite3
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from api_schemas.streams import StreamSpec
+from service.jobs.database import open_database
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS streams (
@@ -43,15 +44,12 @@ class StreamRecord:
 
 
 class StreamStore:
-    """Stream specifications in SQLite; safe to use from several threads."""
+    """Stream specifications in the job database; safe to use from several threads."""
 
-    def __init__(self, path: Path, timeout: float = 30.0) -> None:
-        self.path = path
-        self._db = sqlite3.connect(path, check_same_thread=False, timeout=timeout)
-        self._db.row_factory = sqlite3.Row
-        self._lock = threading.Lock()
-        with self._lock, self._db:
-            self._db.executescript(_SCHEMA)
+    def __init__(self, where: str | Path, timeout: float = 30.0) -> None:
+        self.path = where
+        self._db = open_database(where, timeout)
+        self._db.migrate(_SCHEMA)  # PostgreSQL: its schema has these tables
 
     def close(self) -> None:
         self._db.close()
@@ -59,28 +57,23 @@ class StreamStore:
     def put(self, spec: StreamSpec) -> StreamRecord:
         """Create the stream, or replace a stopped one of the same camera."""
         now = time.time()
-        with self._lock, self._db:
-            self._db.execute(
-                "INSERT INTO streams (id, spec, created_at) VALUES (?, ?, ?) "
-                "ON CONFLICT(id) DO UPDATE SET spec = excluded.spec, "
-                "created_at = excluded.created_at, stopped_at = NULL",
-                (spec.camera, spec.model_dump_json(), now),
-            )
+        self._db.run(
+            "INSERT INTO streams (id, spec, created_at) VALUES (?, ?, ?) "
+            "ON CONFLICT(id) DO UPDATE SET spec = excluded.spec, "
+            "created_at = excluded.created_at, stopped_at = NULL",
+            (spec.camera, spec.model_dump_json(), now),
+        )
         return StreamRecord(spec.camera, spec, now, None)
 
     def mark_stopped(self, stream_id: str) -> float:
         now = time.time()
-        with self._lock, self._db:
-            self._db.execute("UPDATE streams SET stopped_at = ? WHERE id = ?", (now, stream_id))
+        self._db.run("UPDATE streams SET stopped_at = ? WHERE id = ?", (now, stream_id))
         return now
 
     def delete(self, stream_id: str) -> None:
-        with self._lock, self._db:
-            self._db.execute("DELETE FROM streams WHERE id = ?", (stream_id,))
+        self._db.run("DELETE FROM streams WHERE id = ?", (stream_id,))
 
     def all(self) -> list[StreamRecord]:
-        with self._lock:
-            rows = self._db.execute("SELECT * FROM streams ORDER BY created_at").fetchall()
         return [
             StreamRecord(
                 row["id"],
@@ -88,15 +81,12 @@ class StreamStore:
                 row["created_at"],
                 row["stopped_at"],
             )
-            for row in rows
+            for row in self._db.all("SELECT * FROM streams ORDER BY created_at")
         ]
 
     def reserved_track_ids(self, camera: str) -> int:
         """The highest track id the camera's workers may have published (0: none yet)."""
-        with self._lock:
-            row = self._db.execute(
-                "SELECT reserved FROM stream_track_ids WHERE camera = ?", (camera,)
-            ).fetchone()
+        row = self._db.one("SELECT reserved FROM stream_track_ids WHERE camera = ?", (camera,))
         return int(row["reserved"]) if row is not None else 0
 
     def reserve_track_ids(self, camera: str, up_to: int) -> None:
@@ -104,12 +94,13 @@ class StreamStore:
 
         Raises
         ------
-        sqlite3.Error
-            The database cannot be written (a full disk, locked for longer than the timeout).
+        sqlite3.Error, psycopg.Error
+            The database cannot be written (a full disk, locked for longer than the timeout, a
+            server away): :data:`service.jobs.database.DATABASE_ERRORS`.
         """
-        with self._lock, self._db:
-            self._db.execute(
-                "INSERT INTO stream_track_ids (camera, reserved) VALUES (?, ?) "
-                "ON CONFLICT(camera) DO UPDATE SET reserved = max(reserved, excluded.reserved)",
-                (camera, up_to),
-            )
+        greatest = self._db.greatest("stream_track_ids.reserved", "excluded.reserved")
+        self._db.run(
+            "INSERT INTO stream_track_ids (camera, reserved) VALUES (?, ?) "
+            f"ON CONFLICT(camera) DO UPDATE SET reserved = {greatest}",
+            (camera, up_to),
+        )

@@ -16,7 +16,6 @@ import contextlib
 import ctypes
 import logging
 import os
-import sqlite3
 import statistics
 import threading
 import time
@@ -40,6 +39,7 @@ from api_schemas.streams import (
 from api_schemas.tracks import VideoInfo
 from service.convert import track_state
 from service.frames import TimedFrame
+from service.jobs.database import DATABASE_ERRORS
 from service.outputs.base import RunSummary, StreamInfo
 from service.outputs.mcap_out import McapWriter, salvage
 from service.pipelines import (
@@ -110,7 +110,7 @@ class StreamContext:
     instance: str
     resources: PipelineResources = field(default_factory=PipelineResources)
     recordings_dir: Path | None = None
-    database: Path | None = None
+    database: str | Path | None = None
     """The service's database (``stream_track_ids``); None: ids start at 1 with each worker."""
     frame_limit: int = 32 * 1024**2
     log_level: str = "info"
@@ -389,7 +389,7 @@ class StreamWorker:
         up_to = highest + ID_BLOCK
         try:
             self._store.reserve_track_ids(self.spec.camera, up_to)
-        except sqlite3.Error as error:
+        except DATABASE_ERRORS as error:
             self._reserve_retry_at = now + RESERVE_RETRY
             self._note_error(
                 f"track ids could not be reserved in the database ({error}); tracking goes on, "

@@ -197,7 +197,8 @@ def test_a_second_service_on_the_same_data_folder_refuses_to_start(make_server, 
         refusals = [line for line in second.log().splitlines() if line.startswith(SETTING)]
         assert refusals == [
             f"{SETTING}another vtrack serve uses {first.data_dir} (pid {first.process.pid}): "
-            "stop it, or give this one another --data-dir"
+            "stop it, or give this one another --data-dir (instances that share "
+            "VTRACK_DATABASE_URL share a folder)"
         ]
         assert "queued again" not in first.log()
         status = wait_for_frames(client, job_id, before + 2)  # the first one's job goes on
