@@ -476,7 +476,7 @@ class Settings(BaseSettings):
                 f"VTRACK_ZENOH_LISTEN: {', '.join(exposed)} is beyond loopback, and without "
                 "authentication anyone who reaches it can publish frames, read tracks and stop "
                 "the tracking of a camera: give VTRACK_ZENOH_USERS_FILE or "
-                "VTRACK_ZENOH_TLS_CLIENT_AUTH (docs/streams.md, Security), listen on 127.0.0.1, "
+                "VTRACK_ZENOH_TLS_CLIENT_AUTH (docs/service.md, Security), listen on 127.0.0.1, "
                 "or set VTRACK_ZENOH_ALLOW_OPEN=true to accept it"
             )
         return self

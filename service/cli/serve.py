@@ -144,7 +144,7 @@ def _zenoh_posture(settings: Settings) -> str:
     if security.access is None:
         return (
             f"Zenoh on {where} is open: no authentication, no access control; any process "
-            "that reaches it may publish frames and read tracks (docs/streams.md, Security)"
+            "that reaches it may publish frames and read tracks (docs/service.md, Security)"
         )
     how = "user/password" if security.users_file is not None else "mutual TLS"
     return (
@@ -174,6 +174,6 @@ def _exposure_warnings(settings: Settings, where: str) -> list[str]:
             "(VTRACK_ZENOH_ALLOW_OPEN): anyone who reaches it can read every camera's "
             "frames and tracks, send frames of their own and stop the tracking of a camera "
             "(VTRACK_API_TOKEN does not cover Zenoh); give VTRACK_ZENOH_USERS_FILE or "
-            "VTRACK_ZENOH_TLS_CLIENT_AUTH (docs/streams.md, Security), or listen on 127.0.0.1"
+            "VTRACK_ZENOH_TLS_CLIENT_AUTH (docs/service.md, Security), or listen on 127.0.0.1"
         )
     return warnings

@@ -1,5 +1,5 @@
 """``vtrack zenoh certificates`` and ``vtrack zenoh router-config``: what a site needs to run the
-live streams' Zenoh links with TLS, authentication and access control (docs/streams.md,
+live streams' Zenoh links with TLS, authentication and access control (docs/service.md,
 Security)."""
 
 from __future__ import annotations

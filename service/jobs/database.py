@@ -226,6 +226,9 @@ class PostgresDatabase:
         from psycopg_pool import ConnectionPool
 
         self.url = url
+        # one connection first: a server that is not there, or refuses us, is said at once
+        # in psycopg's words (the pool would retry in the background, logging each failure)
+        psycopg.connect(url, connect_timeout=10).close()
         self._pool = ConnectionPool(
             url,
             min_size=1,
