@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from tests.postgres import PostgresServer
-from tests.service.conftest import long_video, pets_short  # noqa: F401 (the videos' fixtures)
+from tests.service.conftest import long_video, pets_cut, pets_short  # noqa: F401 (videos)
 
 
 def _server() -> Iterator[PostgresServer]:

@@ -89,9 +89,14 @@ def test_a_live_stream_tracks_with_the_cnn_and_its_status_says_so(cnn_server, sh
             follower = Follower(session, StreamKeys("vtrack", "cnn_gate"))
             frames, _ = video_frames(str(shared_data / PETS_VIDEO))
             publish_frames(session, StreamKeys("vtrack", "cnn_gate"), frames, 10.0, limit=30)
-            all_taken(client, "cnn_gate", 30)
+            # a busy machine's worker skips frames (the newest is tracked): one message per
+            # frame tracked, however many that was
+            tracked = all_taken(client, "cnn_gate", 30)["frames_processed"]
+            assert tracked >= 10, "most frames skipped"
             messages = wait_for(
-                lambda: len(follower.received()) >= 20 and follower.received(), 30, "the tracks"
+                lambda: len(follower.received()) >= tracked and follower.received(),
+                30,
+                "the tracks",
             )
             assert any(m.tracks for m in messages), "nobody tracked in 3 s of PETS09-S2L1"
             assert {m.detections for m in messages} == {"service"}

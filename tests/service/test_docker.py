@@ -7,7 +7,9 @@ command through a shell, the build arguments given by the test: the model files 
 shared reference copies as a mirror, since the machines running the tests have no internet access
 (other RUN steps, such as creating the system user, need a container and are only checked for
 presence). The installed ``vtrack`` must then start and pass the image's own HEALTHCHECK command.
-The compose file must parse and name files that exist.
+The compose file must parse and name files that exist; the settings of its services must parse,
+and its profile ``scaleout``'s two instances run, with their settings, on a PostgreSQL server of
+the test's own and a router of the configuration the compose file's setup writes.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import fnmatch
 import importlib.metadata
 import json
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -257,12 +260,55 @@ def test_dockerfile_install_steps_give_a_working_service(dockerfile, tmp_path, s
 
 PKI = "/etc/vtrack/zenoh"
 """Where the compose file's services see the certificates volume."""
+SCALEOUT = ("vtrack-a", "vtrack-b")
+"""The service instances of the compose file's profile ``scaleout``, on one PostgreSQL."""
+
+_VARIABLE = re.compile(r"\$(?:\$|\{(\w+)(?:(:?-)([^}]*))?\}|(\w+))")
+
+
+def _interpolate(text: str, environ: dict[str, str]) -> str:
+    """Compose's interpolation of a value with the shell's ``environ``: ``${NAME}``,
+    ``$NAME``, ``${NAME:-default}`` (unset or empty), ``${NAME-default}`` (unset), ``$$``."""
+
+    def value(match: re.Match[str]) -> str:
+        if match.group(0) == "$$":
+            return "$"
+        given = environ.get(match.group(1) or match.group(4))
+        operator, default = match.group(2), match.group(3)
+        if (operator == ":-" and not given) or (operator == "-" and given is None):
+            return default
+        return given or ""
+
+    return _VARIABLE.sub(value, text)
+
+
+def _compose(**environ: str) -> dict:
+    """The compose file as ``docker compose`` reads it with ``environ`` in the shell: its
+    values interpolated (anchors and merge keys resolved first, as the YAML parser does)."""
+
+    def interpolated(node: object) -> object:
+        if isinstance(node, dict):
+            return {key: interpolated(value) for key, value in node.items()}
+        if isinstance(node, list):
+            return [interpolated(value) for value in node]
+        return _interpolate(node, environ) if isinstance(node, str) else node
+
+    return interpolated(yaml.safe_load((DOCKER / "compose.yaml").read_text()))
+
+
+def test_compose_interpolation_reads_as_compose_does():
+    text = "a: ${X:-d} b: ${Y-d} c: ${X} d: $X e: $$X f: ${Z:-}"
+    assert _interpolate(text, {"X": "1", "Y": ""}) == "a: 1 b:  c: 1 d: 1 e: $X f: "
+    assert _interpolate(text, {"X": ""}) == "a: d b: d c:  d:  e: $X f: "
 
 
 def test_compose_file_parses_and_names_files_that_exist(dockerfile):
     compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
     services = compose["services"]
-    assert set(services) == {"vtrack", "zenoh", "zenoh-setup"}
+    assert set(services) == {"vtrack", "zenoh", "zenoh-setup", "postgres", *SCALEOUT}
+    # `docker compose up` (no profile) runs the single service and its router, as before
+    for name in ("vtrack", "zenoh", "zenoh-setup"):
+        assert "profiles" not in services[name], name
     service = services["vtrack"]
     context = (DOCKER / service["build"]["context"]).resolve()
     assert context == REPO_ROOT.resolve()
@@ -276,8 +322,9 @@ def test_compose_file_parses_and_names_files_that_exist(dockerfile):
                 assert (DOCKER / source).exists(), f"{name} mounts {source}, which does not exist"
             else:
                 assert source in compose["volumes"], f"{name} mounts unknown volume {source}"
-    for key, value in service["environment"].items():
-        assert key.startswith("VTRACK_") and isinstance(value, str)
+    for name in ("vtrack", *SCALEOUT):
+        for key, value in services[name]["environment"].items():
+            assert key.startswith("VTRACK_") and isinstance(value, str), (name, key)
     zenoh = services["zenoh"]
     assert zenoh["image"].startswith("eclipse/zenoh:")
     assert zenoh["command"] == ["-c", f"{PKI}/router.json5"]
@@ -320,7 +367,8 @@ def test_compose_environment_names_real_settings():
     text = (DOCKER / "compose.yaml").read_text()
     named = {word.strip(":") for word in text.split() if word.startswith("VTRACK_")}
     assert named <= known, named - known
-    assert set(compose["services"]["vtrack"]["environment"]) <= known
+    for name in ("vtrack", *SCALEOUT):
+        assert set(compose["services"][name]["environment"]) <= known, name
 
 
 def test_compose_environment_parses_and_reaches_the_router(monkeypatch, tmp_path):
@@ -334,6 +382,103 @@ def test_compose_environment_parses_and_reaches_the_router(monkeypatch, tmp_path
     router = compose["services"]["zenoh"]["ports"][0].split(":")[1]
     assert settings.zenoh.connect == (f"tls/zenoh:{router}",)
     assert settings.zenoh.mode == "client" and settings.zenoh.security.tls.client_auth
+
+
+def _data_volume(spec: dict) -> str:
+    """The volume a compose service mounts at ``/data``."""
+    (source,) = [v.split(":")[0] for v in spec["volumes"] if v.split(":")[1] == "/data"]
+    return source
+
+
+def test_compose_scaleout_profile_runs_two_instances_on_one_database_and_volume():
+    compose = _compose()
+    services = compose["services"]
+    single, postgres = services["vtrack"], services["postgres"]
+    instances = [services[name] for name in SCALEOUT]
+    for spec in (postgres, *instances):
+        assert spec["profiles"] == ["scaleout"]
+    # the single service's image, its settings and the router's (x-zenoh)
+    setup = services["zenoh-setup"]
+    for spec in instances:
+        assert (spec["build"], spec["image"]) == (single["build"], single["image"])
+        assert single["environment"].items() < spec["environment"].items()
+        assert setup["environment"].items() <= spec["environment"].items()
+        assert spec["restart"] == single["restart"]
+        assert spec["stop_grace_period"] == single["stop_grace_period"]
+    # one data volume for both, not the single service's; certificates and models as it has
+    shared = {_data_volume(spec) for spec in instances}
+    assert len(shared) == 1 and shared != {_data_volume(single)}
+    assert shared <= set(compose["volumes"])
+    for spec in instances:
+        others = {v for v in spec["volumes"] if v.split(":")[1] != "/data"}
+        assert others == {v for v in single["volumes"] if v.split(":")[1] != "/data"}
+    # names of their own, host ports of their own, the service's port inside
+    names = [spec["environment"]["VTRACK_INSTANCE_NAME"] for spec in instances]
+    assert len(set(names)) == len(names)
+    ports = [port for spec in (single, *instances) for port in spec["ports"]]
+    assert len({port.split(":")[0] for port in ports}) == len(ports)
+    assert {port.split(":")[1] for port in ports} == {"8000"}
+    # started once PostgreSQL is ready (its health check) and the router has started
+    healthcheck = postgres["healthcheck"]["test"]
+    assert healthcheck[0] == "CMD" and healthcheck[1] == "pg_isready"
+    for spec in instances:
+        assert spec["depends_on"]["postgres"]["condition"] == "service_healthy"
+        assert "zenoh" in spec["depends_on"]
+    # PostgreSQL 16 (the tests' server's major version, test_compose_scaleout_instances_...),
+    # its data in a named volume, not published on the host
+    assert postgres["image"] == "postgres:16"
+    (data,) = postgres["volumes"]
+    assert data.split(":")[0] in compose["volumes"]
+    assert data.split(":")[1] == "/var/lib/postgresql/data"
+    assert "ports" not in postgres
+
+
+@pytest.mark.parametrize("shell", [{}, {"POSTGRES_PASSWORD": "s3cret"}])
+def test_compose_scaleout_database_url_has_the_postgres_service_credentials(shell):
+    from urllib.parse import urlsplit
+
+    services = _compose(**shell)["services"]
+    database = services["postgres"]["environment"]
+    user, password = database["POSTGRES_USER"], database["POSTGRES_PASSWORD"]
+    # a default to change (the comments say how), or the shell's
+    assert password == shell.get("POSTGRES_PASSWORD", "change-me")
+    healthcheck = services["postgres"]["healthcheck"]["test"]
+    assert healthcheck[healthcheck.index("-U") + 1] == user
+    assert healthcheck[healthcheck.index("-d") + 1] == database["POSTGRES_DB"]
+    for name in SCALEOUT:
+        url = urlsplit(services[name]["environment"]["VTRACK_DATABASE_URL"])
+        assert url.scheme == "postgresql"
+        assert (url.username, url.password) == (user, password)
+        assert (url.hostname, url.port) == ("postgres", 5432)  # the service's name and port
+        assert url.path == f"/{database['POSTGRES_DB']}"
+
+
+def _service_environment(name: str, folder: Path, **overrides: str) -> dict[str, str]:
+    """The environment of the compose file's service ``name``, the certificates volume read as
+    ``folder`` (where _compose_setup made them), ``overrides`` (settings by name) over it."""
+    environment = _compose()["services"][name]["environment"]
+    env = {key: value.replace(PKI, str(folder)) for key, value in environment.items()}
+    env.update({f"VTRACK_{key.upper()}": value for key, value in overrides.items()})
+    return env
+
+
+def test_compose_scaleout_environment_parses(monkeypatch, tmp_path):
+    from service.settings import Settings
+
+    _compose_setup(tmp_path)  # the certificates the settings name
+    for key, value in _service_environment("vtrack", tmp_path).items():
+        monkeypatch.setenv(key, value)
+    alone = Settings()
+    seen = set()
+    for name in SCALEOUT:
+        for key, value in _service_environment(name, tmp_path).items():
+            monkeypatch.setenv(key, value)
+        settings = Settings()
+        assert settings.instance == settings.instance_name == name
+        assert str(settings.job_database).startswith("postgresql://vtrack:")
+        assert settings.zenoh == alone.zenoh  # on the single service's Zenoh network
+        seen.add(settings.instance)
+    assert len(seen) == len(SCALEOUT)
 
 
 def test_compose_router_is_of_the_release_line_the_project_installs():
@@ -410,3 +555,88 @@ def test_the_compose_router_relays_a_granted_camera_and_no_one_else(tmp_path, mo
         wait_for(delivered, 10, "a camera's frame relayed by the router", interval=0.2)
         time.sleep(0.5)
         assert set(received) == {b"frame"}  # the intruder's certificate is good, its right none
+
+
+@pytest.fixture
+def postgres_server():
+    """A PostgreSQL server of the test's own (tests/postgres.py), in a folder of mkdtemp: as
+    root the server runs as nobody, who cannot reach pytest's tmp_path."""
+    import tempfile
+
+    from tests.postgres import PostgresServer
+
+    folder = Path(tempfile.mkdtemp(prefix="vtrack-postgres-"))
+    server = PostgresServer(folder)
+    try:
+        yield server.start()
+    finally:
+        server.stop()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.scaleout
+def test_compose_scaleout_instances_answer_and_share_the_streams_and_cameras(
+    postgres_server, tmp_path
+):
+    """The profile's two instances as compose runs them, on a PostgreSQL server with the
+    postgres service's user, password and database (its host and port the test server's), and
+    a router of the configuration zenoh-setup writes (its endpoint on loopback): each answers
+    /readyz with its name, and of two streams created through one, each tracks the camera that
+    hashes to it: they share the streams table, and see each other's liveliness tokens through
+    the router (with a router each, both track both cameras)."""
+    import psycopg
+    import zenoh
+
+    from service.streams.manager import _owner_of
+    from service.testing import Server
+
+    compose = _compose()
+    database = compose["services"]["postgres"]["environment"]
+    with psycopg.connect(postgres_server.url, autocommit=True) as connection:
+        # the image's POSTGRES_USER is a superuser, the owner of POSTGRES_DB
+        (version,) = connection.execute("SHOW server_version_num").fetchone()
+        user, password = database["POSTGRES_USER"], database["POSTGRES_PASSWORD"]
+        connection.execute(f"CREATE ROLE {user} LOGIN SUPERUSER PASSWORD '{password}'")
+        connection.execute(f"ALTER DATABASE {database['POSTGRES_DB']} OWNER TO {user}")
+    assert compose["services"]["postgres"]["image"] == f"postgres:{int(version) // 10000}"
+    pki = tmp_path / "pki"
+    pki.mkdir()
+    _compose_setup(pki)
+    here = f"@127.0.0.1:{postgres_server.port}/"  # the test server's, for "@postgres:5432/"
+    router = f"tls/127.0.0.1:{free_port()}"
+    config = zenoh.Config.from_file(str(pki / "router.json5"))
+    config.insert_json5("listen/endpoints", json.dumps([router]))
+    servers = {}
+    with contextlib.ExitStack() as stack:
+        stack.callback(zenoh.open(config).close)
+        for name in SCALEOUT:
+            env = _service_environment(name, pki, zenoh_connect=json.dumps([router]))
+            settings = {key.removeprefix("VTRACK_").lower(): value for key, value in env.items()}
+            settings["database_url"] = settings["database_url"].replace("@postgres:5432/", here)
+            servers[name] = Server(tmp_path / "data", name=name, **settings)
+            stack.callback(servers[name].stop)
+            servers[name].start()
+        for name, server in servers.items():
+            ready = try_get(f"{server.url}/readyz").json()
+            assert (ready["instance"], ready["zenoh"]) == (name, "ok"), server.log_tail()
+        cameras = [f"cam{index}" for index in range(20)]
+        owners = {camera: _owner_of(camera, list(SCALEOUT)) for camera in cameras}
+        chosen = [next(c for c in cameras if owners[c] == name) for name in SCALEOUT]
+        with servers[SCALEOUT[0]].client() as client:
+            for camera in chosen:
+                response = client.post("/v1/streams", json={"camera": camera})
+                assert response.status_code == 201, response.text
+
+        def tracked_by_owners_alone() -> bool:
+            for camera in chosen:
+                tracking = set()
+                for name, server in servers.items():
+                    with server.client() as client:
+                        status = client.get(f"/v1/streams/{camera}").json()
+                    if status.get("state") in ("waiting", "running"):
+                        tracking.add(name)
+                if tracking != {owners[camera]}:
+                    return False
+            return True
+
+        wait_for(tracked_by_owners_alone, 60, "each camera tracked by its owner alone", 0.5)
