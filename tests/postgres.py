@@ -49,6 +49,8 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -57,7 +59,14 @@ import psycopg
 
 from service.testing import free_port, wait_for
 
-__all__ = ["BIN_ENV", "DATABASE", "SUPERUSER", "PostgresServer", "find_binaries"]
+__all__ = [
+    "BIN_ENV",
+    "DATABASE",
+    "SUPERUSER",
+    "PostgresServer",
+    "find_binaries",
+    "running_postgres",
+]
 
 BIN_ENV = "VTRACK_POSTGRES_BIN"
 """Environment variable: a folder with ``initdb`` and ``postgres`` to use instead of pgserver's."""
@@ -441,6 +450,19 @@ class PostgresServer:
 
     def _failure(self, what: str) -> str:
         return f"{what}; {self.log_path} ends with:\n{self.log_tail()}"
+
+
+@contextlib.contextmanager
+def running_postgres() -> Iterator[PostgresServer]:
+    """A started server in a folder of :func:`tempfile.mkdtemp` (as root the server runs as
+    ``nobody``, who cannot reach pytest's ``tmp_path``), stopped and removed afterwards."""
+    folder = Path(tempfile.mkdtemp(prefix="vtrack-postgres-"))
+    server = PostgresServer(folder)
+    try:
+        yield server.start()
+    finally:
+        server.stop()
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 class _PortTaken(Exception):

@@ -7,25 +7,17 @@ free loopback ports in folders of :func:`tempfile.mkdtemp`: as root the server r
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
-from tests.postgres import PostgresServer
+from tests.postgres import PostgresServer, running_postgres
 from tests.service.conftest import long_video, pets_cut, pets_short  # noqa: F401 (videos)
 
 
 def _server() -> Iterator[PostgresServer]:
-    folder = Path(tempfile.mkdtemp(prefix="vtrack-postgres-"))
-    server = PostgresServer(folder)
-    try:
-        yield server.start()
-    finally:
-        server.stop()
-        shutil.rmtree(folder, ignore_errors=True)
+    with running_postgres() as server:
+        yield server
 
 
 @pytest.fixture(scope="session")

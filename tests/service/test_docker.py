@@ -559,19 +559,11 @@ def test_the_compose_router_relays_a_granted_camera_and_no_one_else(tmp_path, mo
 
 @pytest.fixture
 def postgres_server():
-    """A PostgreSQL server of the test's own (tests/postgres.py), in a folder of mkdtemp: as
-    root the server runs as nobody, who cannot reach pytest's tmp_path."""
-    import tempfile
+    """A PostgreSQL server of the test's own (tests/postgres.py)."""
+    from tests.postgres import running_postgres
 
-    from tests.postgres import PostgresServer
-
-    folder = Path(tempfile.mkdtemp(prefix="vtrack-postgres-"))
-    server = PostgresServer(folder)
-    try:
-        yield server.start()
-    finally:
-        server.stop()
-        shutil.rmtree(folder, ignore_errors=True)
+    with running_postgres() as server:
+        yield server
 
 
 @pytest.mark.scaleout
