@@ -40,6 +40,7 @@ from api_schemas.common import error_message
 from service import __version__
 from service.data_folder import DataFolder, claim_data_folder
 from service.deps import token_refusal
+from service.jobs.files import FolderFiles
 from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.probing import VideoProber
 from service.jobs.runner import WorkerConfig
@@ -82,7 +83,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     # under `uvicorn service.app:app` a DataFolderError stops the start-up here, with its reason
     claimed_here = None if app.state.data_folder is not None else claim_data_folder(settings)
     store = JobStore(settings.job_database, folder=settings.data_dir)
-    requeued, failed = store.requeue_orphans(settings.max_attempts)
+    requeued, failed = store.requeue_orphans(settings.max_attempts, settings.instance)
     for job_id in requeued:
         log.warning("job %s queued again: the service died while it ran", job_id)
     for job_id in failed:
@@ -92,10 +93,11 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
             job_id,
             settings.max_attempts,
         )
-    sweep(settings, store, orphans=True)
+    files = FolderFiles(settings.data_dir)
+    sweep(settings, store, files, orphans=True)
     config = WorkerConfig(
         database=settings.job_database,
-        data_dir=settings.data_dir,
+        files=files,
         poll_interval=settings.poll_interval,
         resources=PipelineResources.from_settings(settings),
         log_level=settings.log_level,
@@ -133,11 +135,12 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.settings = settings
     app.state.prober = VideoProber(log_level=settings.log_level)
     app.state.store = store
+    app.state.files = files
     app.state.pool = pool
     app.state.streams = streams
     app.state.registry = make_registry(store, pool, streams, settings.data_dir, settings.instance)
     log.info("data in %s; worker processes: %d", settings.data_dir.resolve(), settings.workers)
-    housekeeper = Housekeeper(settings, store)
+    housekeeper = Housekeeper(settings, store, files)
     housekeeper.start()
     try:
         yield
@@ -147,7 +150,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         pool.stop()
         app.state.prober.close()
         store.close()
-        for name in ("pool", "prober", "store", "registry", "streams"):
+        for name in ("pool", "prober", "store", "files", "registry", "streams"):
             delattr(app.state, name)
         if claimed_here is not None:  # only once the workers are gone
             claimed_here.release()

@@ -31,6 +31,7 @@ import os
 import sqlite3
 from pathlib import Path
 
+from service.jobs.files import FolderFiles
 from service.jobs.store import JobStore
 from service.settings import Settings
 from service.storage import storage_problem
@@ -91,7 +92,8 @@ def claim_data_folder(settings: Settings) -> DataFolder:
     claim = DataFolder(folder, lock_fd)
     try:
         # only once the lock is ours: a second service must not touch the first one's files
-        for subfolder in (settings.uploads_dir, settings.results_dir, settings.streams_dir):
+        files = FolderFiles(settings.data_dir)
+        for subfolder in (files.uploads_dir, files.results_dir, settings.streams_dir):
             _writable_folder(subfolder)
         if shared:
             _reachable_database(settings)

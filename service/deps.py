@@ -11,6 +11,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
+from service.jobs.files import JobFiles
 from service.jobs.store import JobStore
 from service.jobs.workers import WorkerPool
 from service.settings import Settings
@@ -27,6 +28,10 @@ def get_store(request: Request) -> JobStore:
     return request.app.state.store
 
 
+def get_files(request: Request) -> JobFiles:
+    return request.app.state.files
+
+
 def get_pool(request: Request) -> WorkerPool:
     return request.app.state.pool
 
@@ -37,6 +42,7 @@ def get_streams(request: Request) -> StreamManager:
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 StoreDep = Annotated[JobStore, Depends(get_store)]
+FilesDep = Annotated[JobFiles, Depends(get_files)]
 PoolDep = Annotated[WorkerPool, Depends(get_pool)]
 StreamsDep = Annotated[StreamManager, Depends(get_streams)]
 

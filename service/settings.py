@@ -575,14 +575,6 @@ class Settings(BaseSettings):
         """This instance's name (VTRACK_INSTANCE_NAME, or host name and pid)."""
         return self.instance_name or f"{socket.gethostname()}-{os.getpid()}"
 
-    @property
-    def uploads_dir(self) -> Path:
-        return self.data_dir / "uploads"
-
-    @property
-    def results_dir(self) -> Path:
-        return self.data_dir / "results"
-
 
 class InvalidSettings(ValueError):
     """Settings that cannot be used; ``problems`` holds one line per setting, each naming it as

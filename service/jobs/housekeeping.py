@@ -9,7 +9,7 @@
   crash, a deletion cut between the job and its files) are removed too. Only then: while the
   service runs, an upload exists a moment before its job does. So are the partial results
   that jobs' attempts left when a service stopped or died while they ran
-  (:func:`service.jobs.result_folders.tidy`; while the service runs, the runner and the
+  (:meth:`service.jobs.files.JobFiles.tidy`; while the service runs, the runner and the
   worker supervisor remove them as attempts end).
 
 The service sweeps when it starts and then every ``VTRACK_HOUSEKEEPING_INTERVAL`` seconds.
@@ -18,13 +18,11 @@ The service sweeps when it starts and then every ``VTRACK_HOUSEKEEPING_INTERVAL`
 from __future__ import annotations
 
 import logging
-import shutil
 import threading
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
-from service.jobs.result_folders import tidy
+from service.jobs.files import JobFiles
 from service.jobs.store import JobRecord, JobStore
 from service.settings import Settings
 
@@ -40,7 +38,7 @@ class Swept:
     recordings: int = 0
 
 
-def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
+def remove_job(files: JobFiles, store: JobStore, record: JobRecord) -> None:
     """Delete a finished job with its upload and results.
 
     The files go first: on a full disk they make the room the database needs to delete the
@@ -48,15 +46,11 @@ def remove_job(settings: Settings, store: JobStore, record: JobRecord) -> None:
     by the next request), never results that no job owns. Raises ``OSError`` when a file
     cannot be removed (a folder made read-only), the job then kept.
     """
-    record.video_path.unlink(missing_ok=True)
-    # never outside the data folder (the store reads job files as its own), whatever a row says
-    inside = record.result_dir.resolve().is_relative_to(settings.results_dir.resolve())
-    if inside and record.result_dir.exists():
-        shutil.rmtree(record.result_dir)
+    files.remove(record)
     store.delete(record.id)
 
 
-def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swept:
+def sweep(settings: Settings, store: JobStore, files: JobFiles, *, orphans: bool = False) -> Swept:
     """Remove finished jobs' uploads, jobs past the retention and, with ``orphans``, uploads
     that no job owns (only safe before uploads are accepted) and the partial results of
     attempts that are over. Each deleted job is logged by id; result folders that no job owns
@@ -67,7 +61,7 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
         recordings = _expire_recordings(settings, now - settings.retention_hours * 3600)
         for record in store.finished_before(now - settings.retention_hours * 3600):
             try:
-                remove_job(settings, store, record)
+                remove_job(files, store, record)
             except OSError as error:  # the others go on; this one is tried again next time
                 log.warning("housekeeping: job %s could not be deleted: %s", record.id, error)
                 continue
@@ -81,26 +75,22 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
                 settings.retention_hours,
             )
     uploads = strays = 0
-    if settings.uploads_dir.is_dir():
-        for path in settings.uploads_dir.iterdir():
-            record = store.get(path.name.split(".", 1)[0])
-            # on shared storage an upload without a job may be another instance's, arriving:
-            # only one untouched for a while is no one's
-            stray = record is None and orphans and (not store.shared or _untouched(path))
-            if stray or (record is not None and record.state.finished):
-                path.unlink(missing_ok=True)
-                uploads += record is not None
-                strays += record is None
+    for name in files.uploads():
+        record = store.get(name.split(".", 1)[0])
+        # on shared storage an upload without a job may be another instance's, arriving:
+        # only one untouched for a while is no one's
+        stray = record is None and orphans and (not store.shared or _untouched(files, name))
+        if stray or (record is not None and record.state.finished):
+            files.remove_upload(name)
+            uploads += record is not None
+            strays += record is None
     unknown: list[str] = []
-    if orphans and settings.results_dir.is_dir():
-        for folder in settings.results_dir.iterdir():
-            if not folder.is_dir():
-                continue
-            record = store.get(folder.name)
-            if record is None:
-                unknown.append(folder.name)
-            else:
-                tidy(record)
+    for job_id in files.result_folders() if orphans else []:
+        record = store.get(job_id)
+        if record is None:
+            unknown.append(job_id)
+        else:
+            files.tidy(record)
     if uploads:
         log.info("housekeeping: the uploads of %d finished jobs removed", uploads)
     if strays:
@@ -112,7 +102,7 @@ def sweep(settings: Settings, store: JobStore, *, orphans: bool = False) -> Swep
             "housekeeping: %d result folders belong to no job in the database (restored from "
             "an older copy?), left in %s: %s",
             len(unknown),
-            settings.results_dir,
+            files.results_location(),
             ", ".join(sorted(unknown)[:10]) + (", ..." if len(unknown) > 10 else ""),
         )
     return Swept(uploads + strays, jobs, recordings)
@@ -123,11 +113,9 @@ UNTOUCHED_SECONDS = 600.0
 for VTRACK_UPLOAD_IDLE_SECONDS, 60 by default, are cut)."""
 
 
-def _untouched(path: Path) -> bool:
-    try:
-        return time.time() - path.stat().st_mtime > UNTOUCHED_SECONDS
-    except FileNotFoundError:
-        return False
+def _untouched(files: JobFiles, name: str) -> bool:
+    idle = files.upload_idle(name)
+    return idle is not None and idle > UNTOUCHED_SECONDS
 
 
 def _expire_recordings(settings: Settings, cutoff: float) -> int:
@@ -159,9 +147,10 @@ class Housekeeper:
     service never closes the store under one.
     """
 
-    def __init__(self, settings: Settings, store: JobStore) -> None:
+    def __init__(self, settings: Settings, store: JobStore, files: JobFiles) -> None:
         self._settings = settings
         self._store = store
+        self._files = files
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._run, name="vtrack-housekeeping", daemon=True)
 
@@ -175,6 +164,6 @@ class Housekeeper:
     def _run(self) -> None:
         while not self._stopping.wait(self._settings.housekeeping_interval):
             try:
-                sweep(self._settings, self._store)
+                sweep(self._settings, self._store, self._files)
             except Exception:  # a full disk or a locked file must not end the sweeps
                 log.exception("housekeeping failed; trying again later")

@@ -11,22 +11,16 @@ from __future__ import annotations
 
 import logging
 import os
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from api_schemas.jobs import JobOptions, JobState, OutputFormat
-from service.analysis import AnalysisStopped, analyze, publish
+from api_schemas.jobs import JobOptions, JobState
+from service.analysis import AnalysisStopped, analyze
 from service.frames import FrameSourceError
 from service.jobs.database import DATABASE_ERRORS
-from service.jobs.result_folders import (
-    attempt_folder,
-    discard,
-    remove_attempts,
-    write_gzip_copy,
-)
+from service.jobs.files import FolderFiles, JobFiles
 from service.jobs.store import JobRecord, JobStore
 from service.pipelines import OptionsError, PipelineResources
 from service.storage import storage_problem
@@ -41,7 +35,9 @@ class WorkerConfig:
 
     database: str | Path
     """The job database: the SQLite file, or the PostgreSQL URL."""
-    data_dir: Path
+    files: FolderFiles
+    """The jobs' uploads and results (the data folder, which the job database's paths are
+    relative to)."""
     poll_interval: float
     resources: PipelineResources
     log_level: str = "info"
@@ -72,7 +68,7 @@ def worker_main(config: WorkerConfig, service_pid: int, stop, ready) -> None:
         format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",
     )
     service_runs = service_alive(service_pid)
-    store = JobStore(config.database, folder=config.data_dir)
+    store = JobStore(config.database, folder=config.files.root)
     pid = os.getpid()
     # on a shared database a queued job wakes the worker (NOTIFY): it need not look often
     idle_wait = config.poll_interval
@@ -108,9 +104,9 @@ def run_job(
     """Run one claimed job to its end state; ``service_runs`` says whether the service runs."""
     pid = os.getpid()
     log.info("job %s: attempt %d starts", job.id, job.attempts)
+    files = config.files
     # what the earlier attempts left (a restart, a stop of the service) is never read again
-    remove_attempts(job.result_dir, before=job.attempts)
-    scratch = attempt_folder(job.result_dir, job.attempts)
+    scratch = files.start_attempt(job)
     reported = 0
 
     def progress(frames_read: int, frames_processed: int, fps: float | None) -> bool:
@@ -129,7 +125,7 @@ def run_job(
     try:
         options = JobOptions.from_stored(job.options)
         result = analyze(
-            job.video_path,
+            files.video(job),
             options,
             scratch,
             resources=config.resources,
@@ -141,21 +137,24 @@ def run_job(
     except Orphaned:
         raise
     except AnalysisStopped:
-        _stopped(store, job, scratch)
+        _stopped(store, job, files, scratch)
         return
     except (FrameSourceError, OptionsError, ValueError) as error:
-        shutil.rmtree(scratch, ignore_errors=True)
+        files.end_attempt(scratch)
         # the client is told of its upload by the name it sent, not where the service keeps it
         name = repr(job.video_filename) if job.video_filename else "the upload"
         _failed(
-            store, job, f"the job could not run: {str(error).replace(str(job.video_path), name)}"
+            store,
+            job,
+            files,
+            f"the job could not run: {str(error).replace(str(job.video_path), name)}",
         )
         log.warning("job %s: failed: %s", job.id, error)
         return
     except Exception as error:
         vanished = not scratch.is_dir()
         # The partial results go first: on a full disk that makes room to record the failure.
-        shutil.rmtree(scratch, ignore_errors=True)
+        files.end_attempt(scratch)
         problem = storage_problem(error)
         if problem is None and vanished and isinstance(error, FileNotFoundError):
             message = (
@@ -172,22 +171,19 @@ def run_job(
                 f"{problem.problem} while the results were written; the partial results were "
                 f"removed: {problem.remedy}, then submit the job again"
             )
-        _failed(store, job, message)
+        _failed(store, job, files, message)
         return
     fps = result.frames_processed / max(result.seconds, 1e-9)
     if not progress(result.video.frames_read, result.frames_processed, fps):
-        _stopped(store, job, scratch)
+        _stopped(store, job, files, scratch)
         return
-    files = publish(result, job.result_dir)
-    if OutputFormat.json in files:
-        write_gzip_copy(files[OutputFormat.json])
-    remove_attempts(job.result_dir)
+    published = files.publish(job, result)
     _patiently(
         store.finish,
         job,
         pid,
         JobState.succeeded,
-        results={fmt.value: path.name for fmt, path in files.items()},
+        results={fmt.value: name for fmt, name in published.items()},
         warnings=result.warnings,
         frames_total=result.video.frames_read,
     )
@@ -221,19 +217,19 @@ def _line(error: Exception) -> str:
     return (str(error).strip().splitlines() or [type(error).__name__])[0]
 
 
-def _failed(store: JobStore, job: JobRecord, error: str) -> None:
+def _failed(store: JobStore, job: JobRecord, files: JobFiles, error: str) -> None:
     """Record the attempt's failure; the job's result folder goes with it (nothing there was
     published), but only when the job was still this attempt's to fail."""
     if _patiently(store.finish, job, os.getpid(), JobState.failed, error=error):
-        discard(job.result_dir)
+        files.discard(job)
 
 
-def _stopped(store: JobStore, job: JobRecord, scratch: Path) -> None:
+def _stopped(store: JobStore, job: JobRecord, files: JobFiles, scratch: Path) -> None:
     """The run stopped because the job was cancelled or is no longer this attempt's."""
-    shutil.rmtree(scratch, ignore_errors=True)
+    files.end_attempt(scratch)
     if store.cancel_requested(job.id):
         if store.finish(job, os.getpid(), JobState.cancelled, error="cancelled on request"):
-            discard(job.result_dir)  # the record says it was cancelled; no empty folder
+            files.discard(job)  # the record says it was cancelled; no empty folder
         log.info("job %s: cancelled", job.id)
     else:
         # its folder is the next attempt's now, or the supervisor's to remove

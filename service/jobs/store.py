@@ -18,6 +18,7 @@ from typing import Any
 
 from api_schemas.jobs import JobState
 from service.jobs.database import Row, Statements, open_database
+from service.jobs.files import FolderFiles
 
 DURATION_BUCKETS = (1.0, 5.0, 15.0, 60.0, 300.0, 900.0, 3600.0, 14400.0)
 """Upper bounds (seconds) of the job processing-time histogram kept in the counters table."""
@@ -58,29 +59,6 @@ stop of the service ended; when the running attempt last read a frame (or starte
 service instance whose worker runs the job, and until when its claim holds unless renewed."""
 
 
-_JOB_FILES = ("uploads", "results")
-"""The data folder's subfolders holding a job's files, one entry per job: its upload and its
-results folder."""
-
-
-def _portable(path: Path, folder: Path) -> str:
-    """How a job's file is stored: ``results/<id>`` for one in the data folder ``folder``, so
-    that a data folder moved or restored elsewhere keeps its jobs' files; other paths whole."""
-    if path.parent.name in _JOB_FILES and path.parent.parent == folder:
-        return f"{path.parent.name}/{path.name}"
-    return str(path)
-
-
-def _located(stored: str, folder: Path) -> Path:
-    """Where a job's file stored as ``stored`` is in the data folder ``folder``. Earlier
-    versions stored the whole path as the service then saw it (absolute, or relative to its
-    working folder): read by its last two parts, it is found wherever the folder is now."""
-    path = Path(stored)
-    if path.parent.name in _JOB_FILES:
-        return folder / path.parent.name / path.name
-    return path
-
-
 @dataclass(frozen=True, slots=True)
 class JobRecord:
     """One row of the jobs table."""
@@ -108,15 +86,15 @@ class JobRecord:
     """The service instance whose worker runs the job (a shared database's)."""
 
     @classmethod
-    def from_row(cls, row: Row, folder: Path) -> JobRecord:
-        """The record of ``row`` in the database of the data folder ``folder``."""
+    def from_row(cls, row: Row, files: FolderFiles) -> JobRecord:
+        """The record of ``row`` in the database of the job files ``files``."""
         return cls(
             id=row["id"],
             state=JobState(row["state"]),
             options=json.loads(row["options"]),
             video_filename=row["video_filename"],
-            video_path=_located(row["video_path"], folder),
-            result_dir=_located(row["result_dir"], folder),
+            video_path=files.located(row["video_path"]),
+            result_dir=files.located(row["result_dir"]),
             created_at=row["created_at"],
             started_at=row["started_at"],
             finished_at=row["finished_at"],
@@ -151,6 +129,7 @@ class JobStore:
         self.path: Path | None = None if self.shared else Path(where)
         """The SQLite file (None for a PostgreSQL database)."""
         self.folder = folder if folder is not None else Path(where).parent
+        self._files = FolderFiles(self.folder)
         self._db.migrate(_SCHEMA, _ADDED_COLUMNS)
 
     @property
@@ -170,7 +149,7 @@ class JobStore:
 
     def get(self, job_id: str) -> JobRecord | None:
         row = self._db.one("SELECT * FROM jobs WHERE id = ?", (job_id,))
-        return JobRecord.from_row(row, self.folder) if row else None
+        return JobRecord.from_row(row, self._files) if row else None
 
     def list(
         self,
@@ -208,7 +187,7 @@ class JobStore:
         query = "SELECT * FROM jobs" + (" WHERE " + " AND ".join(where) if where else "")
         query += f" ORDER BY created_at DESC, {order} DESC LIMIT ?"
         rows = self._db.all(query, (*args, limit))
-        return [JobRecord.from_row(row, self.folder) for row in rows]
+        return [JobRecord.from_row(row, self._files) for row in rows]
 
     def queued_ahead(self, record: JobRecord) -> int | None:
         """Queued jobs that :meth:`claim` takes before ``record``; None unless it is queued."""
@@ -245,7 +224,7 @@ class JobStore:
         rows = self._db.all(
             f"SELECT * FROM jobs WHERE state IN ({marks}) AND finished_at < ?", (*ended, cutoff)
         )
-        return [JobRecord.from_row(row, self.folder) for row in rows]
+        return [JobRecord.from_row(row, self._files) for row in rows]
 
     def counts_by_state(self) -> dict[JobState, int]:
         rows = self._db.all("SELECT state, COUNT(*) AS n FROM jobs GROUP BY state")
@@ -296,8 +275,8 @@ class JobStore:
                 JobState.queued.value,
                 json.dumps(options),
                 video_filename,
-                _portable(video_path, self.folder),
-                _portable(result_dir, self.folder),
+                self._files.portable(video_path),
+                self._files.portable(result_dir),
                 time.time(),
                 frames_total,
             ),
@@ -337,16 +316,27 @@ class JobStore:
         self._db.checkpoint()
         return deleted > 0
 
-    def requeue_orphans(self, max_attempts: int) -> tuple[list[str], list[str]]:
+    def requeue_orphans(
+        self, max_attempts: int, instance: str | None = None
+    ) -> tuple[list[str], list[str]]:
         """Jobs left running by a service that died: queued again, or failed once a service
         has died under them ``max_attempts`` times (a job that takes the service down with it
         must not do so forever). Starts that a clean stop ended do not count: a job survives
         any number of restarts. Call before any worker of this service starts.
 
         On a shared database the running jobs may be other instances' and alive: only those
-        whose lease ran out are taken (:meth:`requeue_expired`)."""
+        whose lease ran out are taken (:meth:`requeue_expired`), and those of ``instance``,
+        this one's name, which an earlier process of it left (its renewals would otherwise
+        keep them running for ever: a restart within a lease found them unexpired)."""
         if self.shared:
-            return self.requeue_expired(max_attempts)
+            own = self._requeue_dead_starts(
+                "state = ? AND instance = ?",
+                (JobState.running.value, instance),
+                max_attempts,
+                "the service instance running it was lost",
+            )
+            expired = self.requeue_expired(max_attempts)
+            return own[0] + expired[0], own[1] + expired[1]
         return self._requeue_dead_starts(
             "state = ?", (JobState.running.value,), max_attempts, "the service died"
         )

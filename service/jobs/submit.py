@@ -14,6 +14,7 @@ from starlette.concurrency import run_in_threadpool
 from api_schemas.common import error_message
 from api_schemas.jobs import JobOptions
 from service.frames import FrameSource, FrameSourceError
+from service.jobs.files import JobFiles
 from service.jobs.probing import ProbeInterrupted, VideoProber
 from service.jobs.store import JobRecord, JobStore
 from service.pipelines import OptionsError, PipelineResources, check_options
@@ -22,8 +23,6 @@ from service.storage import storage_problem
 from service.uploads import receive_upload
 
 log = logging.getLogger(__name__)
-
-_VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"}
 
 
 def describe_validation(error: ValidationError) -> str:
@@ -88,11 +87,12 @@ def probe_video(prober: VideoProber, path: Path, size: int) -> FrameSource:
         ) from None
 
 
-async def submit(request: Request, settings: Settings, store: JobStore) -> JobRecord:
-    """Receive the upload of ``request`` and queue it as a job."""
+async def submit(
+    request: Request, settings: Settings, store: JobStore, files: JobFiles
+) -> JobRecord:
+    """Receive the upload of ``request`` into ``files`` and queue it as a job."""
     job_id = uuid.uuid4().hex
-    settings.uploads_dir.mkdir(parents=True, exist_ok=True)
-    receiving = settings.uploads_dir / f"{job_id}.receiving"
+    receiving = files.receiving(job_id)
     upload = await receive_upload(
         request, receiving, settings.max_upload_bytes, settings.upload_idle_seconds
     )
@@ -104,11 +104,7 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             check_options(options, PipelineResources.from_settings(settings), source)
         except OptionsError as error:
             raise HTTPException(422, str(error)) from None
-        suffix = Path(upload.filename or "").suffix.lower()
-        video_path = (
-            settings.uploads_dir / f"{job_id}{suffix if suffix in _VIDEO_SUFFIXES else '.video'}"
-        )
-        upload.video_path.rename(video_path)
+        video_path = files.keep_upload(job_id, upload.video_path, upload.filename)
     except BaseException:
         upload.video_path.unlink(missing_ok=True)
         raise
@@ -117,12 +113,12 @@ async def submit(request: Request, settings: Settings, store: JobStore) -> JobRe
             job_id,
             options.model_dump(mode="json"),
             video_path=video_path,
-            result_dir=settings.results_dir / job_id,
+            result_dir=files.result_folder(job_id),
             video_filename=upload.filename,
             frames_total=source.frames_until(options.end) or None,
         )
     except BaseException as error:  # whatever it was, the upload is no job's: it goes
-        video_path.unlink(missing_ok=True)
+        files.remove_upload(video_path.name)
         is_storage = isinstance(error, sqlite3.OperationalError)
         problem = storage_problem(error) if is_storage else None
         if problem is None:

@@ -39,7 +39,6 @@ from typing import Any
 
 from api_schemas.jobs import JobState
 from service.jobs.database import DATABASE_ERRORS
-from service.jobs.result_folders import discard
 from service.jobs.runner import WorkerConfig, worker_main
 from service.jobs.store import JobRecord, JobStore
 from service.worker_processes import (
@@ -302,7 +301,7 @@ class WorkerPool:
                     )
                 elif state is JobState.failed:
                     log.error("job %s failed: the fork server died under it too often", job.id)
-                    discard(job.result_dir)
+                    self._config.files.discard(job)
             elif self._store.fail_running(
                 job.id,
                 f"the worker process running this job died ({how}); the job was "
@@ -310,9 +309,9 @@ class WorkerPool:
                 pid,
             ):
                 log.error("job %s failed: its worker %d died (%s)", job.id, pid, how)
-                discard(job.result_dir)
+                self._config.files.discard(job)
         if (timed_out := self._timed_out.pop(pid, None)) is not None:
-            discard(timed_out.result_dir)
+            self._config.files.discard(timed_out)
         _release(slot)
         if with_fork_server:
             log.warning("worker %d ended with the fork server %s; a new one starts", pid, server)

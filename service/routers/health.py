@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
-
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
 from api_schemas.health import DefaultDetector, Health, NetworkModel, Readiness
 from api_schemas.jobs import DetectorOptions, JobState, PeopleTrackerOptions
-from service.deps import PoolDep, SettingsDep, StoreDep, StreamsDep
+from service.deps import FilesDep, PoolDep, SettingsDep, StoreDep, StreamsDep
+from service.jobs.files import JobFiles
 from service.pipelines import PipelineResources, choose_detector, choose_networks
 from service.settings import Settings
 from service.storage import FREE_SPACE, free_bytes, writable_remedy
@@ -41,10 +40,10 @@ def healthz() -> Health:
     },
 )
 def readyz(
-    store: StoreDep, pool: PoolDep, streams: StreamsDep, settings: SettingsDep
+    store: StoreDep, pool: PoolDep, streams: StreamsDep, settings: SettingsDep, files: FilesDep
 ) -> JSONResponse:
     counts = store.counts_by_state()
-    unwritable = _unwritable(settings)
+    unwritable = _unwritable(files)
     full = _full(settings)
     workers_ready = pool.ready()
     ready = workers_ready > 0 and unwritable is None and full is None
@@ -95,14 +94,13 @@ def _default_networks(settings: Settings) -> dict[str, NetworkModel | None]:
     }
 
 
-def _unwritable(settings: Settings) -> str | None:
+def _unwritable(files: JobFiles) -> str | None:
     """Why uploads or results cannot be written (a folder made read-only or immutable, a file
     system remounted read-only), or None: such a service would refuse every job."""
-    for folder in (settings.uploads_dir, settings.results_dir):
-        folder = folder if folder.exists() else settings.data_dir  # made by the first job
-        if not os.access(folder, os.W_OK):
-            return f"the data folder cannot be written ({folder}): {writable_remedy()}"
-    return None
+    folder = files.unwritable()
+    if folder is None:
+        return None
+    return f"the data folder cannot be written ({folder}): {writable_remedy()}"
 
 
 def _full(settings: Settings) -> str | None:

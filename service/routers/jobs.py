@@ -25,9 +25,8 @@ from api_schemas.jobs import (
     ProgressEvent,
 )
 from api_schemas.tracks import Trajectories
-from service.deps import AuthDep, KnownQueryDep, SettingsDep, StoreDep
+from service.deps import AuthDep, FilesDep, KnownQueryDep, SettingsDep, StoreDep
 from service.jobs.housekeeping import remove_job
-from service.jobs.result_folders import gzip_copy
 from service.jobs.store import JobRecord, JobStore
 from service.jobs.submit import submit
 from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
@@ -148,9 +147,9 @@ def _job(store: JobStore, job_id: str) -> JobRecord:
     openapi_extra=_UPLOAD_BODY,
 )
 async def create_job(
-    request: Request, response: Response, settings: SettingsDep, store: StoreDep
+    request: Request, response: Response, settings: SettingsDep, store: StoreDep, files: FilesDep
 ) -> JobCreated:
-    record = await submit(request, settings, store)
+    record = await submit(request, settings, store, files)
     response.headers["Location"] = status_url(record.id)
     return JobCreated(
         id=record.id,
@@ -262,6 +261,7 @@ def get_result(
     request: Request,
     job_id: str,
     store: StoreDep,
+    files: FilesDep,
     format: Annotated[OutputFormat, Query(description="Which result.")] = OutputFormat.json,
 ) -> Download:
     record = _job(store, job_id)
@@ -286,8 +286,8 @@ def get_result(
             f"job {job_id} was created without the {format.value!r} result (it has: {asked}); "
             "list the formats you need in options.formats",
         )
-    path = record.result_dir / name
-    if not path.is_file():
+    path = files.result_file(record, name)
+    if path is None:
         raise HTTPException(
             status.HTTP_404_NOT_FOUND, f"the {format.value} result of job {job_id} is gone"
         )
@@ -299,8 +299,9 @@ def get_result(
     if format == OutputFormat.json:
         # the JSON compresses about 7 to 1; the worker wrote the compressed copy once
         headers["Vary"] = "Accept-Encoding"
-        packed = gzip_copy(path)
-        if accepts_gzip(request.headers.get("accept-encoding")) and packed.is_file():
+        if accepts_gzip(request.headers.get("accept-encoding")) and (
+            packed := files.result_file(record, name, compressed=True)
+        ):
             path, headers["Content-Encoding"] = packed, "gzip"
     return Download(
         path,
@@ -388,10 +389,10 @@ async def job_events(
         204: {"description": "Finished: deleted with its upload and results."},
     },
 )
-def delete_job(job_id: str, store: StoreDep, settings: SettingsDep) -> Response:
+def delete_job(job_id: str, store: StoreDep, files: FilesDep) -> Response:
     record = _job(store, job_id)
     if record.state.finished:
-        remove_job(settings, store, record)
+        remove_job(files, store, record)
         log.info("job %s (%s) deleted with its files", job_id, record.state.value)
         return Response(status_code=status.HTTP_204_NO_CONTENT)
     new_state = store.request_cancel(job_id)
