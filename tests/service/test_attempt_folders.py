@@ -1,4 +1,4 @@
-"""Partial results go when their attempt is over (service/jobs/result_folders.py): a new
+"""Partial results go when their attempt is over (service/jobs/files.py): a new
 attempt, a failure, a time limit, a cancellation, a restart. Real servers, real files."""
 
 from __future__ import annotations
