@@ -2,16 +2,17 @@
 
     python benchmarks/scaleout.py [--parts throughput,requeue,cameras] [--workers 1]
                                   [--jobs 24] [--frames 60] [--rounds 1]
-                                  [--leases 15,3] [--kills 5] [--kill-frames 300]
+                                  [--leases 15,3] [--kills 5] [--kill-frames 600]
                                   [--kill-at 20] [--moves 5] [--cameras 2]
                                   [--video PATH] [--out scaleout.json] [--json] [--keep]
 
 Real ``vtrack serve`` processes (:class:`service.testing.Server`) and a real PostgreSQL server
-of the benchmark's own (:class:`tests.postgres.PostgresServer`: pgserver's programs, as
-``nobody`` under root, in a folder of :func:`tempfile.mkdtemp`). Every configuration below gets
-a database and a data folder of its own, shared by its instances. Jobs are the first
-``--frames`` frames of the PETS09-S2L1 video with the tests' fast options (embedded detector at
-1.0x, JSON only). Three parts:
+of the benchmark's own (:func:`tests.postgres.running_postgres`: pgserver's programs, as
+``nobody`` under root, in a folder of :func:`tempfile.mkdtemp`; it needs the ``dev`` extra's
+``pgserver`` wheel or ``VTRACK_POSTGRES_BIN``). Every configuration below gets a database and a
+data folder of its own, shared by its instances. Jobs are the first ``--frames`` frames of the
+PETS09-S2L1 video with the tests' fast options (embedded detector at 1.0x, JSON only). Three
+parts:
 
 ``throughput``
     ``--jobs`` jobs uploaded round-robin to the instances, all at once, with every worker idle
@@ -27,19 +28,24 @@ a database and a data folder of its own, shared by its instances. Jobs are the f
     machine of few cores, where twice the workers cannot run twice the jobs, the third to the
     fourth says what the distributed mode costs, and the second to the first what PostgreSQL
     costs beside SQLite. ``--rounds`` runs the four that many times, interleaved (a machine's
-    load drifts), and takes each one's median.
+    load drifts; each round starts with the next of the four), and takes each one's median.
 
 ``requeue``
     For each lease of ``--leases`` (``VTRACK_JOB_LEASE_SECONDS``; 15 is the product's
     default): instances ``a`` and ``b``, one worker each. ``--kills`` times: a job of
     ``--kill-frames`` frames is uploaded (to ``a`` and ``b`` in turn); once its worker has read
-    ``--kill-at`` frames the instance running it is killed (SIGKILL of the service; its workers
-    end with it). The job's row is polled in the database every 20 ms: the lease it had left at
-    the kill, the kill until it is queued again (``requeued_s``), running on the survivor
+    ``--kill-at`` frames, and a random share of a renewal period (a third of a lease) later (the
+    kill lands at any phase of the renewals, as a machine dies at any moment; sooner once the
+    job has read three quarters of its frames; a job that ended before its kill is followed by
+    another), the instance running it is killed (SIGKILL of the service; its workers end with
+    it). The job's row is polled in the database every 20 ms: the lease it had left at the
+    kill, the kill until it is queued again (``requeued_s``), running on the survivor
     (``claimed_s``) and succeeded (its ``finished_at``); then the killed instance is started
-    again. A dead instance's job is queued again by another once the lease has run out: its
-    last renewal (every third of a lease) plus a lease, seen at the other's next renewal look
-    (every third of a lease too), so between 2/3 and 4/3 of a lease after the kill.
+    again, and the next job uploaded, each after another random share of a renewal period (so
+    that the instances' renewals and looks and the next claim keep no phase to each other). A
+    dead instance's job is queued again by another once the lease has run out: its last
+    renewal (every third of a lease) plus a lease, seen at the other's next renewal look (every
+    third of a lease too), so between 2/3 and 4/3 of a lease after the kill.
 
 ``cameras``
     Instances ``a`` (its Zenoh endpoint the network's hub) and ``b`` (connected to it), and
@@ -80,6 +86,7 @@ from collections.abc import Callable, Iterator
 from datetime import datetime
 from pathlib import Path
 
+import cv2
 import httpx
 import psycopg
 import zenoh
@@ -93,18 +100,19 @@ from service.streams.manager import ARBITRATION_INTERVAL, _owner_of
 from service.streams.session import ZenohOptions
 from service.streams.tools import member_session, trackers_of, watch_trackers
 from service.testing import Server, free_port, try_get, wait_for
-from tests.postgres import PostgresServer
+from tests.postgres import PostgresServer, running_postgres
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _paths import SHARED_DATA
     from _report import finite, print_json
-    from faults import FAST_OPTIONS, cut_video
 except ImportError:  # python -m benchmarks.<name> from the repository root
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import finite, print_json
-    from benchmarks.faults import FAST_OPTIONS, cut_video
 
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
+FAST_OPTIONS = {"formats": ["json"], "detector": {"name": "default", "upscale": 1.0}}
+"""The tests' options for jobs whose people do not matter (tests/service/conftest.py): the
+embedded detector on the frames as they are, JSON only."""
 PARTS = ("throughput", "requeue", "cameras")
 PREFIX = "vtrack"
 """The service's default Zenoh key prefix (``VTRACK_ZENOH_PREFIX``)."""
@@ -114,6 +122,29 @@ _FINAL = ("succeeded", "failed", "cancelled")
 
 
 # -- set-up ---------------------------------------------------------------------------------
+
+
+def cut_video(source: Path, target: Path, frames: int) -> Path:
+    """The first ``frames`` frames of ``source`` as an MJPG AVI at its rate (as the tests and
+    benchmarks/faults.py cut theirs: every frame a key frame, so a job's time is the
+    tracking's)."""
+    capture = cv2.VideoCapture(str(source))
+    fps = capture.get(cv2.CAP_PROP_FPS) or 10.0
+    writer = None
+    try:
+        for _ in range(frames):
+            ok, frame = capture.read()
+            if not ok:
+                raise RuntimeError(f"{source} has fewer than {frames} frames")
+            if writer is None:
+                size = (frame.shape[1], frame.shape[0])
+                writer = cv2.VideoWriter(str(target), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+            writer.write(frame)
+    finally:
+        capture.release()
+        if writer is not None:
+            writer.release()
+    return target
 
 
 class Scratch:
@@ -295,7 +326,9 @@ def throughput_run(scratch: Scratch, config: dict, video: Path, jobs: int) -> di
 def throughput(scratch: Scratch, video: Path, args: argparse.Namespace) -> dict:
     runs: dict[str, list[dict]] = {}
     for number in range(args.rounds):
-        for config in configurations(args.workers):
+        order = configurations(args.workers)
+        order = order[number % len(order) :] + order[: number % len(order)]  # each goes first
+        for config in order:
             result = throughput_run(scratch, config, video, args.jobs)
             runs.setdefault(config["label"], []).append(result)
             print(
@@ -316,19 +349,34 @@ def throughput(scratch: Scratch, video: Path, args: argparse.Namespace) -> dict:
         for label, results in runs.items()
     }
     w = args.workers
-    jph = {label: figures["jobs_per_hour"] for label, figures in summary.items()}
-    ratios = {
-        f"postgres 2x{w} / postgres 1x{w} (2 instances vs 1, twice the workers)": round(
-            jph[f"postgres 2x{w}"] / jph[f"postgres 1x{w}"], 3
+    pairs = {
+        f"postgres 2x{w} / postgres 1x{w} (2 instances vs 1, twice the workers)": (
+            f"postgres 2x{w}",
+            f"postgres 1x{w}",
         ),
-        f"postgres 2x{w} / postgres 1x{2 * w} (same workers: the distributed mode's cost)": round(
-            jph[f"postgres 2x{w}"] / jph[f"postgres 1x{2 * w}"], 3
+        f"postgres 2x{w} / postgres 1x{2 * w} (same workers: the distributed mode's cost)": (
+            f"postgres 2x{w}",
+            f"postgres 1x{2 * w}",
         ),
-        f"postgres 1x{w} / sqlite 1x{w} (PostgreSQL beside SQLite)": round(
-            jph[f"postgres 1x{w}"] / jph[f"sqlite 1x{w}"], 3
+        f"postgres 1x{w} / sqlite 1x{w} (PostgreSQL beside SQLite)": (
+            f"postgres 1x{w}",
+            f"sqlite 1x{w}",
         ),
     }
-    return {"summary": summary, "ratios": ratios, "runs": runs}
+    # of the medians; and round by round (the two runs of a ratio minutes apart, not half an
+    # hour: on a shared machine whose load changes, the steadier figure)
+    ratios = {
+        name: round(summary[top]["jobs_per_hour"] / summary[bottom]["jobs_per_hour"], 3)
+        for name, (top, bottom) in pairs.items()
+    }
+    by_round = {
+        name: [
+            round(a["jobs_per_hour"] / b["jobs_per_hour"], 3)
+            for a, b in zip(runs[top], runs[bottom], strict=True)
+        ]
+        for name, (top, bottom) in pairs.items()
+    }
+    return {"summary": summary, "ratios": ratios, "ratios_by_round": by_round, "runs": runs}
 
 
 # -- requeue --------------------------------------------------------------------------------
@@ -367,6 +415,40 @@ def _poll_row(
     return found[-1]
 
 
+def _job_to_kill(
+    connection: psycopg.Connection,
+    server: Server,
+    content: bytes,
+    name: str,
+    args: argparse.Namespace,
+    phases: random.Random,
+    lease: float,
+) -> tuple[str, dict, float] | None:
+    """Upload a job to ``server`` and wait until it is time to kill the instance running it:
+    its worker has read ``--kill-at`` frames, then a random share of a renewal period (a third
+    of a lease) has passed, so that the kill lands at any phase of the renewals (a machine dies
+    at any moment), or the job has read three quarters of its frames. The job's id, its row
+    then and when it had read ``--kill-at`` frames; ``None`` where it ended before."""
+    with server.client(timeout=120) as client:
+        job_id = upload(client, content, name)
+    row, started_at = _poll_row(
+        connection,
+        job_id,
+        lambda r: r["state"] != "queued" and r["frames_done"] >= args.kill_at,
+        300,
+        f"the job to read {args.kill_at} frames",
+    )
+    deadline = time.time() + phases.uniform(0, lease / 3)
+    while (
+        row["state"] == "running"
+        and time.time() < deadline
+        and row["frames_done"] < 0.75 * args.kill_frames
+    ):
+        time.sleep(0.02)
+        row = _job_row(connection, job_id) or row
+    return (job_id, row, started_at) if row["state"] == "running" else None
+
+
 def requeue_lease(scratch: Scratch, video: Path, lease: float, args: argparse.Namespace) -> dict:
     """``--kills`` kills of the instance running a job, with this lease (see the module)."""
     data_dir = scratch.data_dir(f"requeue-{lease:g}")
@@ -386,24 +468,31 @@ def requeue_lease(scratch: Scratch, video: Path, lease: float, args: argparse.Na
     }
     content = video.read_bytes()
     rounds = []
+    phases = random.Random(79)
     with (
         running(list(servers.values())),
         psycopg.connect(url, autocommit=True) as connection,
     ):
         for number in range(args.kills):
             target = "ab"[number % 2]
-            with servers[target].client(timeout=120) as client:
-                job_id = upload(client, content, video.name)
-            row, _ = _poll_row(
-                connection,
-                job_id,
-                lambda r: r["state"] == "running" and r["frames_done"] >= args.kill_at,
-                300,
-                f"the job to read {args.kill_at} frames",
-            )
-            victim = row["instance"]
+            chosen = None
+            for _ in range(3):  # a job that ended before its kill is followed by another
+                chosen = _job_to_kill(
+                    connection, servers[target], content, video.name, args, phases, lease
+                )
+                if chosen is not None:
+                    break
+                print(
+                    f"requeue: the job ended before its kill; another ({lease:g} s)",
+                    file=sys.stderr,
+                )
+            if chosen is None:
+                raise RuntimeError(
+                    "three jobs ended before their kill: give them more frames (--kill-frames)"
+                )
+            job_id, before, started_at = chosen
+            victim = before["instance"]
             survivor = "b" if victim == "a" else "a"
-            before = _job_row(connection, job_id) or row
             killed = time.time()
             servers[victim].kill()
             requeued, requeued_at = _poll_row(
@@ -427,6 +516,7 @@ def requeue_lease(scratch: Scratch, video: Path, lease: float, args: argparse.Na
                 "victim": victim,
                 "uploaded_to": target,
                 "frames_at_kill": before["frames_done"],
+                "kill_delay_s": _round(killed - started_at),
                 "lease_left_s": _round(before["lease_until"] - killed),
                 "requeued_s": _round(requeued_at - killed),
                 "state_seen_requeued": requeued["state"],
@@ -448,7 +538,14 @@ def requeue_lease(scratch: Scratch, video: Path, lease: float, args: argparse.Na
                 f"{result['claimed_s']:.2f} s, {final['state']} {result['succeeded_s']} s",
                 file=sys.stderr,
             )
+            # started again, and the next job uploaded, each after a random share of a renewal
+            # period: else the instances' renewals and looks, and the next claim (whose lease
+            # holds until the first renewal), would keep one phase to each other (this loop
+            # follows the job that the survivor queued again), and the wait after a lease ran
+            # out would be the same kill after kill
+            time.sleep(phases.uniform(0, lease / 3))
             start_all([servers[victim]])
+            time.sleep(phases.uniform(0, lease / 3))
         logs = {name: server.log() for name, server in servers.items()}
     lost_lines = sum(
         log.count("queued again: the instance running it was lost") for log in logs.values()
@@ -493,6 +590,7 @@ class TokenWatch:
     def __init__(self, session: zenoh.Session, cameras: list[str]) -> None:
         self._lock = threading.Lock()
         self.live: dict[str, set[str]] = {camera: set() for camera in cameras}
+        self.most: dict[str, int] = dict.fromkeys(cameras, 0)  # tokens of a camera at once
         self.events: dict[str, list[tuple[float, str, bool]]] = {c: [] for c in cameras}
         self.instance_events: list[tuple[float, str, bool]] = []
         self._subscribers = []
@@ -514,6 +612,7 @@ class TokenWatch:
                 self.live[camera].add(instance)
             else:
                 self.live[camera].discard(instance)
+            self.most[camera] = max(self.most[camera], len(self.live[camera]))
 
     def _instance_changed(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).rsplit("/", 1)[-1]
@@ -680,6 +779,8 @@ def camera_moves(scratch: Scratch, args: argparse.Namespace) -> dict:
         "one_token_s": _spread(every("one_token_s")),
         "back_s": _spread([r["back_s"] for r in rounds]),
         "tokens_per_camera_at_the_end": final_tokens,
+        # from the watcher's first sight of the tokens, the kills and restarts included
+        "most_tokens_of_a_camera_at_once": dict(watch.most),
     }
 
 
@@ -710,7 +811,8 @@ def print_tables(document: dict) -> None:
             )
         print()
         for name, ratio in part["ratios"].items():
-            print(f"{name}: {ratio:.3f}")
+            rounds = ", ".join(f"{v:.3f}" for v in part["ratios_by_round"][name])
+            print(f"{name}: {ratio:.3f} (round by round: {rounds})")
         print()
     if "requeue" in document:
         print(
@@ -740,7 +842,9 @@ def print_tables(document: dict) -> None:
         )
         print(
             f"(median / max from the kill; the last from the restarted instance's start; "
-            f"cameras {', '.join(c['cameras'])}, {', '.join(c['moved_cameras'])} on b)"
+            f"cameras {', '.join(c['cameras'])}, {', '.join(c['moved_cameras'])} on b; at most "
+            f"{max(c['most_tokens_of_a_camera_at_once'].values())} tracker token(s) of a camera "
+            "at once)"
         )
 
 
@@ -772,7 +876,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--kills", type=int, default=5, help="kills per lease (default 5)")
     parser.add_argument(
-        "--kill-frames", type=int, default=300, help="frames of a killed job (default 300)"
+        "--kill-frames", type=int, default=600, help="frames of a killed job (default 600)"
     )
     parser.add_argument(
         "--kill-at", type=int, default=20, help="frames read when the kill comes (default 20)"
@@ -817,30 +921,27 @@ def main(argv: list[str] | None = None) -> int:
         "cpu_count": os.cpu_count(),
     }
     folder = Path(tempfile.mkdtemp(prefix="vtrack-scaleout-"))
-    # a folder of its own, of mkdtemp(): as root the server runs as nobody (tests/postgres.py)
-    postgres_folder = Path(tempfile.mkdtemp(prefix="vtrack-scaleout-postgres-"))
-    postgres = PostgresServer(postgres_folder)
     (folder / "runs").mkdir()
-    # a SIGTERM ends the run as Ctrl-C does: the servers stop, the folder goes
+    # a SIGTERM ends the run as Ctrl-C does: the servers stop, the folders go
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        postgres.start()
-        with psycopg.connect(postgres.url) as connection:
-            document["postgresql"] = connection.execute("SHOW server_version").fetchone()[0]
-        scratch = Scratch(postgres, folder / "runs")
-        if "throughput" in parts:
-            video = cut_video(args.video, folder / f"clip_{args.frames}.avi", args.frames)
-            document["throughput"] = throughput(scratch, video, args)
-        if "requeue" in parts:
-            video = cut_video(args.video, folder / f"clip_{args.kill_frames}.avi", args.kill_frames)
-            document["requeue"] = [
-                requeue_lease(scratch, video, lease, args) for lease in args.leases
-            ]
-        if "cameras" in parts:
-            document["cameras"] = camera_moves(scratch, args)
+        with running_postgres() as postgres:
+            with psycopg.connect(postgres.url) as connection:
+                version = connection.execute("SHOW server_version").fetchone()
+            document["postgresql"] = version[0] if version else None
+            scratch = Scratch(postgres, folder / "runs")
+            if "throughput" in parts:
+                video = cut_video(args.video, folder / f"clip_{args.frames}.avi", args.frames)
+                document["throughput"] = throughput(scratch, video, args)
+            if "requeue" in parts:
+                clip = folder / f"clip_{args.kill_frames}.avi"
+                video = cut_video(args.video, clip, args.kill_frames)
+                document["requeue"] = [
+                    requeue_lease(scratch, video, lease, args) for lease in args.leases
+                ]
+            if "cameras" in parts:
+                document["cameras"] = camera_moves(scratch, args)
     finally:
-        postgres.stop()
-        shutil.rmtree(postgres_folder, ignore_errors=True)
         if args.keep:
             print(f"data folders and logs kept in {folder}", file=sys.stderr)
         else:

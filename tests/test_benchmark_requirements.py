@@ -14,7 +14,7 @@ from packaging.requirements import Requirement
 
 from tests.conftest import REPO_ROOT
 
-PROJECT_PACKAGES = {"tracking", "service", "api_schemas", "benchmarks"}
+PROJECT_PACKAGES = {"tracking", "service", "api_schemas", "benchmarks", "tests"}
 
 
 def _imported(path) -> set[str]:
