@@ -82,7 +82,6 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
-import cv2
 import httpx
 
 # Run as a script, benchmarks/ comes first on sys.path and this file would shadow the service
@@ -92,9 +91,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from service.testing import Server, try_get, wait_for
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _clips import cut_video
     from _paths import SHARED_DATA
     from _report import finite, print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._clips import cut_video
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import finite, print_json
 
@@ -438,28 +439,6 @@ class Submitter(threading.Thread):
 
 
 # -- one fault kind -------------------------------------------------------------------------
-
-
-def cut_video(source: Path, target: Path, frames: int) -> Path:
-    """The first ``frames`` frames of ``source`` as an MJPG AVI at its rate (as the tests cut
-    theirs: every frame a key frame, so a job's time is the tracking's)."""
-    capture = cv2.VideoCapture(str(source))
-    fps = capture.get(cv2.CAP_PROP_FPS) or 10.0
-    writer = None
-    try:
-        for _ in range(frames):
-            ok, frame = capture.read()
-            if not ok:
-                raise RuntimeError(f"{source} has fewer than {frames} frames")
-            if writer is None:
-                size = (frame.shape[1], frame.shape[0])
-                writer = cv2.VideoWriter(str(target), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
-            writer.write(frame)
-    finally:
-        capture.release()
-        if writer is not None:
-            writer.release()
-    return target
 
 
 def _wait_gone(pids: set[int], timeout: float) -> bool:

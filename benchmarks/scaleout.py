@@ -86,7 +86,6 @@ from collections.abc import Callable, Iterator
 from datetime import datetime
 from pathlib import Path
 
-import cv2
 import httpx
 import psycopg
 import zenoh
@@ -103,9 +102,11 @@ from service.testing import Server, free_port, try_get, wait_for
 from tests.postgres import PostgresServer, running_postgres
 
 try:  # run as a script: benchmarks/ is on sys.path
+    from _clips import cut_video
     from _paths import SHARED_DATA
     from _report import finite, print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
+    from benchmarks._clips import cut_video
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import finite, print_json
 
@@ -122,29 +123,6 @@ _FINAL = ("succeeded", "failed", "cancelled")
 
 
 # -- set-up ---------------------------------------------------------------------------------
-
-
-def cut_video(source: Path, target: Path, frames: int) -> Path:
-    """The first ``frames`` frames of ``source`` as an MJPG AVI at its rate (as the tests and
-    benchmarks/faults.py cut theirs: every frame a key frame, so a job's time is the
-    tracking's)."""
-    capture = cv2.VideoCapture(str(source))
-    fps = capture.get(cv2.CAP_PROP_FPS) or 10.0
-    writer = None
-    try:
-        for _ in range(frames):
-            ok, frame = capture.read()
-            if not ok:
-                raise RuntimeError(f"{source} has fewer than {frames} frames")
-            if writer is None:
-                size = (frame.shape[1], frame.shape[0])
-                writer = cv2.VideoWriter(str(target), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
-            writer.write(frame)
-    finally:
-        capture.release()
-        if writer is not None:
-            writer.release()
-    return target
 
 
 class Scratch:

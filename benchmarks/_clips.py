@@ -1,0 +1,30 @@
+"""Short clips of a video for the service benchmarks' jobs (benchmarks/faults.py,
+benchmarks/scaleout.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+
+
+def cut_video(source: Path, target: Path, frames: int) -> Path:
+    """The first ``frames`` frames of ``source`` as an MJPG AVI at its rate (as the tests cut
+    theirs: every frame a key frame, so a job's time is the tracking's)."""
+    capture = cv2.VideoCapture(str(source))
+    fps = capture.get(cv2.CAP_PROP_FPS) or 10.0
+    writer = None
+    try:
+        for _ in range(frames):
+            ok, frame = capture.read()
+            if not ok:
+                raise RuntimeError(f"{source} has fewer than {frames} frames")
+            if writer is None:
+                size = (frame.shape[1], frame.shape[0])
+                writer = cv2.VideoWriter(str(target), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+            writer.write(frame)
+    finally:
+        capture.release()
+        if writer is not None:
+            writer.release()
+    return target
