@@ -106,6 +106,7 @@ class Server:
         self.file_size_limit = file_size_limit
         self.workers = workers
         self.log_level = log_level
+        self._own_zenoh_port = "zenoh_listen" not in settings
         settings.setdefault("zenoh_listen", json.dumps([f"tcp/127.0.0.1:{free_port()}"]))
         self.settings = settings
         self.token = settings.get("api_token")
@@ -129,9 +130,31 @@ class Server:
         kwargs.setdefault("timeout", 30.0)
         return httpx.Client(base_url=self.url, headers=headers, **kwargs)
 
-    def start(self, timeout: float = 60.0, ready: bool = True) -> Server:
+    def start(self, timeout: float = 60.0, ready: bool = True, attempts: int = 3) -> Server:
         """Start the service and wait until ``/readyz`` answers 200 (``ready``) or, for a
-        service expected not to be ready, until ``/healthz`` answers."""
+        service expected not to be ready, until ``/healthz`` answers.
+
+        A port found free by :func:`free_port` may be taken by another process before the
+        service binds it (parallel tests open many connections): when the service says so
+        and exits, it is started again on fresh ports, up to ``attempts`` times.
+        """
+        for attempt in range(1, attempts + 1):
+            log_start = self.log_path.stat().st_size if self.log_path.is_file() else 0
+            try:
+                return self._start_once(timeout, ready)
+            except RuntimeError:
+                with self.log_path.open("rb") as log:
+                    log.seek(log_start)
+                    taken = b"Address already in use" in log.read()
+                if not taken or attempt == attempts:
+                    raise
+                self.port = free_port()
+                if self._own_zenoh_port:
+                    endpoint = f"tcp/127.0.0.1:{free_port()}"
+                    self.settings["zenoh_listen"] = json.dumps([endpoint])
+        raise AssertionError("unreachable")
+
+    def _start_once(self, timeout: float, ready: bool) -> Server:
         env = {k: v for k, v in os.environ.items() if not k.startswith("VTRACK_")}
         env.update({f"VTRACK_{k.upper()}": str(v) for k, v in self.settings.items()})
         command = [*self.prefix, sys.executable, "-m", "service.cli", "serve"]
