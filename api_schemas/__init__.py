@@ -1,10 +1,11 @@
-"""pydantic v2 models of everything that crosses a process or network boundary (DESIGN.md §2).
+"""pydantic v2 models of everything that crosses a process or network boundary
+(docs/architecture.md §2).
 
 No algorithm code. ``python -m api_schemas.export`` writes the JSON Schema of the public models
 to ``api_schemas/schema.json``.
 """
 
-from api_schemas.common import BoxModel, ErrorResponse, FailedCheck, FirstBox
+from api_schemas.common import BoxModel, ErrorResponse, ErrorType, FailedCheck, FirstBox
 from api_schemas.health import Health, Readiness
 from api_schemas.jobs import (
     ALL_FORMATS,
@@ -47,6 +48,7 @@ __all__ = [
     "BoxModel",
     "DetectorOptions",
     "ErrorResponse",
+    "ErrorType",
     "FailedCheck",
     "FirstBox",
     "FrameAttachment",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
+from enum import StrEnum
 from types import UnionType
 from typing import Annotated, Any, ClassVar, Union, get_args, get_origin
 
@@ -146,9 +147,93 @@ class FailedCheck(BaseModel):
     )
 
 
-class ErrorResponse(BaseModel):
-    """What every 4xx and 5xx answer carries: a sentence saying what went wrong and what to do."""
+class ErrorType(StrEnum):
+    """The kind of an error answer: a code for programs to test, stable across releases (the
+    sentence of ``detail`` may be reworded), each with one HTTP status.
 
+    - ``validation_error`` (422): the body, the query or an upload's options part fails its
+      schema; ``errors`` lists each failed check.
+    - ``invalid_options`` (422): options the schema takes but the service cannot run (a model
+      it lacks, a first box outside the frame, tracker options that contradict each other).
+    - ``invalid_upload`` (422): an upload without its ``video`` file part, with a part it does
+      not take or a part twice, or a malformed multipart body.
+    - ``bad_request`` (400): a request that cannot be read (its client went away before its
+      body ended).
+    - ``invalid_range`` (400): a download's ``Range`` header that cannot be served.
+    - ``unauthorized`` (401): no token, or not the one the service was configured with.
+    - ``forbidden`` (403): a web page of another site, or a host name the service does not
+      answer to.
+    - ``not_found`` (404): no such path, job, stream, result or recording.
+    - ``method_not_allowed`` (405): a method the path does not take (``Allow`` names those
+      it takes).
+    - ``timeout`` (408): the request's headers or body did not arrive in time.
+    - ``conflict`` (409): not in a state for that: a job that has not succeeded, a camera
+      tracked already.
+    - ``payload_too_large`` (413): a body, upload or options part over its limit.
+    - ``unsupported_media`` (415): an upload that is not ``multipart/form-data``.
+    - ``invalid_video`` (415): an uploaded video that is empty or cannot be decoded.
+    - ``range_not_satisfiable`` (416): a ``Range`` that starts beyond the end of the file.
+    - ``headers_too_large`` (431): the request's line and headers are over their limit.
+    - ``internal`` (500): an internal error; the service's log has the details.
+    - ``busy`` (503): as many connections or event streams open as the service serves; try
+      again after ``Retry-After``.
+    - ``unavailable`` (503): what the request needs is not there now: the job database, live
+      streams (Zenoh), or the service itself, which is stopping.
+    - ``insufficient_storage`` (507): the data folder's disk is full or cannot be written.
+    """
+
+    validation_error = "validation_error"
+    invalid_options = "invalid_options"
+    invalid_upload = "invalid_upload"
+    bad_request = "bad_request"
+    invalid_range = "invalid_range"
+    unauthorized = "unauthorized"
+    forbidden = "forbidden"
+    not_found = "not_found"
+    method_not_allowed = "method_not_allowed"
+    timeout = "timeout"
+    conflict = "conflict"
+    payload_too_large = "payload_too_large"
+    unsupported_media = "unsupported_media"
+    invalid_video = "invalid_video"
+    range_not_satisfiable = "range_not_satisfiable"
+    headers_too_large = "headers_too_large"
+    internal = "internal"
+    busy = "busy"
+    unavailable = "unavailable"
+    insufficient_storage = "insufficient_storage"
+
+
+ERROR_STATUS: dict[ErrorType, int] = {
+    ErrorType.validation_error: 422,
+    ErrorType.invalid_options: 422,
+    ErrorType.invalid_upload: 422,
+    ErrorType.bad_request: 400,
+    ErrorType.invalid_range: 400,
+    ErrorType.unauthorized: 401,
+    ErrorType.forbidden: 403,
+    ErrorType.not_found: 404,
+    ErrorType.method_not_allowed: 405,
+    ErrorType.timeout: 408,
+    ErrorType.conflict: 409,
+    ErrorType.payload_too_large: 413,
+    ErrorType.unsupported_media: 415,
+    ErrorType.invalid_video: 415,
+    ErrorType.range_not_satisfiable: 416,
+    ErrorType.headers_too_large: 431,
+    ErrorType.internal: 500,
+    ErrorType.busy: 503,
+    ErrorType.unavailable: 503,
+    ErrorType.insufficient_storage: 507,
+}
+"""The HTTP status each :class:`ErrorType` is answered with."""
+
+
+class ErrorResponse(BaseModel):
+    """What every 4xx and 5xx answer carries: a code for programs, and a sentence saying what
+    went wrong and what to do."""
+
+    type: ErrorType = Field(description="The kind of error: a stable code to test in programs.")
     detail: str = Field(description="What went wrong, and what to change.")
     errors: list[FailedCheck] | None = Field(
         default=None, description="For validation errors (422): each failed check."

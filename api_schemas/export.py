@@ -14,6 +14,7 @@ from pathlib import Path
 from pydantic import BaseModel
 from pydantic.json_schema import models_json_schema
 
+from api_schemas.analytics import AnalyticsResult, CameraEvent
 from api_schemas.common import ErrorResponse
 from api_schemas.health import Health, Readiness
 from api_schemas.jobs import JobCreated, JobList, JobOptions, JobStatus, ProgressEvent
@@ -45,6 +46,8 @@ PUBLIC_MODELS: tuple[type[BaseModel], ...] = (
     UpstreamDetections,
     StreamTracksMessage,
     StreamTracksEnded,
+    CameraEvent,
+    AnalyticsResult,
     ErrorResponse,
     Health,
     Readiness,

@@ -21,6 +21,7 @@ from pydantic import (
     model_validator,
 )
 
+from api_schemas.analytics import AnalyticsOptions
 from api_schemas.common import FirstBox, RulesAcrossFields, equal, given, left_unset
 
 
@@ -140,11 +141,8 @@ class DetectorOptions(RulesAcrossFields):
         le=20,
         description="DPM only (name 'dpm' given with it): sizes of person searched per doubling "
         "of size (the feature pyramid's levels per octave). None: the model's own, 10 for "
-        "voc-release5 models. 5 searches each frame in about half the time and finds slightly "
-        "fewer people: tracking "
-        "PETS09-S2L1 and TUD-Stadtmitte ran 1.5-1.7x as fast for 2.6 and 0.8 points of HOTA. "
-        "2 runs the DPM at least as fast as OpenCV's HOG people detector on the same frames "
-        "(docs/benchmarks.md).",
+        "voc-release5 models. Fewer levels search each frame faster and find slightly fewer "
+        "people; what each costs and finds: docs/benchmarks.md.",
     )
 
     @field_validator("levels_per_octave")
@@ -202,7 +200,8 @@ class PeopleTrackerOptions(RulesAcrossFields):
         le=60,
         description="Seconds between full-frame detections; in between only regions around "
         "the tracks are searched, at a fraction of the cost. 0: every tracked frame is "
-        "searched in full. 0.2 tracked 25 fps video 1.3-2.6x as fast in our benchmarks.",
+        "searched in full. Larger values track faster; how much, and what it does to the "
+        "scores: docs/benchmarks.md.",
     )
     region_margin: float | None = Field(
         strict=True,
@@ -241,8 +240,7 @@ class PeopleTrackerOptions(RulesAcrossFields):
         ge=0,
         le=60,
         description="Seconds a track is still reported, at its predicted box, while it lacks "
-        "detections (0: not at all). 0.6 suits the 'dpm' detector (HOTA +1.1 on "
-        "PETS09-S2L1, see docs/benchmarks.md).",
+        "detections (0: not at all). 0.6 suits the 'dpm' detector (docs/benchmarks.md).",
     )
     report_occluded: bool | None = Field(
         strict=True,
@@ -268,8 +266,8 @@ class PeopleTrackerOptions(RulesAcrossFields):
         "predicted from the box unless the 'dpm' detector or part_appearance places them. "
         "None (default): on when the service has the model (VTRACK_POSE_MODEL; /readyz says), "
         "off otherwise. true: required (a service without the model refuses the job). false: "
-        "off. Costs about 40 ms per frame (measured at 768x576 on 2 cores; a 360 px video is "
-        "fed at 576 px). Results say whether it ran and which model.",
+        "off. It costs time on every frame (docs/benchmarks.md; a 360 px video is fed at "
+        "576 px). Results say whether it ran and which model.",
     )
     pose_model: str | None = Field(
         default=None,
@@ -291,8 +289,8 @@ class PeopleTrackerOptions(RulesAcrossFields):
         "clothing colours) and recognises a person who comes back after an occlusion or after "
         "leaving the view (remembered 30 s), so they keep their id. None (default): on when the "
         "service has the model (VTRACK_REID_MODEL; /readyz says), off otherwise. true: required "
-        "(a service without the model refuses the job). false: off. Costs about 2 ms per "
-        "person per frame (measured on 2 cores). Results say whether it ran and which model.",
+        "(a service without the model refuses the job). false: off. It costs time per person "
+        "and frame (docs/benchmarks.md). Results say whether it ran and which model.",
     )
     reid_model: str | None = Field(
         default=None,
@@ -312,7 +310,7 @@ class PeopleTrackerOptions(RulesAcrossFields):
     @classmethod
     def _with_its_network(cls, value: str | None, info: ValidationInfo) -> str | None:
         # as detector.model with 'cnn' only: a model asked for runs, or the job is refused
-        network = info.field_name.removesuffix("_model")
+        network = field_name(info).removesuffix("_model")
         given = info.data.get(network, True)  # not there: its own error is enough
         if value is not None and given is not True and not stored(info):
             raise ValueError(
@@ -417,7 +415,7 @@ class JobOptions(RulesAcrossFields):
         default="h264",
         description="How the mcap result stores the frames (other than 'h264' only when "
         "formats has mcap): 'h264' as foxglove.CompressedVideo "
-        "(a key frame every second; a fifth of the bytes at 360 px and 10 fps), 'jpeg' as "
+        "(a key frame every second; far fewer bytes than JPEG, docs/benchmarks.md), 'jpeg' as "
         "foxglove.CompressedImage (each frame on its own, for tools that read images only).",
     )
     frame_step: int = Field(
@@ -457,6 +455,12 @@ class JobOptions(RulesAcrossFields):
         "0: off. 0.5-1 joins trajectories broken by brief occlusions; see docs/benchmarks.md "
         "for what it does to the scores.",
     )
+    analytics: AnalyticsOptions | None = Field(
+        default=None,
+        description="Zones and lines to watch: the results then hold the events (line "
+        "crossings, zones entered and left, dwells) and their counts, in total and per time "
+        "bucket. None: none.",
+    )
 
     labels: dict[
         Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9_.:-]{1,64}$")],
@@ -481,16 +485,17 @@ class JobOptions(RulesAcrossFields):
     def _of_the_mode(cls, value: Any, info: ValidationInfo) -> Any:
         if stored(info):
             return value
-        mode, reason = _MODE_OF[info.field_name]
+        name = field_name(info)
+        mode, reason = _MODE_OF[name]
         given = info.data.get("mode")
-        default = cls.model_fields[info.field_name].get_default(call_default_factory=True)
+        default = cls.model_fields[name].get_default(call_default_factory=True)
         # the preset's default was a preset's name in every mode (hog_cn_scale, then
         # DEFAULT_PRESET), and the detector's 'default' before 'auto': options copied from an
         # earlier job's status still pass
         old_defaults = {
             "preset": (DEFAULT_PRESET, FORMER_DEFAULT_PRESET),
             "detector": (DetectorOptions(name="default"),),
-        }.get(info.field_name, ())
+        }.get(name, ())
         if given is not None and given != mode and value != default and value not in old_defaults:
             raise ValueError(f"only for mode '{mode}': {reason}")
         return value
@@ -530,6 +535,16 @@ class JobOptions(RulesAcrossFields):
 def stored(info: ValidationInfo) -> bool:
     """Whether a model is being read back from storage (``context={'stored': True}``)."""
     return bool(info.context and info.context.get("stored"))
+
+
+def field_name(info: ValidationInfo) -> str:
+    """The name of the field a field validator is validating.
+
+    Pydantic types it ``str | None`` because a model validator's ``info`` has none; a field
+    validator's always has one.
+    """
+    assert info.field_name is not None, "a field validator's info names its field"
+    return info.field_name
 
 
 class JobProgress(BaseModel):

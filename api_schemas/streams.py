@@ -23,12 +23,13 @@ from __future__ import annotations
 
 from datetime import datetime
 from enum import StrEnum
-from typing import Any, Literal
+from typing import Any, Literal, TypedDict
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
+from api_schemas.analytics import AnalyticsOptions
 from api_schemas.common import RulesAcrossFields, equal
-from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions, stored
+from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions, field_name, stored
 from api_schemas.tracks import FrameTracksMessage
 
 CAMERA_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,63}$"
@@ -182,7 +183,17 @@ class StreamState(StrEnum):
     """Stopped on request (``DELETE``); the record stays until deleted again."""
 
 
-_RECORDING_DEFAULTS = {"record_segment": 300.0, "record_keep": 0, "record_images": "h264"}
+class _RecordingDefaults(TypedDict):
+    record_segment: float
+    record_keep: int
+    record_images: Literal["h264", "jpeg"]
+
+
+_RECORDING_DEFAULTS: _RecordingDefaults = {
+    "record_segment": 300.0,
+    "record_keep": 0,
+    "record_images": "h264",
+}
 """The recording options' defaults, all a stream that does not record may give."""
 
 
@@ -213,6 +224,12 @@ class StreamSpec(RulesAcrossFields):
     )
     detector: DetectorOptions = Field(default_factory=DetectorOptions)
     tracker: PeopleTrackerOptions = Field(default_factory=PeopleTrackerOptions)
+    analytics: AnalyticsOptions | None = Field(
+        default=None,
+        description="Zones and lines to watch: their events go out on "
+        "<prefix>/cameras/<camera>/events and to the service's webhooks and MQTT broker. "
+        "None: none.",
+    )
     record: bool = Field(
         strict=True,
         default=False,
@@ -269,7 +286,7 @@ class StreamSpec(RulesAcrossFields):
     def _with_record(cls, value: Any, info: ValidationInfo) -> Any:
         if stored(info):
             return value
-        default = cls.model_fields[info.field_name].get_default()
+        default = cls.model_fields[field_name(info)].get_default()
         if info.data.get("record") is False and value != default:
             raise ValueError("only with record: true (this stream records nothing)")
         return value

@@ -10,6 +10,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from api_schemas.analytics import AnalyticsResult
 from api_schemas.common import BoxModel, Pixels, rounded
 from api_schemas.jobs import JobOptions
 
@@ -195,4 +196,7 @@ class Trajectories(BaseModel):
         "'right_shoulder']); empty when the tracks carry no parts.",
     )
     frames_processed: int = Field(ge=0, description="Frames the tracker saw.")
+    analytics: AnalyticsResult | None = Field(
+        default=None, description="The events and counts of the job's zones and lines (None: none)."
+    )
     tracks: list[Trajectory]

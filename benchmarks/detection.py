@@ -19,11 +19,12 @@ made by passing its path, see ``docs/benchmarks.md``); with it, the first DPM va
 detections and part boxes on the first frame of the first sequence.
 
 * AP at IoU 0.5 ("all points" VOC AP: detections of all frames sorted by score, greedy matching
-  to the ground truth per frame, area under the precision envelope; ``tracking.detection.metrics``);
+  to the ground truth per frame, area under the precision envelope;
+  ``tracking.evaluation.detection``);
 * log-average miss rate over FPPI 1e-2..1e0 (Dollár et al. 2012), and a miss-rate/FPPI plot.
 
 Boxes are compared in 0-based image pixels, the detectors' convention: ``MotSequence.gt`` and
-``MotDetections`` move the files' 1-based boxes (``tracking/detection/sequences.py``).
+``MotDetections`` move the files' 1-based boxes (``tracking/datasets/mot.py``).
 
 Each detector runs at an evaluation threshold below its operating one so that its whole
 precision/recall curve is seen: the DPM at ``model.thresh - 1``, the embedded default at SVM
@@ -103,6 +104,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.datasets.mot import MotFormatError, MotSequence
+from tracking.datasets.otb import load_otb_sequence, read_frame
 from tracking.detection import (
     DpmConfig,
     DpmDetector,
@@ -110,18 +113,15 @@ from tracking.detection import (
     HogPeopleDetector,
     ModelFileError,
     MotDetections,
-    MotFormatError,
-    MotSequence,
 )
 from tracking.detection.cnn import CnnConfig, CnnDetector, CnnModelError
-from tracking.detection.metrics import (
+from tracking.detection.nms import box_iou
+from tracking.evaluation.detection import (
     DetectionCurve,
     average_precision,
     detection_curve,
     log_average_miss_rate,
 )
-from tracking.detection.nms import box_iou
-from tracking.evaluation.otb import load_otb_sequence, read_frame
 from tracking.types import Box
 
 try:  # run as a script: benchmarks/ is on sys.path

@@ -5,7 +5,7 @@ the service keeps through them.
                                 [--frames 150] [--backlog 2] [--max-attempts 1000]
                                 [--interval 0.1] [--video PATH] [--out faults.json] [--json]
 
-For each fault kind, a real ``vtrack serve`` (:class:`service.testing.Server`, ``--workers``
+For each fault kind, a real ``vtrack serve`` (:class:`devtools.testing.Server`, ``--workers``
 worker processes, a temporary data folder, ``VTRACK_MAX_ATTEMPTS`` high enough that no kill
 exhausts a job's attempts) runs jobs of the first ``--frames`` frames of the PETS09-S2L1 video
 (the tests' fast options: a few seconds of work each) while
@@ -88,7 +88,7 @@ import httpx
 # package.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from service.testing import Server, try_get, wait_for
+from devtools.testing import Server, try_get, wait_for
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _clips import cut_video

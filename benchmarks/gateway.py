@@ -1,6 +1,6 @@
 """What ``vtrack publish`` costs as the gateway of a network camera, per frame and per payload.
 
-A camera simulated on loopback (:class:`service.streams.simulated_cameras.RtspCamera`) serves
+A camera simulated on loopback (:class:`devtools.simulated_cameras.RtspCamera`) serves
 the PETS09-S2L1 video as H.264 without B-frames, a key frame a second, at 480x360 and enlarged
 to 1920x1080, as fast as it is read. The gateway reads it (:class:`NetworkCamera`) and
 publishes every frame on Zenoh (:func:`publish_frames`) in one of four ways: forwarding the
@@ -42,17 +42,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from service.streams.keys import StreamKeys
-from service.streams.network_camera import CameraConnection, CameraSettings, NetworkCamera
-from service.streams.session import ZenohOptions, open_session
-from service.streams.simulated_cameras import (
+from devtools.simulated_cameras import (
     RtspCamera,
     TcpCamera,
     access_units,
     h264_video,
 )
+from devtools.testing import free_port
+from service.streams.keys import StreamKeys
+from service.streams.network_camera import CameraConnection, CameraSettings, NetworkCamera
+from service.streams.session import ZenohOptions, open_session
 from service.streams.tools import member_session, publish_frames, video_frames
-from service.testing import free_port
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _paths import SHARED_DATA

@@ -115,7 +115,7 @@ MOT16/17 preprocessing rejects.
 
 Coordinates: MOTChallenge files are 1-based; our tracker gets the detections moved to 0-based
 image coordinates (:class:`tracking.detection.MotDetections` moves them, see
-``tracking/detection/sequences.py``) and its boxes are written back 1-based (``track_rows`` in
+``tracking/datasets/mot.py``) and its boxes are written back 1-based (``track_rows`` in
 ``tracking/evaluation/mot.py``); the ground truth goes to TrackEval as the file has it. The
 peers never look at pixels (camera-motion compensation aside, to which a pixel is nothing) and
 keep the file's coordinates throughout; the re-id network crops the 0-based boxes.
@@ -167,14 +167,14 @@ from tqdm import tqdm
 from tracking.evaluation.mot import (
     MotFileError,
     SequenceInfo,
-    estimates_to_rows,
     find_mot_sequences,
+    frame_rows,
     limit_frames,
     read_mot_rows,
     read_sequence_info,
     write_mot_file,
 )
-from tracking.tracks import TrackEstimate
+from tracking.tracks import FrameTracks
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _drawing import require_drawing
@@ -269,7 +269,7 @@ class Run:
     seconds: list[float]
     frames: int
     deterministic: bool = True
-    estimates: list[tuple[TrackEstimate, ...]] | None = None
+    estimates: list[FrameTracks] | None = None
 
     @property
     def fps(self) -> float:
@@ -350,7 +350,7 @@ def fed_digest(rows: np.ndarray) -> str:
 def ours_fed_digest(detections: object, frames: int) -> str:
     """:func:`fed_digest` of what ours is handed by ``detections.for_frame`` over ``frames``
     frames (its 0-based boxes moved back to file units)."""
-    from tracking.detection.sequences import image_to_mot_boxes
+    from tracking.datasets.mot import image_to_mot_boxes
 
     fed = []
     for index in range(frames):
@@ -494,8 +494,8 @@ def cnn_detection_file(
 def ours_detections(source: DetectionSource, sequence: SequenceInfo) -> object:
     """The detections ours gets from ``source``: :class:`MotDetections` of the same file (0-based
     boxes), the confidence column read as :attr:`DetectionSource.calibration` says."""
+    from tracking.datasets.mot import read_mot_rows as read_rows
     from tracking.detection import MotDetections
-    from tracking.detection.sequences import read_mot_rows as read_rows
 
     path = source.files[sequence.name]
     if source.calibration is None:
@@ -515,8 +515,8 @@ def embeddings_file(
     row order; NaN for rows past ``frames`` and boxes it cannot embed). Reused when the
     ``.reid.json`` beside it records the same key: the network's and the detection file's
     SHA-256 and the frame count. (path, reused, seconds embedding)."""
-    from tracking.detection.sequences import mot_to_image_boxes
-    from tracking.detection.sequences import read_mot_rows as read_rows
+    from tracking.datasets.mot import mot_to_image_boxes
+    from tracking.datasets.mot import read_mot_rows as read_rows
 
     det = source.files[sequence.name]
     target = folder / "detections" / sequence.name / f"{source.name}.reid.npy"
@@ -921,32 +921,31 @@ def track_ours(
     progress: tqdm,
     keep_estimates: bool,
     detections: object | None = None,
-) -> tuple[np.ndarray, float, list[tuple[TrackEstimate, ...]] | None]:
+) -> tuple[np.ndarray, float, list[FrameTracks] | None]:
     """One run of a fresh tracker on ``detections`` (a :class:`MotDetections`; None for an
     end-to-end tracker): result rows, seconds in ``update``, estimates if kept."""
     from tracking.gap_filling import GapFiller
-    from tracking.tracks import FrameTracks
 
     if (detections is None) != ours.end_to_end:
         raise ValueError("a tracker fed a detection source needs its detections, and only it")
     tracker = ours.factory()
     filler = GapFiller(ours.fill_gaps) if ours.fill_gaps > 0 else None
     rows = []
-    estimates: list[tuple[TrackEstimate, ...]] | None = [] if keep_estimates else None
+    estimates: list[FrameTracks] | None = [] if keep_estimates else None
     seconds = 0.0
     for index in range(frames):
         frame = read_rgb(sequence.frame_paths[index])
         current = detections.for_frame(index) if detections is not None else None
         timestamp = sequence.timestamp(index)
         start = time.perf_counter()
-        tracks = tracker.update(frame, timestamp, current)
+        tracks = tracker.update(frame, timestamp, current)  # a fresh tracker: frame `index`
         seconds += time.perf_counter() - start  # fps: update calls only, as the table says
-        # filled frames' rows come after later frames' rows: TrackEval groups rows by frame
-        filled = filler.push(FrameTracks(index, timestamp, tuple(tracks))) if filler else []
-        rows.append(estimates_to_rows(index, tracks)[:, :7])
-        rows += [estimates_to_rows(f.frame_index, f.tracks)[:, :7] for f in filled]
+        # filled frames' rows come after later frames' rows: the file is sorted when written
+        filled = filler.push(tracks) if filler else []
+        rows.append(frame_rows(tracks)[:, :7])
+        rows += [frame_rows(f)[:, :7] for f in filled]
         if estimates is not None:
-            estimates.append(tuple(tracks))
+            estimates.append(tracks)
         progress.update(1)
     return np.concatenate(rows) if rows else np.zeros((0, 7)), seconds, estimates
 
@@ -1340,7 +1339,7 @@ _PALETTE = (
 )  # fmt: skip
 
 
-def picture_frame(estimates: list[tuple[TrackEstimate, ...]]) -> int:
+def picture_frame(estimates: list[FrameTracks]) -> int:
     """The frame (0-based) with the most tracks, at least ``PICTURE_TRAIL`` frames in."""
     first = min(PICTURE_TRAIL, len(estimates) - 1)
     counts = [len(e) for e in estimates[first:]]
@@ -1348,7 +1347,7 @@ def picture_frame(estimates: list[tuple[TrackEstimate, ...]]) -> int:
 
 
 def draw_tracks(
-    frame: np.ndarray, estimates: list[tuple[TrackEstimate, ...]], index: int, caption: str
+    frame: np.ndarray, estimates: list[FrameTracks], index: int, caption: str
 ) -> np.ndarray:
     """Frame ``index`` (RGB) with its tracks: boxes with ids, trails of the feet over the last
     ``PICTURE_TRAIL`` frames, part centres (filled: visible; hollow: hidden)."""

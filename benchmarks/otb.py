@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from tracking.datasets.otb import OtbSequence, SequenceError, find_otb_sequences, read_frame
 from tracking.evaluation.metrics import (
     PRECISION_THRESHOLDS,
     SUCCESS_THRESHOLDS,
@@ -42,7 +43,6 @@ from tracking.evaluation.metrics import (
     success_curve,
     summarize,
 )
-from tracking.evaluation.otb import OtbSequence, SequenceError, find_otb_sequences, read_frame
 from tracking.types import Tracker
 
 try:  # run as a script: benchmarks/ is on sys.path

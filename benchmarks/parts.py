@@ -42,7 +42,8 @@ MODELS = {
 
 def measure(sequence: Path, models: Path, frames: int | None) -> dict[str, object]:
     """Shares of unoccluded person-frames whose part groups were measured, and the time."""
-    from tracking.detection import MotSequence, make_detector
+    from tracking.datasets.mot import MotSequence
+    from tracking.detection import make_detector
     from tracking.detection.pose import PoseEstimator
     from tracking.detection.reid import ReidEmbedder
     from tracking.evaluation.mot import read_sequence_info

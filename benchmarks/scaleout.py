@@ -6,7 +6,7 @@
                                   [--kill-at 20] [--moves 5] [--cameras 2]
                                   [--video PATH] [--out scaleout.json] [--json] [--keep]
 
-Real ``vtrack serve`` processes (:class:`service.testing.Server`) and a real PostgreSQL server
+Real ``vtrack serve`` processes (:class:`devtools.testing.Server`) and a real PostgreSQL server
 of the benchmark's own (:func:`tests.postgres.running_postgres`: pgserver's programs, as
 ``nobody`` under root, in a folder of :func:`tempfile.mkdtemp`; it needs the ``dev`` extra's
 ``pgserver`` wheel or ``VTRACK_POSTGRES_BIN``). Every configuration below gets a database and a
@@ -94,11 +94,11 @@ import zenoh
 # package.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from devtools.testing import Server, free_port, try_get, wait_for
 from service.streams.keys import StreamKeys
 from service.streams.manager import ARBITRATION_INTERVAL, _owner_of
 from service.streams.session import ZenohOptions
 from service.streams.tools import member_session, trackers_of, watch_trackers
-from service.testing import Server, free_port, try_get, wait_for
 from tests.postgres import PostgresServer, running_postgres
 
 try:  # run as a script: benchmarks/ is on sys.path

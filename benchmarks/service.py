@@ -50,8 +50,8 @@ import httpx
 # package.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from service.testing import Server, wait_for
-from tracking.detection.sequences import parse_mot_rows
+from devtools.testing import Server, wait_for
+from tracking.datasets.mot import parse_mot_rows
 from tracking.evaluation.hota import hota
 from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes
 

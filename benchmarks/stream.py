@@ -58,6 +58,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from api_schemas.streams import StreamTracksMessage
+from devtools.testing import Server, wait_for
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions
 from service.streams.tools import (
@@ -67,7 +68,6 @@ from service.streams.tools import (
     trackers_of,
     video_frames,
 )
-from service.testing import Server, wait_for
 from tracking.detection import MotDetections
 from tracking.evaluation.hota import hota
 from tracking.evaluation.mot import ground_truth_rows

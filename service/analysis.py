@@ -17,8 +17,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from api_schemas.analytics import AnalyticsCounts, AnalyticsResult
 from api_schemas.jobs import JobOptions, OutputFormat
 from api_schemas.tracks import VideoInfo
+from service.analytics import FrameAnalytics
 from service.convert import frame_message
 from service.frames import (
     FrameSource,
@@ -27,14 +29,13 @@ from service.frames import (
     open_frames,
 )
 from service.outputs import RESULT_FILES, RunSummary, h264, open_writers
-from service.outputs.base import StreamInfo
+from service.outputs.base import ANALYTICS_FILE, StreamInfo
 from service.pipelines import (
+    JobPlan,
     OptionsError,
     PipelineResources,
     build_pipeline,
     check_options,
-    choose_detector,
-    choose_networks,
 )
 from tracking.correlation import PRESETS
 from tracking.detection.base import Detections
@@ -64,6 +65,10 @@ class AnalysisResult:
     """The options that ran: detector 'auto' resolved, the CNN's model named, tracker.pose and
     tracker.reid true or false with their models named."""
     warnings: list[str] = field(default_factory=list)
+    analytics: AnalyticsCounts | None = None
+    """The counts of the job's zones and lines (None: it watched none)."""
+    analytics_file: Path | None = None
+    """Their events and counts (:data:`ANALYTICS_FILE`, beside the result files)."""
 
 
 # -- the run ---------------------------------------------------------------------------------
@@ -71,7 +76,7 @@ class AnalysisResult:
 
 def analyze(
     video: str | os.PathLike[str] | FrameSource,
-    options: JobOptions,
+    job: JobOptions | JobPlan,
     scratch: Path,
     *,
     resources: PipelineResources | None = None,
@@ -84,9 +89,11 @@ def analyze(
     """Track ``video`` (a path, or frames opened already) and write the requested results into
     ``scratch`` (emptied first).
 
-    ``detections``, for people, gives the detections of each frame from its index (public
-    detections: :meth:`~tracking.detection.external.MotDetections.for_frame`); the options'
-    detector then finds nobody.
+    ``job``: the job's options, checked here against ``resources`` and the video, or their
+    plan checked already (:func:`~service.pipelines.check_options` with the same video), which
+    runs as it is. ``detections``, for people, gives the detections of each frame from its
+    index (public detections: :meth:`~tracking.detection.external.MotDetections.for_frame`);
+    the options' detector then finds nobody.
 
     Raises
     ------
@@ -99,23 +106,21 @@ def analyze(
     ValueError
         The pipeline rejected a frame or the first box.
     """
-    resources = resources or PipelineResources()
     started = time.perf_counter()
-    source = video if isinstance(video, FrameSource) else open_frames(video)
-    check_options(options, resources, source)
-    choice = None
+    source = video if isinstance(video, FrameSource) else open_frames(Path(video))
+    if isinstance(job, JobPlan):
+        plan = job
+    else:
+        plan = check_options(
+            job, resources or PipelineResources(), source, detect=detections is None
+        )
+    # the results name what ran: the pose and re-identification networks (true or false,
+    # their models), and the detector ('auto' resolved, the CNN's model named) unless the
+    # detections are handed in
+    options = plan.options
     if detections is not None and options.mode != "people":
         raise OptionsError("detections are for tracking people, not a single target")
-    if options.mode == "people":
-        # the results name what ran: the pose and re-identification networks (true or false,
-        # their models), and the detector ('auto' resolved, the CNN's model named) unless the
-        # detections are handed in
-        networks = choose_networks(options.tracker, resources)
-        options = options.model_copy(update={"tracker": networks.tracker})
-    if detections is None and options.mode == "people":
-        choice = choose_detector(options.detector, resources)
-        options = options.model_copy(update={"detector": choice.options})
-    pipeline = build_pipeline(options, resources, detect=detections is None)
+    pipeline = build_pipeline(plan)
     log.debug(
         "job %s: %dx%d video, %.3f frames per second, %s frames announced; options %s",
         job_id,
@@ -141,8 +146,10 @@ def analyze(
         filename=filename,
         mcap_images=options.mcap_images,
         pixel_aspect=source.pixel_aspect,
+        analytics=plan.analytics,
     )
     writers = open_writers(list(options.formats), scratch, info)
+    analytics = None if plan.analytics is None else FrameAnalytics(plan.analytics)
     filler = GapFiller(options.fill_gaps) if options.fill_gaps > 0 else None
     processed, read, last_report = 0, ReadProgress(), time.perf_counter()
     greyscale = False
@@ -167,12 +174,13 @@ def analyze(
             if filler is not None:
                 # numbered by video frame, as the messages are
                 for filled in filler.push(dataclasses.replace(tracks, frame_index=frame.index)):
-                    late = frame_message(filled.frame_index, filled.timestamp, filled.tracks)
+                    late = frame_message(filled)
                     for writer in writers.values():
                         writer.write_filled(late)
-            message = frame_message(frame.index, frame.timestamp, tracks.tracks)
+            message = frame_message(tracks, frame.index)
+            events = [] if analytics is None else analytics.update(tracks, frame.index)
             for writer in writers.values():
-                writer.write(frame, message)
+                writer.write(frame, message, events)
             processed += 1
         if processed == 0:  # the video is shorter than it says, or the range has no frame
             raise OptionsError(
@@ -183,8 +191,10 @@ def analyze(
                 f"last frame is at {read.end_time:.2f} s"
             )
         summary = _summary(source, options, read, processed, filename, greyscale)
-        if choice is not None and choice.warning:
-            summary.warnings.append(choice.warning)
+        summary.warnings.extend(plan.warnings)
+        if analytics is not None:
+            summary.analytics = analytics.result()
+            write_analytics(scratch / ANALYTICS_FILE, summary.analytics)
         for writer in writers.values():
             writer.close(summary)
     except BaseException:
@@ -192,6 +202,7 @@ def analyze(
             writer.abort()
         raise
     seconds = time.perf_counter() - started
+    assert summary.video is not None  # an upload's summary has its video
     return AnalysisResult(
         files={fmt: writer.path for fmt, writer in writers.items()},
         video=summary.video,
@@ -199,6 +210,8 @@ def analyze(
         seconds=seconds,
         options=options,
         warnings=summary.warnings,
+        analytics=None if summary.analytics is None else summary.analytics.counts,
+        analytics_file=None if summary.analytics is None else scratch / ANALYTICS_FILE,
     )
 
 
@@ -211,7 +224,8 @@ def greyscale_warning(mode: str, preset: str | None) -> str | None:
             "clothing colours are the same grey, so they do not help keep people apart or "
             "recognise those who come back; identities rest on motion and appearance alone"
         )
-    colour = "+".join(PRESETS[preset].colour_features) if preset in PRESETS else ""
+    config = None if preset is None else PRESETS.get(preset)
+    colour = "+".join(config.colour_features) if config is not None else ""
     if not colour:
         return None
     return (
@@ -306,10 +320,10 @@ def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
     if read.reached_end:  # reading stopped at the end asked for, before the video's
         return warnings
     if source.count_stated:
-        frames = source.lead_frames + read.frames
-        if not (source.frame_count and frames < source.frame_count):
+        decoded = source.lead_frames + read.frames
+        if not (source.frame_count and decoded < source.frame_count):
             return warnings
-        read_part = f"{frames} of the {source.frame_count} frames"
+        read_part = f"{decoded} of the {source.frame_count} frames"
     else:
         end_time = source.lead_seconds + read.end_time
         if not (source.duration and end_time + 2.0 / source.timing_fps < source.duration):
@@ -322,8 +336,14 @@ def damage_warnings(source: FrameSource, read: ReadProgress) -> list[str]:
     return warnings
 
 
+def write_analytics(path: Path, result: AnalyticsResult) -> None:
+    """The events and counts of a run's zones and lines, as ``analytics.json``."""
+    path.write_text(result.model_dump_json(by_alias=True), encoding="utf-8")
+
+
 def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:
-    """Move a finished run's files from its scratch folder into ``folder`` (atomic renames).
+    """Move a finished run's files from its scratch folder into ``folder`` (atomic renames),
+    the events of its zones and lines (:data:`ANALYTICS_FILE`) too.
 
     The folder then holds this run's results only: a result file of a format the run did not
     write, left there by an earlier run, is removed rather than passed off as this run's.
@@ -337,4 +357,8 @@ def publish(result: AnalysisResult, folder: Path) -> dict[OutputFormat, Path]:
     for fmt, name in RESULT_FILES.items():
         if fmt not in published:
             (folder / name).unlink(missing_ok=True)
+    if result.analytics_file is not None:
+        os.replace(result.analytics_file, folder / ANALYTICS_FILE)
+    else:
+        (folder / ANALYTICS_FILE).unlink(missing_ok=True)
     return published

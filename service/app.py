@@ -19,14 +19,13 @@ from collections.abc import AsyncIterator, Iterator
 from contextlib import asynccontextmanager, contextmanager
 from http import HTTPStatus
 from types import FrameType
-from typing import ClassVar
+from typing import ClassVar, cast
 from urllib.parse import urlsplit
 
 import anyio
 import psycopg
 import uvicorn
 from fastapi import FastAPI, Request
-from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi_offline import FastAPIOffline
@@ -36,16 +35,19 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
-from api_schemas.common import error_message
+from api_schemas.common import ERROR_STATUS, ErrorType, error_message
 from service import __version__
 from service.data_folder import DataFolder, claim_data_folder
+from service.delivery.dispatch import Dispatcher
+from service.delivery.outbox import Outbox
+from service.delivery.setup import make_sinks, sink_names
 from service.deps import token_refusal
+from service.errors import error_body, error_response, error_type
 from service.jobs.files import FolderFiles
 from service.jobs.housekeeping import Housekeeper, sweep
 from service.jobs.probing import VideoProber
 from service.jobs.runner import WorkerConfig
 from service.jobs.store import JobStore
-from service.jobs.submit import InvalidOptions
 from service.jobs.workers import WorkerPool
 from service.logs import LOG_FORMAT, quiet_ffmpeg
 from service.metrics import make_registry
@@ -65,11 +67,12 @@ text and an annotated MP4. Jobs run in worker processes and survive a restart of
 Or track cameras live: frames published on Zenoh in, tracks published back as they are computed
 (`/v1/streams`).
 
-Every error answers JSON, an `ErrorResponse`: `detail`, a sentence saying what went wrong and
-what to do, and for a request that fails its schema (422) `errors`, each failed check. Each
-operation lists every status it can answer, those that any request can meet included (a
-missing token, a request too slow or too large, too many connections). A method a path does not
-take is answered 405, with `Allow` naming those it takes.
+Every error answers JSON, an `ErrorResponse`: `type`, a stable code for programs (`ErrorType`
+lists them with their statuses), `detail`, a sentence saying what went wrong and what to do, and
+for a request that fails its schema (422) `errors`, each failed check. Each operation lists
+every status it can answer, those that any request can meet included (a missing token, a
+request too slow or too large, too many connections). A method a path does not take is answered
+405, with `Allow` naming those it takes.
 """
 
 
@@ -82,7 +85,8 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     # `vtrack serve` claimed the folder already, to refuse a bad one in a line before it serves;
     # under `uvicorn service.app:app` a DataFolderError stops the start-up here, with its reason
     claimed_here = None if app.state.data_folder is not None else claim_data_folder(settings)
-    store = JobStore(settings.job_database, folder=settings.data_dir)
+    sinks = sink_names(settings)  # the webhooks and the MQTT broker that hear of events
+    store = JobStore(settings.job_database, folder=settings.data_dir, sinks=sinks)
     requeued, failed = store.requeue_orphans(settings.max_attempts, settings.instance)
     for job_id in requeued:
         log.warning("job %s queued again: the service died while it ran", job_id)
@@ -103,6 +107,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         log_level=settings.log_level,
         instance=settings.instance,
         lease=settings.job_lease_seconds if store.shared else None,
+        sinks=sinks,
     )
     # no worker is replaced once a stop signal came: the service is stopping them
     stopping = app.state.stopping
@@ -127,6 +132,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         stop_requested=stopping,
         # instances of one database share the streams: spread over them by name
         spread_as=settings.instance if store.shared else None,
+        sinks=sinks,
     )
     if settings.zenoh_enabled:
         streams.start(settings.streams)
@@ -138,7 +144,14 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.files = files
     app.state.pool = pool
     app.state.streams = streams
-    app.state.registry = make_registry(store, pool, streams, settings.data_dir, settings.instance)
+    app.state.registry = make_registry(
+        store, pool, streams, settings.data_dir, settings.instance, sinks
+    )
+    dispatcher = None
+    if sinks:
+        outbox = Outbox(settings.job_database)
+        max_age = settings.events_max_age_hours * 3600
+        dispatcher = Dispatcher(outbox, make_sinks(settings), max_age=max_age).start()
     log.info("data in %s; worker processes: %d", settings.data_dir.resolve(), settings.workers)
     housekeeper = Housekeeper(settings, store, files)
     housekeeper.start()
@@ -148,6 +161,9 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         housekeeper.stop()
         streams.shutdown()
         pool.stop()
+        if dispatcher is not None:  # what it did not send waits in the outbox
+            dispatcher.stop()
+            dispatcher.outbox.close()
         app.state.prober.close()
         store.close()
         for name in ("pool", "prober", "store", "files", "registry", "streams"):
@@ -166,11 +182,12 @@ def _log_refusal(request: Request, status: int, detail: object) -> None:
 
 
 async def _http_error(request: Request, error: Exception) -> Response:
-    """FastAPI's answer to an HTTPException, logged (:func:`_log_refusal`) when it refuses."""
+    """The ErrorResponse of an HTTPException (:class:`~service.errors.ApiError` or one of the
+    framework's), logged (:func:`_log_refusal`)."""
     assert isinstance(error, HTTPException)
-    if error.status_code >= 400:
-        _log_refusal(request, error.status_code, error.detail)
-    return await http_exception_handler(request, error)
+    _log_refusal(request, error.status_code, error.detail)
+    body = error_body(error_type(error), error.detail, getattr(error, "errors", None))
+    return JSONResponse(body, status_code=error.status_code, headers=error.headers)
 
 
 async def _database_away(request: Request, error: Exception) -> JSONResponse:
@@ -181,7 +198,7 @@ async def _database_away(request: Request, error: Exception) -> JSONResponse:
         "few seconds"
     )
     _log_refusal(request, 503, f"{detail} ({str(error).strip().splitlines()[0]})")
-    return JSONResponse({"detail": detail}, status_code=503, headers={"Retry-After": "5"})
+    return error_response(ErrorType.unavailable, detail, headers={"Retry-After": "5"})
 
 
 async def _validation_error(request: Request, error: Exception) -> JSONResponse:
@@ -194,7 +211,7 @@ async def _validation_error(request: Request, error: Exception) -> JSONResponse:
     ]
     detail = "invalid request: " + "; ".join(problems)
     _log_refusal(request, 422, detail)
-    return JSONResponse({"detail": detail, "errors": listed}, status_code=422)
+    return error_response(ErrorType.validation_error, detail, errors=listed)
 
 
 def _problem(item: dict) -> str:
@@ -234,15 +251,15 @@ class _LimitedBodies:
                     f"(VTRACK_BODY_IDLE_SECONDS) after {size} bytes: send the request again"
                 )
                 _log_refusal(Request(scope), 408, detail)
-                response = JSONResponse({"detail": detail}, status_code=408)
-                response.headers["Connection"] = "close"  # the rest of the body is not read
+                closing = {"Connection": "close"}  # the rest of the body is not read
+                response = error_response(ErrorType.timeout, detail, headers=closing)
                 await response(scope, receive, send)
                 return
             if message["type"] == "http.disconnect":
                 # an answer nobody reads, for the middlewares above, which take none for an
                 # internal error ("No response returned") and log its traceback
                 detail = "the client went away before its request body was complete"
-                await JSONResponse({"detail": detail}, status_code=400)(scope, receive, send)
+                await error_response(ErrorType.bad_request, detail)(scope, receive, send)
                 return
             chunks.append(message.get("body", b""))
             size += len(chunks[-1])
@@ -252,7 +269,8 @@ class _LimitedBodies:
                     "here but an upload needs"
                 )
                 _log_refusal(Request(scope), 413, detail)
-                await JSONResponse({"detail": detail}, status_code=413)(scope, receive, send)
+                response = error_response(ErrorType.payload_too_large, detail)
+                await response(scope, receive, send)
                 return
             if not message.get("more_body", False):
                 break
@@ -260,9 +278,8 @@ class _LimitedBodies:
         if problem := _not_utf8(scope, body):
             _log_refusal(Request(scope), 422, problem)
             errors = [{"loc": ["body"], "msg": problem, "type": "unicode_decode"}]
-            await JSONResponse({"detail": problem, "errors": errors}, status_code=422)(
-                scope, receive, send
-            )
+            response = error_response(ErrorType.validation_error, problem, errors=errors)
+            await response(scope, receive, send)
             return
         replayed = False
 
@@ -312,11 +329,11 @@ async def _method_not_allowed(request: Request, error: Exception) -> Response:
     methods = ", ".join(allowed)
     detail = f"{request.method} is not allowed on {request.url.path}: use {methods}"
     _log_refusal(request, 405, detail)
-    return JSONResponse({"detail": detail}, status_code=405, headers={"Allow": methods})
+    return error_response(ErrorType.method_not_allowed, detail, headers={"Allow": methods})
 
 
 class _InternalErrorsAsJson:
-    """ASGI middleware: an exception no route expected answers 500 with JSON ``{"detail": ...}``
+    """ASGI middleware: an exception no route expected answers 500 with an ErrorResponse
     like every other error, and is logged once, with its traceback and the request; one of the
     data folder (full, or not writable: :func:`~service.storage.storage_problem`) answers 507
     saying so, as an upload it refuses is answered, logged as a warning in one line.
@@ -348,7 +365,7 @@ class _InternalErrorsAsJson:
             if problem := storage_problem(error):  # the data folder's, not the request's
                 detail = f"{problem.problem}: {problem.remedy}"
                 log.warning("%s %s refused (507): %s", scope["method"], scope["path"], detail)
-                response = JSONResponse({"detail": detail}, status_code=507)
+                response = error_response(ErrorType.insufficient_storage, detail)
                 await response(scope, receive, send)
                 return
             log.exception("internal error answering %s %s", scope["method"], scope["path"])
@@ -356,14 +373,7 @@ class _InternalErrorsAsJson:
                 f"internal error ({type(error).__name__}) while answering {scope['method']} "
                 f"{scope['path']}: the service's log has the details; tell its operator"
             )
-            await JSONResponse({"detail": detail}, status_code=500)(scope, receive, send)
-
-
-async def _invalid_options(request: Request, error: Exception) -> JSONResponse:
-    """422 for job options: the sentence and each failed check (:class:`InvalidOptions`)."""
-    assert isinstance(error, InvalidOptions)
-    _log_refusal(request, 422, error.detail)
-    return JSONResponse({"detail": error.detail, "errors": error.errors}, status_code=422)
+            await error_response(ErrorType.internal, detail)(scope, receive, send)
 
 
 DOCS_ASSETS = "/docs-assets"
@@ -422,14 +432,14 @@ async def _refusals_before_anything_else(request: Request, call_next):
     )
     if refusal is not None:
         _log_refusal(request, 403, refusal)
-        return JSONResponse({"detail": refusal}, status_code=403)
+        return error_response(ErrorType.forbidden, refusal)
     path = request.url.path
     if not (path in OPEN_PATHS or path.startswith(DOCS_ASSETS + "/")):
         refusal = token_refusal(settings, headers.get("authorization"))
         if refusal is not None:
             _log_refusal(request, 401, refusal)
-            return JSONResponse(
-                {"detail": refusal}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
+            return error_response(
+                ErrorType.unauthorized, refusal, headers={"WWW-Authenticate": "Bearer"}
             )
     return await call_next(request)
 
@@ -459,7 +469,6 @@ def create_app(settings: Settings | None = None, data_folder: DataFolder | None 
     app.add_exception_handler(405, _method_not_allowed)
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
-    app.add_exception_handler(InvalidOptions, _invalid_options)
     app.add_exception_handler(psycopg.OperationalError, _database_away)
     app.add_middleware(_LimitedBodies)
     app.middleware("http")(_refusals_before_anything_else)  # outside the limit: first
@@ -524,7 +533,8 @@ class LimitedHttpProtocol(HttpToolsProtocol):
         if self._header_bytes > MAX_HEADER_BYTES:
             self._headers_arrived()
             self._close(
-                431, f"the request's line and headers are over {MAX_HEADER_BYTES // 1024} KiB"
+                ErrorType.headers_too_large,
+                f"the request's line and headers are over {MAX_HEADER_BYTES // 1024} KiB",
             )
 
     def on_message_begin(self) -> None:
@@ -561,16 +571,17 @@ class LimitedHttpProtocol(HttpToolsProtocol):
             self.transport.close()
             return
         self._close(
-            408,
+            ErrorType.timeout,
             f"the request's headers did not arrive within {self.header_seconds:g} s "
             "(VTRACK_HEADER_SECONDS)",
         )
 
-    def _close(self, status: int, detail: str) -> None:
-        """Answer ``status`` with ``{"detail": ...}`` and close the connection."""
+    def _close(self, type: ErrorType, detail: str) -> None:
+        """Answer an ErrorResponse of ``type`` and close the connection."""
+        status = ERROR_STATUS[type]
         client = self.client[0] if self.client else "?"
         log.info("connection from %s closed (%d): %s", client, status, detail)
-        body = json.dumps({"detail": detail}).encode()
+        body = json.dumps(error_body(type, detail)).encode()
         head = (
             f"HTTP/1.1 {status} {HTTPStatus(status).phrase}\r\n"
             f"content-type: application/json\r\ncontent-length: {len(body)}\r\n"
@@ -588,7 +599,7 @@ async def _too_many_connections(scope: Scope, receive: Receive, send: Send) -> N
     )
     _log_refusal(Request(scope), 503, detail)
     headers = {"Retry-After": "1", "Connection": "close"}
-    await JSONResponse({"detail": detail}, status_code=503, headers=headers)(scope, receive, send)
+    await error_response(ErrorType.busy, detail, headers=headers)(scope, receive, send)
 
 
 class StoppingServer(uvicorn.Server):
@@ -606,7 +617,7 @@ class StoppingServer(uvicorn.Server):
     _terminated = False
 
     def handle_exit(self, sig: int, frame: FrameType | None) -> None:
-        self.config.app.state.stopping.set()
+        cast(FastAPI, self.config.app).state.stopping.set()  # create_app's (`vtrack serve`)
         self._terminated = self._terminated or sig == signal.SIGTERM
         super().handle_exit(sig, frame)
 

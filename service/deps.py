@@ -5,12 +5,14 @@ from __future__ import annotations
 import secrets
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Request, status
+from fastapi import Depends, Request
 from fastapi.dependencies.models import Dependant
 from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
+from api_schemas.common import ErrorType
+from service.errors import ApiError
 from service.jobs.files import JobFiles
 from service.jobs.store import JobStore
 from service.jobs.workers import WorkerPool
@@ -80,9 +82,7 @@ def require_token(
     """When ``VTRACK_API_TOKEN`` is set, the request must carry it as a bearer token."""
     refusal = token_refusal(settings, request.headers.get("authorization"))
     if refusal is not None:
-        raise HTTPException(
-            status.HTTP_401_UNAUTHORIZED, refusal, headers={"WWW-Authenticate": "Bearer"}
-        )
+        raise ApiError(ErrorType.unauthorized, refusal, headers={"WWW-Authenticate": "Bearer"})
 
 
 AuthDep = Depends(require_token)

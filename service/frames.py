@@ -19,13 +19,13 @@ import cv2
 import numpy as np
 
 from service.ffmpeg_paths import FfmpegPath
-from tracking.image_files import read_rgb
-from tracking.seqinfo import (
+from tracking.datasets.mot import (
     MotFormatError,
     read_seqinfo,
     seqinfo_frame_rate,
     seqinfo_whole_number,
 )
+from tracking.image_files import read_rgb
 
 DEFAULT_FPS = 25.0
 """Frame rate assumed for image folders and videos that declare none."""
@@ -668,7 +668,7 @@ def _lead_before_keyframe(
         if first_time is None:
             first_time = time
         if packet.is_keyframe:
-            if count == 0 or time is None or first_time is None:
+            if count == 0 or time is None or first_time is None or video.time_base is None:
                 return count, 0.0
             return count, float((time - first_time) * video.time_base)
     return 0, 0.0
@@ -720,7 +720,8 @@ def _open_folder(path: Path, fps: float | None) -> FrameSource:
     indices = _mot_frame_indices(images) if info else tuple(range(len(images)))
     notes = _missing_images(images, indices, folder)
     rate = length = None
-    if info:  # a malformed entry is told, not fatal: the images can be tracked all the same
+    # a malformed entry is told, not fatal: the images can be tracked all the same
+    if info and ini is not None:  # (a file read comes with its path)
         try:
             rate = seqinfo_frame_rate(ini, info)
         except MotFormatError as error:

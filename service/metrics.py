@@ -34,8 +34,10 @@ class ServiceCollector(Collector):
         streams: StreamManager,
         data_dir: Path,
         instance: str = "",
+        sinks: tuple[str, ...] = (),
     ) -> None:
         self._instance = instance
+        self._sinks = sinks
         self._store = store
         self._pool = pool
         self._streams = streams
@@ -111,6 +113,25 @@ class ServiceCollector(Collector):
             value=free_bytes(self._data_dir),
         )
         yield from self._stream_metrics()
+        yield from self._event_metrics(counters)
+
+    def _event_metrics(self, counters: dict[str, float]):
+        """Events per sink (webhooks, the MQTT broker), from the outbox's counts in the
+        database: the same from every instance that shares it."""
+        sinks = sorted(
+            {*self._sinks, *(n.partition(":")[2] for n in counters if n[:7] == "events_")}
+        )
+        for kind, what in (
+            ("produced", "Events of zones and lines queued for a sink."),
+            ("delivered", "Events a sink took (a 2xx answer, an MQTT PUBACK)."),
+            ("retried", "Sends that failed and were tried again later."),
+            ("dropped", "Events dropped after VTRACK_EVENTS_MAX_AGE_HOURS undelivered (0 is "
+             "the aim)."),
+        ):  # fmt: skip
+            family = CounterMetricFamily(f"vtrack_events_{kind}", what, labels=["sink"])
+            for sink in sinks:
+                family.add_metric([sink], counters.get(f"events_{kind}:{sink}", 0.0))
+            yield family
 
     def _stream_metrics(self):
         by_state = GaugeMetricFamily("vtrack_streams", "Live streams, by state.", labels=["state"])
@@ -148,8 +169,13 @@ class ServiceCollector(Collector):
 
 
 def make_registry(
-    store: JobStore, pool: WorkerPool, streams: StreamManager, data_dir: Path, instance: str = ""
+    store: JobStore,
+    pool: WorkerPool,
+    streams: StreamManager,
+    data_dir: Path,
+    instance: str = "",
+    sinks: tuple[str, ...] = (),
 ) -> CollectorRegistry:
     registry = CollectorRegistry(auto_describe=False)
-    registry.register(ServiceCollector(store, pool, streams, data_dir, instance))
+    registry.register(ServiceCollector(store, pool, streams, data_dir, instance, sinks))
     return registry

@@ -15,10 +15,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from api_schemas.jobs import DetectorOptions, JobOptions, PeopleTrackerOptions
+from service.analytics import AnalyticsProblem, analytics_config
 from service.frames import FrameSource, frame_size_problem
 from service.models.catalog import CATALOG, model_path
 from service.models.resolve import CNN_SETTING, POSE_SETTING, REID_SETTING, ModelSetting
-from tracking.correlation import PRESETS
+from tracking.analytics import AnalyticsConfig
+from tracking.correlation import PRESETS, CorrelationConfig
 from tracking.detection.base import Detector
 from tracking.detection.cnn import MODEL_SUFFIXES, CnnConfig, CnnDetector
 from tracking.detection.dpm import DpmDetector
@@ -50,7 +52,17 @@ NO_CNN_WARNING = (
 
 
 class OptionsError(ValueError):
-    """Job options this service cannot run (unknown preset, no DPM or CNN model...)."""
+    """Job options this service cannot run (unknown preset, no DPM or CNN model...); ``loc``,
+    when one option is to blame, its path in the options (``("analytics", "zones", 0,
+    "polygon")``)."""
+
+    def __init__(
+        self, message: str, loc: tuple[str | int, ...] | None = None, check: str | None = None
+    ) -> None:
+        super().__init__(message)
+        self.loc = loc
+        self.message = check or message
+        """What was wrong with the option at ``loc``, without its path."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,13 +117,15 @@ NETWORK_OPTIONS = frozenset({"pose", "pose_model", "reid", "reid_model"})
 
 
 def people_config(options: JobOptions, resources: PipelineResources) -> PeopleTrackerConfig:
+    """The multi-person tracker's configuration: its defaults, the service's Color Names table
+    and the job's ``tracker`` options (those that choose networks aside)."""
     base = PeopleTrackerConfig()
     if resources.color_names is not None:
         appearance = dataclasses.replace(
             base.appearance, color_names_path=str(resources.color_names)
         )
         base = dataclasses.replace(base, appearance=appearance)
-    overrides = options.tracker.model_dump(exclude_none=True, exclude=NETWORK_OPTIONS)
+    overrides = options.tracker.model_dump(exclude_none=True, exclude=set(NETWORK_OPTIONS))
     if "part_appearance" in overrides:  # the option switches the tracker's part trackers
         overrides["part_appearance"] = (
             default_part_appearance() if overrides["part_appearance"] else None
@@ -277,45 +291,6 @@ def choose_networks(options: PeopleTrackerOptions, resources: PipelineResources)
     return NetworksChoice(options.model_copy(update=update), files["pose"], files["reid"])
 
 
-def resolved_options(options: JobOptions, resources: PipelineResources) -> JobOptions:
-    """``options`` as a people job runs them, for its results to say what ran: detector 'auto'
-    resolved and the CNN's model named (:func:`choose_detector`), ``tracker.pose`` and
-    ``tracker.reid`` true or false with their models named (:func:`choose_networks`).
-    Single-target options are returned as they are."""
-    if options.mode != "people":
-        return options
-    return options.model_copy(
-        update={
-            "detector": choose_detector(options.detector, resources).options,
-            "tracker": choose_networks(options.tracker, resources).tracker,
-        }
-    )
-
-
-def job_detector(options: DetectorOptions, resources: PipelineResources) -> Detector:
-    """The detector ``options`` ask for ('auto' resolved as :func:`choose_detector` does)."""
-    choice = choose_detector(options, resources)
-    options = choice.options
-    if options.name == "cnn":
-        config = CnnConfig(upscale=options.upscale, threads=resources.inference_threads)
-        return CnnDetector.from_file(choice.model_file, config)
-    if options.name == "dpm":
-        if resources.dpm_model is None:
-            raise OptionsError(
-                "detector 'dpm' needs a voc-release5 model, and this service has none: set "
-                "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
-            )
-        config = dataclasses.replace(
-            DPM_TRACKING_CONFIG,
-            upscale=options.upscale or DPM_TRACKING_CONFIG.upscale,
-            levels_per_octave=options.levels_per_octave or DPM_TRACKING_CONFIG.levels_per_octave,
-        )
-        # the model is known to be a DPM: make_detector would tell it by its .mat suffix
-        return DpmDetector.from_file(resources.dpm_model, config)
-    config = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
-    return make_detector("default", config)
-
-
 MAX_ENLARGED_PIXELS = 7680 * 4320
 """The largest frame a detector is given after ``detector.upscale``: 8K. A 4K video at 4x
 (15360x8640) took about 25 s and 3.6 GB per frame in one worker."""
@@ -335,77 +310,198 @@ def enlargement_problem(upscale: float | None, frame_size: tuple[int, int]) -> s
     )
 
 
+@dataclass(frozen=True, slots=True)
+class JobPlan:
+    """Job options checked once and resolved into what runs; :func:`build_pipeline` trusts it.
+
+    Attributes
+    ----------
+    options:
+        The options as they run, for the results to say so: detector 'auto' resolved and the
+        CNN's model named, ``tracker.pose`` and ``tracker.reid`` true or false with their
+        models named (single-target options as given).
+    correlation:
+        A single target's tracker: the preset's configuration with the service's Color Names
+        table; None for people.
+    first_box:
+        A single target's first box; None for people.
+    people:
+        The multi-person tracker's configuration (:func:`people_config`, the box aspect left
+        to a CNN's boxes); None for a single target.
+    detector:
+        The detector that runs; None for a single target, or for people whose detections are
+        handed in.
+    pose_file, reid_file:
+        The pose and re-identification networks (None: off).
+    dpm_model:
+        The voc-release5 model of detector 'dpm'.
+    inference_threads:
+        Threads of each network's inference (0: OpenVINO's choice).
+    analytics:
+        The zones and lines watched, in pixels of the video (None: none, or a stream's whose
+        frame size is not known yet).
+    warnings:
+        What to tell the user of the choices (the embedded detector standing in for the CNN).
+    """
+
+    options: JobOptions
+    correlation: CorrelationConfig | None = None
+    first_box: Box | None = None
+    people: PeopleTrackerConfig | None = None
+    detector: DetectorChoice | None = None
+    pose_file: Path | None = None
+    reid_file: Path | None = None
+    dpm_model: Path | None = None
+    inference_threads: int = 0
+    analytics: AnalyticsConfig | None = None
+    warnings: tuple[str, ...] = ()
+
+
 def check_options(
-    options: JobOptions, resources: PipelineResources, source: FrameSource | None = None
-) -> None:
-    """Raise :class:`OptionsError` for options that could not run; cheap (loads no model).
+    options: JobOptions,
+    resources: PipelineResources,
+    source: FrameSource | None = None,
+    *,
+    detect: bool = True,
+) -> JobPlan:
+    """Check ``options`` and resolve them into the plan of a run; cheap (loads no model).
 
     ``source``, the video, to check that its frames are large enough to track
     (:data:`~service.frames.MIN_SIDE`), a single target's first box, how large
     ``detector.upscale`` makes the frames, and that a frame is at or after ``start``.
+    ``detect`` False, for people: the run takes each frame's detections (public detections,
+    an upstream detector's) and the plan has no detector.
+
+    Raises
+    ------
+    OptionsError
+        For options that could not run here, saying why and what to change.
     """
     frame_size = None if source is None else (source.width, source.height)
     if frame_size is not None and (problem := frame_size_problem(*frame_size)):
         raise OptionsError(problem)
     if source is not None and (problem := source.start_problem(options.start)):
         raise OptionsError(problem)
+    analytics = _analytics(options, frame_size)
     if options.mode == "single_target":
-        if options.preset not in PRESETS:
-            raise OptionsError(
-                f"unknown preset {options.preset!r}: choose one of {', '.join(sorted(PRESETS))}"
-            )
-        if frame_size is not None and options.first_box is not None:
-            b = options.first_box
-            if problem := box_problem(Box(b.x, b.y, b.w, b.h), (frame_size[1], frame_size[0])):
-                raise OptionsError(f"first_box {problem}")
-        return
-    people_config(options, resources)
-    choose_networks(options.tracker, resources)
+        return _single_target_plan(options, resources, frame_size, analytics)
+    config = people_config(options, resources)
+    networks = choose_networks(options.tracker, resources)
+    options = options.model_copy(update={"tracker": networks.tracker})
     if frame_size is not None and (
         problem := enlargement_problem(options.detector.upscale, frame_size)
     ):
         raise OptionsError(problem)
-    if options.detector.name == "cnn":
-        cnn_model_file(options.detector.model, resources)
-    if options.detector.name == "dpm" and resources.dpm_model is None:
+    choice = None
+    if detect:
+        choice = choose_detector(options.detector, resources)
+        options = options.model_copy(update={"detector": choice.options})
+        if choice.options.name == "dpm":
+            _check_dpm_model(resources.dpm_model)
+        if choice.options.name == "cnn":
+            # The CNN's boxes fit the people (the public detections and the HOG and DPM
+            # detectors pad theirs, which the tracker's 0.41 aspect undoes): the tracks keep
+            # their shape. Measured with its detections on PETS09-S2L1 and TUD-Stadtmitte,
+            # HOTA 62.0 against 61.4 (3 seeds; docs/benchmarks.md).
+            config = dataclasses.replace(config, box_aspect=None)
+    return JobPlan(
+        options=options,
+        people=config,
+        detector=choice,
+        pose_file=networks.pose_file,
+        reid_file=networks.reid_file,
+        dpm_model=resources.dpm_model,
+        inference_threads=resources.inference_threads,
+        analytics=analytics,
+        warnings=() if choice is None or choice.warning is None else (choice.warning,),
+    )
+
+
+def _analytics(options: JobOptions, frame_size: tuple[int, int] | None) -> AnalyticsConfig | None:
+    """The zones and lines of ``options`` on frames of ``frame_size``; None without them, or
+    when the frame size is not known yet (a stream's: its worker plans them at its first
+    frame), after the checks that need no frame size."""
+    if options.analytics is None:
+        return None
+    try:
+        config = analytics_config(options.analytics, frame_size)
+    except AnalyticsProblem as problem:
+        raise OptionsError(str(problem), problem.loc, problem.message) from None
+    return None if frame_size is None else config
+
+
+def _single_target_plan(
+    options: JobOptions,
+    resources: PipelineResources,
+    frame_size: tuple[int, int] | None,
+    analytics: AnalyticsConfig | None,
+) -> JobPlan:
+    if options.preset is None or options.preset not in PRESETS:
+        raise OptionsError(
+            f"unknown preset {options.preset!r}: choose one of {', '.join(sorted(PRESETS))}"
+        )
+    b = options.first_box
+    assert b is not None  # JobOptions guarantees it in this mode
+    box = Box(b.x, b.y, b.w, b.h)
+    if frame_size is not None and (problem := box_problem(box, (frame_size[1], frame_size[0]))):
+        raise OptionsError(f"first_box {problem}")
+    config = PRESETS[options.preset]
+    if resources.color_names is not None:
+        config = dataclasses.replace(config, color_names_path=str(resources.color_names))
+    return JobPlan(options=options, correlation=config, first_box=box, analytics=analytics)
+
+
+def _check_dpm_model(model: Path | None) -> None:
+    if model is None:
         raise OptionsError(
             "detector 'dpm' needs a voc-release5 model, and this service has none: set "
             "VTRACK_DPM_MODEL to the .mat file, or use detector 'default'"
         )
-    if options.detector.name == "dpm" and not resources.dpm_model.is_file():
+    if not model.is_file():
         raise OptionsError(
-            f"detector 'dpm' needs the model {resources.dpm_model} (VTRACK_DPM_MODEL), which is "
-            "no longer there: the service's operator must put it back, or use detector "
-            "'default'"
+            f"detector 'dpm' needs the model {model} (VTRACK_DPM_MODEL), which is no longer "
+            "there: the service's operator must put it back, or use detector 'default'"
         )
 
 
-def build_pipeline(
-    options: JobOptions, resources: PipelineResources, *, detect: bool = True
-) -> FramePipeline:
-    """The pipeline the options ask for; ``detect`` False, for people, one without a detector
-    (it takes each frame's detections: public detections, an upstream detector's)."""
-    check_options(options, resources)
-    if options.mode == "single_target":
-        config = PRESETS[options.preset]
-        if resources.color_names is not None:
-            config = dataclasses.replace(config, color_names_path=str(resources.color_names))
-        b = options.first_box
-        assert b is not None  # JobOptions guarantees it in this mode
-        return SingleTargetPipeline(Box(b.x, b.y, b.w, b.h), config)
-    networks = choose_networks(options.tracker, resources)
-    threads = resources.inference_threads
+def plan_detector(plan: JobPlan) -> Detector | None:
+    """The detector of a people ``plan``, loaded (None when its detections are handed in)."""
+    if plan.detector is None:
+        return None
+    options = plan.detector.options
+    if options.name == "cnn":
+        assert plan.detector.model_file is not None  # choose_detector names it
+        cnn = CnnConfig(upscale=options.upscale, threads=plan.inference_threads)
+        return CnnDetector.from_file(plan.detector.model_file, cnn)
+    if options.name == "dpm":
+        assert plan.dpm_model is not None  # check_options checked it
+        dpm = dataclasses.replace(
+            DPM_TRACKING_CONFIG,
+            upscale=options.upscale or DPM_TRACKING_CONFIG.upscale,
+            levels_per_octave=options.levels_per_octave or DPM_TRACKING_CONFIG.levels_per_octave,
+        )
+        # the model is known to be a DPM: make_detector would tell it by its .mat suffix
+        return DpmDetector.from_file(plan.dpm_model, dpm)
+    hog = HogPeopleConfig(upscale=options.upscale) if options.upscale else None
+    return make_detector("default", hog)
+
+
+def build_pipeline(plan: JobPlan) -> FramePipeline:
+    """The pipeline of a checked ``plan`` (:func:`check_options`); loads its models.
+
+    Raises
+    ------
+    ValueError
+        A model file that does not load (corrupt, or not a network of its kind).
+    """
+    if plan.correlation is not None:
+        assert plan.first_box is not None
+        return SingleTargetPipeline(plan.first_box, plan.correlation)
+    assert plan.people is not None
+    threads = plan.inference_threads
     pose = reid = None
-    if networks.pose_file is not None:
-        pose = PoseEstimator.from_file(networks.pose_file, PoseConfig(threads=threads))
-    if networks.reid_file is not None:
-        reid = ReidEmbedder.from_file(networks.reid_file, ReidConfig(threads=threads))
-    config = people_config(options, resources)
-    detector = job_detector(options.detector, resources) if detect else None
-    if isinstance(detector, CnnDetector):
-        # The CNN's boxes fit the people (the public detections and the HOG and DPM detectors
-        # pad theirs, which the tracker's 0.41 aspect undoes): the tracks keep their shape.
-        # Measured with its detections on PETS09-S2L1 and TUD-Stadtmitte, HOTA 62.0 against
-        # 61.4 (3 seeds; docs/benchmarks.md).
-        config = dataclasses.replace(config, box_aspect=None)
-    return PeoplePipeline(detector, config, pose=pose, reid=reid)
+    if plan.pose_file is not None:
+        pose = PoseEstimator.from_file(plan.pose_file, PoseConfig(threads=threads))
+    if plan.reid_file is not None:
+        reid = ReidEmbedder.from_file(plan.reid_file, ReidConfig(threads=threads))
+    return PeoplePipeline(plan_detector(plan), plan.people, pose=pose, reid=reid)

@@ -1,4 +1,4 @@
-"""Service settings, read from ``VTRACK_*`` environment variables (documented in the README)."""
+"""Service settings, read from ``VTRACK_*`` environment variables (docs/settings.md)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,15 @@ from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, SecretStr, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SecretStr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 from pydantic_settings import BaseSettings, SettingsConfigDict, SettingsError
 
 from api_schemas.common import error_message
@@ -78,6 +86,17 @@ def is_loopback(address: str) -> bool:
     address; a host name is whatever it resolves to)."""
     ip = ip_address(address)
     return address == "localhost" or (ip is not None and ip.is_loopback)
+
+
+class WebhookSetting(BaseModel):
+    """A receiver of events: ``name`` (in metrics and logs), ``url`` and the ``secret`` that
+    signs each body (unset: unsigned)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
+    url: str = Field(pattern=r"^https?://", description="http:// or https:// address.")
+    secret: SecretStr | None = None
 
 
 class Settings(BaseSettings):
@@ -332,6 +351,45 @@ class Settings(BaseSettings):
         description="Largest frame payload in bytes a stream accepts (larger ones are counted "
         "as malformed).",
     )
+    webhooks: list[WebhookSetting] = Field(
+        default_factory=list,
+        description="JSON list of webhooks that receive the events of streams and the "
+        'summaries of finished jobs, e.g. [{"name": "ops", "url": "https://ops.example/hook", '
+        '"secret": "..."}]: HTTP POST of JSON, signed with HMAC-SHA256 of the secret.',
+    )
+    mqtt_url: SecretStr | None = Field(
+        default=None,
+        description="An MQTT broker that receives the same events (QoS 1): "
+        "mqtt://[user:password@]host[:port], or mqtts:// for TLS.",
+    )
+    mqtt_topic_prefix: str = Field(
+        default="vtrack",
+        pattern=r"^[A-Za-z0-9_.-]+(/[A-Za-z0-9_.-]+)*$",
+        description="First level(s) of the MQTT topics: <prefix>/cameras/<camera>/events/<type>.",
+    )
+    events_max_age_hours: float = Field(
+        default=168,
+        gt=0,
+        description="Hours an event waits for a sink that is down before it is dropped (and "
+        "counted in vtrack_events_dropped_total).",
+    )
+
+    @field_validator("webhooks")
+    @classmethod
+    def _webhooks_named_apart(cls, value: list[WebhookSetting]) -> list[WebhookSetting]:
+        names = [hook.name for hook in value]
+        if twice := sorted({name for name in names if names.count(name) > 1}):
+            raise ValueError(f"each webhook needs a name of its own: {', '.join(twice)} repeats")
+        if "mqtt" in names:
+            raise ValueError("'mqtt' names the MQTT broker's events: give the webhook another")
+        return value
+
+    @field_validator("mqtt_url")
+    @classmethod
+    def _mqtt_address(cls, value: SecretStr | None) -> SecretStr | None:
+        if value is not None and not re.match(r"^mqtts?://[^/]+$", value.get_secret_value()):
+            raise ValueError("an MQTT broker's address is mqtt://[user:password@]host[:port]")
+        return value
 
     @field_validator(
         "dpm_model",

@@ -14,16 +14,21 @@ import re
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 
 import anyio
-from fastapi import HTTPException, Request, status
+from fastapi import Request
 from python_multipart import MultipartParser
 from python_multipart.exceptions import FormParserError
 from python_multipart.multipart import parse_options_header
 from starlette.requests import ClientDisconnect
 
+from api_schemas.common import ErrorType
+from service.errors import ApiError
 from service.storage import storage_problem
+
+if TYPE_CHECKING:
+    from python_multipart.multipart import MultipartCallbacks
 
 log = logging.getLogger(__name__)
 
@@ -61,9 +66,11 @@ def _client_filename(raw: bytes) -> str | None:
 
 
 class UploadError(Exception):
-    def __init__(self, status_code: int, detail: str) -> None:
+    """Why the body being parsed is refused, raised from the parser's callbacks."""
+
+    def __init__(self, type: ErrorType, detail: str) -> None:
         super().__init__(detail)
-        self.status_code = status_code
+        self.type = type
         self.detail = detail
 
 
@@ -93,7 +100,7 @@ class _Receiver:
         self._disposition: bytes | None = None
         self._part_type: bytes | None = None
 
-    def callbacks(self) -> dict:
+    def callbacks(self) -> MultipartCallbacks:
         return {
             "on_part_begin": self._on_part_begin,
             "on_header_field": self._on_header_field,
@@ -127,12 +134,14 @@ class _Receiver:
         name = params.get(b"name", b"").decode("utf-8", "replace")
         if name not in (VIDEO_PART, OPTIONS_PART):
             raise UploadError(
-                422,
+                ErrorType.invalid_upload,
                 f"unexpected form part {name!r}: send the video as the {VIDEO_PART!r} file part "
                 f"and, optionally, the job options as the {OPTIONS_PART!r} part (JSON)",
             )
         if name in self.seen:
-            raise UploadError(422, f"the {name!r} part was sent twice; send it once")
+            raise UploadError(
+                ErrorType.invalid_upload, f"the {name!r} part was sent twice; send it once"
+            )
         self.seen.add(name)
         self._part = name
         if name == VIDEO_PART:
@@ -140,7 +149,7 @@ class _Receiver:
             if raw is None and self._part_type is None:
                 # what a form's text field looks like: curl -F video=clip.mp4 (without the @)
                 raise UploadError(
-                    422,
+                    ErrorType.invalid_upload,
                     f"the {VIDEO_PART!r} part is a text field, not a file (it has neither a "
                     "file name nor a content type): send the file itself, e.g. with curl "
                     f"-F {VIDEO_PART}=@clip.mp4 (the @ makes curl send the file's bytes)",
@@ -155,11 +164,14 @@ class _Receiver:
         if self._part == VIDEO_PART:
             self.size += len(chunk)
             if self.size > self.max_bytes:
-                raise UploadError(413, too_large(self.max_bytes))
+                raise UploadError(ErrorType.payload_too_large, too_large(self.max_bytes))
             self._pending.append(chunk)
         elif self.options is not None:
             if len(self.options) + len(chunk) > MAX_OPTIONS_BYTES:
-                raise UploadError(413, f"the options part is larger than {MAX_OPTIONS_BYTES} bytes")
+                raise UploadError(
+                    ErrorType.payload_too_large,
+                    f"the options part is larger than {MAX_OPTIONS_BYTES} bytes",
+                )
             self.options.extend(chunk)
 
     def _on_part_end(self) -> None:
@@ -191,7 +203,7 @@ async def receive_upload(
 
     Raises
     ------
-    HTTPException
+    ApiError
         408 when nothing of the body arrives for ``idle_seconds`` (a stalled client would
         otherwise hold its connection and its partial file for ever), 413 above the size
         limit, 415 for a body that is not multipart, 422 for a missing ``video`` part, an
@@ -201,8 +213,8 @@ async def receive_upload(
     content_type = request.headers.get("content-type", "")
     kind, params = parse_options_header(content_type)
     if kind != b"multipart/form-data" or b"boundary" not in params:
-        raise HTTPException(
-            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+        raise ApiError(
+            ErrorType.unsupported_media,
             "send the upload as multipart/form-data with the video in a 'video' file part "
             f"(got Content-Type {content_type or 'none'!r})",
         )
@@ -210,7 +222,7 @@ async def receive_upload(
     drain_idle = min(idle_seconds, _DRAIN_IDLE_SECONDS)
     if declared and declared.isdigit() and int(declared) > max_bytes + _ENVELOPE_BYTES:
         await _drain(request.stream(), drain_idle)
-        raise HTTPException(413, too_large(max_bytes))
+        raise ApiError(ErrorType.payload_too_large, too_large(max_bytes))
     receiver = _Receiver(video_path, max_bytes)
     parser = MultipartParser(params[b"boundary"], receiver.callbacks())
     received = 0
@@ -221,7 +233,7 @@ async def receive_upload(
                 chunk = await anext(chunks, None)
             if waited.cancelled_caught:
                 raise UploadError(
-                    status.HTTP_408_REQUEST_TIMEOUT,
+                    ErrorType.timeout,
                     f"nothing of the upload arrived for {idle_seconds:g} s "
                     f"(VTRACK_UPLOAD_IDLE_SECONDS) after {received} bytes; nothing was kept: "
                     "send it again",
@@ -236,14 +248,14 @@ async def receive_upload(
     except UploadError as error:
         receiver.close()
         video_path.unlink(missing_ok=True)
-        if error.status_code == 413:
+        if error.type == ErrorType.payload_too_large:
             await _drain(chunks, drain_idle)
-        raise HTTPException(error.status_code, error.detail) from None
+        raise ApiError(error.type, error.detail) from None
     except FormParserError as error:
         receiver.close()
         video_path.unlink(missing_ok=True)
-        raise HTTPException(
-            422,
+        raise ApiError(
+            ErrorType.invalid_upload,
             f"the multipart body is malformed ({error}); send multipart/form-data with a "
             "'video' file part",
         ) from None
@@ -255,8 +267,8 @@ async def receive_upload(
         if problem is None:
             raise
         await _drain(chunks, drain_idle)
-        raise HTTPException(
-            status.HTTP_507_INSUFFICIENT_STORAGE,
+        raise ApiError(
+            ErrorType.insufficient_storage,
             f"{problem.problem}: the upload was not kept; {problem.remedy}, then send the video "
             "again",
         ) from None
@@ -266,15 +278,17 @@ async def receive_upload(
         receiver.close()
         video_path.unlink(missing_ok=True)
         log.warning("upload abandoned by the client after %d bytes; nothing kept", received)
-        raise HTTPException(400, "the client disconnected before the upload was complete") from None
+        raise ApiError(
+            ErrorType.bad_request, "the client disconnected before the upload was complete"
+        ) from None
     except BaseException:
         receiver.close()
         video_path.unlink(missing_ok=True)
         raise
     if VIDEO_PART not in receiver.seen:
         video_path.unlink(missing_ok=True)
-        raise HTTPException(
-            422,
+        raise ApiError(
+            ErrorType.invalid_upload,
             "the upload has no 'video' part: send the video file as the multipart file part "
             "named 'video'",
         )

@@ -66,14 +66,10 @@ def copy_mot_sequence(shared_data: Path, folder: Path, frames: int) -> Path:
 
 
 def documented_commands(script: str) -> list[list[str]]:
-    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md and
-    docs/benchmarks-history.md (lines joined at a trailing backslash, comments and backticks
-    dropped)."""
-    docs = REPO_ROOT / "docs"
-    text = "\n".join(
-        (docs / name).read_text().replace("\\\n", " ")
-        for name in ("benchmarks.md", "benchmarks-history.md")
-    )
+    """The arguments of every ``python benchmarks/<script>`` command in docs/benchmarks.md, the
+    current results (lines joined at a trailing backslash, comments and backticks dropped).
+    docs/benchmarks-history.md is history: its commands may name options that are gone."""
+    text = (REPO_ROOT / "docs" / "benchmarks.md").read_text().replace("\\\n", " ")
     commands = []
     for line in text.splitlines():
         start = line.find(f"python benchmarks/{script}")

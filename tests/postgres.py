@@ -57,7 +57,7 @@ from typing import Any
 
 import psycopg
 
-from service.testing import free_port, wait_for
+from devtools.testing import free_port, wait_for
 
 __all__ = [
     "BIN_ENV",

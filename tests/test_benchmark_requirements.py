@@ -1,5 +1,5 @@
-"""The README installs the benchmarks with ``pip install -e '.[bench]'``: every third-party module
-the scripts import, directly or through the project's own modules, must come with the
+"""docs/usage.md installs the benchmarks with ``pip install -e '.[bench]'``: every third-party
+module the scripts import, directly or through the project's own modules, must come with the
 project's dependencies and its ``bench`` extra (the ``dev`` extra is not installed then)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from packaging.requirements import Requirement
 
 from tests.conftest import REPO_ROOT
 
-PROJECT_PACKAGES = {"tracking", "service", "api_schemas", "benchmarks", "tests"}
+PROJECT_PACKAGES = {"tracking", "service", "api_schemas", "devtools", "benchmarks", "tests"}
 
 
 def _imported(path) -> set[str]:

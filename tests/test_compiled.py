@@ -56,6 +56,8 @@ def _interrupted(program: str) -> subprocess.CompletedProcess:
     )
     try:
         assert process.stdout.readline() == "running\n", process.stderr.read()
+        # a pause, not a wait for a condition: the program gives no sign of being inside a
+        # kernel, and the interrupt must land there (its first call returned before "running")
         time.sleep(0.5)
         process.send_signal(signal.SIGINT)
         stdout, stderr = process.communicate(timeout=60)

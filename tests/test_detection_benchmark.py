@@ -318,7 +318,7 @@ def test_text_output_shows_no_nan_for_times_not_measured(detection, shared_data,
 
 
 def test_the_documented_commands_are_accepted(detection, drawing_packages):
-    """The commands of docs/benchmarks.md and its history still parse, detector names included."""
+    """The commands of docs/benchmarks.md still parse, detector names included."""
     commands = documented_commands("detection.py")
     assert len(commands) >= 10
     for argv in commands:

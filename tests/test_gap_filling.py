@@ -2,27 +2,51 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from tracking.gap_filling import GapFiller, interpolate_track
-from tracking.tracks import FrameTracks, PartEstimate, TrackEstimate
-from tracking.types import Box
+from tracking.tracks import FrameTracks
+
+PARTS = ("head", "left_leg")
 
 
-def person(track_id: int, x: float, *, score: float = 0.8, occluded: bool = False, head=True):
-    parts = (
-        PartEstimate("head", x + 5, 10.0, Box(x + 2, 5, 6, 10), visible=head),
-        PartEstimate("left_leg", x + 3, 80.0, None, visible=True),
+def person(
+    track_id: int, x: float, *, score: float = 0.8, occluded: bool = False, head: bool = True
+) -> FrameTracks:
+    """One person as a one-row frame (frame 0 at 0 s until :func:`at` places it): a head with
+    a box, a leg without one."""
+    return FrameTracks(
+        0,
+        0.0,
+        track_ids=[track_id],
+        boxes=[[x, 0.0, 20.0, 100.0]],
+        scores=[score],
+        occluded=[occluded],
+        interpolated=[False],
+        part_names=PARTS,
+        part_xy=[[[x + 5, 10.0], [x + 3, 80.0]]],
+        part_boxes=[[[x + 2, 5, 6, 10], [np.nan] * 4]],
+        part_visible=[[head, True]],
+        part_measured=[[False, False]],
     )
-    return TrackEstimate(track_id, Box(x, 0.0, 20.0, 100.0), score, occluded, parts)
 
 
-def run(filler: GapFiller, frames: list[tuple[float, list[TrackEstimate]]]) -> list[FrameTracks]:
-    """Push frames (timestamp, tracks) numbered 0, 1...; every filled frame, in push order."""
+def at(index: int, timestamp: float, people: list[FrameTracks]) -> FrameTracks:
+    """The people in frame ``index`` at ``timestamp``."""
+    if not people:
+        return FrameTracks.empty(index, timestamp, PARTS)
+    placed = [dataclasses.replace(p, frame_index=index, timestamp=timestamp) for p in people]
+    return FrameTracks.merge(placed)
+
+
+def run(filler: GapFiller, frames: list[tuple[float, list[FrameTracks]]]) -> list[FrameTracks]:
+    """Push frames (timestamp, people) numbered 0, 1...; every filled frame, in push order."""
     filled = []
-    for index, (timestamp, tracks) in enumerate(frames):
-        filled += filler.push(FrameTracks(index, timestamp, tuple(tracks)))
+    for index, (timestamp, people) in enumerate(frames):
+        filled += filler.push(at(index, timestamp, people))
     return filled
 
 
@@ -32,7 +56,7 @@ def test_a_short_gap_is_filled_linearly_in_time_and_marked():
     assert [f.frame_index for f in filled] == [1, 2]
     assert [f.timestamp for f in filled] == [0.1, 0.2]
     for frame, x in zip(filled, (10.0, 20.0), strict=True):
-        (track,) = frame.tracks
+        (track,) = frame  # the object view of the row
         assert track.track_id == 1 and track.interpolated and not track.occluded
         assert track.box.x == pytest.approx(x) and track.box.h == pytest.approx(100.0)
         head, leg = track.parts
@@ -42,14 +66,15 @@ def test_a_short_gap_is_filled_linearly_in_time_and_marked():
             pytest.approx(x + 2),
         )
         assert (leg.name, leg.x, leg.box) == ("left_leg", pytest.approx(x + 3), None)
-    assert [f.tracks[0].score for f in filled] == pytest.approx([0.7, 0.6])
+    assert [f.scores[0] for f in filled] == pytest.approx([0.7, 0.6])
+    assert not np.any([f.part_measured for f in filled])  # filled in: nothing measured
 
 
 def test_weights_follow_the_frame_times_not_their_count():
     # a recorder that dropped frames: 0.1 s, then 0.4 s, then 0.1 s apart
     frames = [(0.0, [person(1, 0)]), (0.1, []), (0.5, []), (0.6, [person(1, 60)])]
     filled = run(GapFiller(1.0), frames)
-    assert [f.tracks[0].box.x for f in filled] == pytest.approx([10.0, 50.0])
+    assert [f.boxes[0, 0] for f in filled] == pytest.approx([10.0, 50.0])
 
 
 def test_gaps_longer_than_the_limit_and_unbroken_tracks_get_nothing():
@@ -70,7 +95,7 @@ def test_tracks_closing_gaps_together_share_the_filled_frames():
         (0.3, [person(1, 30), person(2, 100)]),
     ]
     filled = run(GapFiller(0.5), frames)
-    assert [(f.frame_index, sorted(t.track_id for t in f.tracks)) for f in filled] == [
+    assert [(f.frame_index, sorted(f.track_ids.tolist())) for f in filled] == [
         (1, [1]),
         (2, [1, 2]),
     ]
@@ -83,21 +108,32 @@ def test_occlusion_and_covered_parts_at_either_end_carry_into_the_gap():
         (0.2, [person(1, 20, occluded=True)]),
     ]
     (frame,) = run(GapFiller(0.5), frames)
-    (track,) = frame.tracks
-    assert track.occluded
-    assert [p.visible for p in track.parts] == [False, True]
+    assert frame.occluded.tolist() == [True]
+    assert frame.part_visible.tolist() == [[False, True]]
 
 
-def test_parts_only_one_end_has_are_left_out():
-    a = person(1, 0)
-    b = TrackEstimate(1, Box(20, 0, 20, 100), 0.9, False, a.parts[1:])
-    (track,) = interpolate_track(a, 0.0, b, 0.2, [0.1])
-    assert [p.name for p in track.parts] == ["left_leg"]
+def test_ends_with_other_parts_are_not_joined():
+    legless = dataclasses.replace(
+        at(2, 0.2, [person(1, 20)])[0],
+        part_names=("head",),
+        part_xy=np.zeros((1, 1, 2)),
+        part_boxes=np.zeros((1, 1, 4)),
+        part_visible=[[True]],
+        part_measured=[[False]],
+    )
+    with pytest.raises(ValueError, match="other parts"):
+        interpolate_track(at(0, 0.0, [person(1, 0)]), legless, [(1, 0.1)])
+    # a pipeline whose parts change (none does) starts the filler over
+    filler = GapFiller(0.5)
+    assert run(filler, [(0.0, [person(1, 0)]), (0.1, [])]) == []
+    assert filler.push(legless) == []
 
 
 def test_frames_sharing_a_timestamp_are_spread_evenly():
-    (first, second) = interpolate_track(person(1, 0), 1.0, person(1, 30), 1.0, [1.0, 1.0])
-    assert (first.box.x, second.box.x) == (pytest.approx(10.0), pytest.approx(20.0))
+    a, b = at(0, 1.0, [person(1, 0)]), at(3, 1.0, [person(1, 30)])
+    (first, second) = interpolate_track(a, b, [(1, 1.0), (2, 1.0)])
+    assert (first.boxes[0, 0], second.boxes[0, 0]) == (pytest.approx(10.0), pytest.approx(20.0))
+    assert (first.frame_index, second.frame_index) == (1, 2)
 
 
 def test_memory_stays_bounded_on_a_long_run():
@@ -105,8 +141,8 @@ def test_memory_stays_bounded_on_a_long_run():
     rng = np.random.default_rng(0)
     for index in range(2000):
         # people come and go with new ids, and are missed now and then
-        tracks = [person(index // 50 + k, float(index)) for k in range(3) if rng.random() > 0.2]
-        filler.push(FrameTracks(index, index * 0.04, tuple(tracks)))
+        people = [person(index // 50 + k, float(index)) for k in range(3) if rng.random() > 0.2]
+        filler.push(at(index, index * 0.04, people))
     assert len(filler._frames) <= 13  # 0.5 s at 25 fps
     assert len(filler._seen) <= 6
 

@@ -5,7 +5,7 @@ import pytest
 
 from service.frames import open_frames
 from tracking.detection import HogPeopleConfig, make_detector
-from tracking.pipeline import FramePipeline, PeoplePipeline, SingleTargetPipeline
+from tracking.pipeline import PeoplePipeline, SingleTargetPipeline
 from tracking.types import Box
 
 
@@ -23,25 +23,25 @@ def pets_frames(shared_data):
 def test_people_pipeline_finds_and_keeps_people_in_a_real_video(pets_frames):
     # People in this 480x360 cut are 40-55 pixels tall: the HOG window needs them enlarged 2x.
     pipeline = PeoplePipeline(make_detector("default", HogPeopleConfig(upscale=2.0)))
-    assert isinstance(pipeline, FramePipeline)
     results = [pipeline.process(f, i / 10.0) for i, f in enumerate(pets_frames)]
     assert [r.frame_index for r in results] == list(range(12))
     assert results[-1].timestamp == pytest.approx(1.1)
-    last = results[-1].tracks
+    last = results[-1]
     assert len(last) >= 2  # PETS09-S2L1 opens with several people in view
     for track in last:
         assert len(track.parts) == len(pipeline.part_names) > 0
         assert 0.0 <= track.score <= 1.0
-    ids = [t.track_id for t in last]
+    assert last.part_xy.shape == (len(last), len(pipeline.part_names), 2)
+    ids = last.track_ids.tolist()
     assert len(set(ids)) == len(ids)
 
 
 def test_single_target_pipeline_reports_one_track(pets_frames):
     pipeline = SingleTargetPipeline(Box(300, 140, 25, 60))
     results = [pipeline.process(f, i / 10.0) for i, f in enumerate(pets_frames[:5])]
-    assert all(len(r.tracks) == 1 and r.tracks[0].track_id == 1 for r in results)
-    assert results[0].tracks[0].box == Box(300, 140, 25, 60)
-    assert np.isfinite(results[-1].tracks[0].box.as_array()).all()
+    assert all(r.track_ids.tolist() == [1] for r in results)
+    assert results[0].boxes.tolist() == [[300, 140, 25, 60]]
+    assert np.isfinite(results[-1].boxes).all()
     with pytest.raises(ValueError, match="no detections"):
         pipeline.process(
             pets_frames[5], 0.5, detections=make_detector("submitted").detect(pets_frames[5])
@@ -52,8 +52,8 @@ def test_single_target_pipeline_takes_four_numbers_and_checks_its_timestamps(pet
     # before: frame 0's box was the caller's tuple (not a Box: no .x), and time going back
     # or a string passed silently
     pipeline = SingleTargetPipeline((300, 140, 25, 60), "rcsk_cn")
-    first = pipeline.process(pets_frames[0], 0.0).tracks[0].box
-    assert isinstance(first, Box) and first == Box(300.0, 140.0, 25.0, 60.0)
+    (first,) = pipeline.process(pets_frames[0], 0.0)  # the row as a TrackEstimate
+    assert isinstance(first.box, Box) and first.box == Box(300.0, 140.0, 25.0, 60.0)
     pipeline.process(pets_frames[1], 0.1)
     with pytest.raises(ValueError, match=r"timestamp -5.000 s is before the previous frame's"):
         pipeline.process(pets_frames[2], -5.0)

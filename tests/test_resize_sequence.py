@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import benchmark_module
-from tracking.detection import MotDetections, MotSequence
+from tracking.datasets.mot import MotSequence
+from tracking.detection import MotDetections
 
 
 @pytest.fixture(scope="module")

@@ -16,84 +16,63 @@ of the frames in between. Its memory is bounded by ``max_gap``, whatever the vid
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from collections.abc import Sequence
 
 import numpy as np
 
-from tracking.tracks import FrameTracks, PartEstimate, TrackEstimate
-from tracking.types import Box
+from tracking.tracks import FrameTracks
 
 __all__ = ["GapFiller", "interpolate_track"]
 
 
-@dataclass(frozen=True, slots=True)
-class _Seen:
-    frame_index: int
-    timestamp: float
-    estimate: TrackEstimate
-
-
-def _lerp_box(a: Box, b: Box, w: np.ndarray) -> np.ndarray:
-    """``(len(w), 4)`` boxes from ``a`` (weight 0) to ``b`` (weight 1)."""
-    start = a.as_array()
-    return start + w[:, None] * (b.as_array() - start)
-
-
-def _parts(a: TrackEstimate, b: TrackEstimate, w: np.ndarray) -> list[tuple[PartEstimate, ...]]:
-    """Each weight's parts. Parts are matched by name; a part only one end has is left out
-    (there is nothing to move it towards)."""
-    ends = {p.name: p for p in b.parts}
-    pairs = [(p, ends[p.name]) for p in a.parts if p.name in ends]
-    if not pairs:
-        return [()] * len(w)
-    xy0 = np.array([[p.x, p.y] for p, _ in pairs])
-    xy1 = np.array([[q.x, q.y] for _, q in pairs])
-    xy = xy0[None] + w[:, None, None] * (xy1 - xy0)[None]
-    boxes = [
-        _lerp_box(p.box, q.box, w) if p.box is not None and q.box is not None else None
-        for p, q in pairs
-    ]
-    return [
-        tuple(
-            PartEstimate(
-                name=p.name,
-                x=float(xy[k, j, 0]),
-                y=float(xy[k, j, 1]),
-                box=None if boxes[j] is None else Box(*map(float, boxes[j][k])),
-                # a part covered at either end may be covered in between: say so
-                visible=p.visible and q.visible,
-            )
-            for j, (p, q) in enumerate(pairs)
-        )
-        for k in range(len(w))
-    ]
-
-
 def interpolate_track(
-    a: TrackEstimate, t_a: float, b: TrackEstimate, t_b: float, times: list[float]
-) -> list[TrackEstimate]:
-    """Estimates of one track at ``times`` (between ``t_a`` and ``t_b``), linear in time from
-    ``a`` at ``t_a`` to ``b`` at ``t_b``: box, score and part positions. Occluded when either
-    end is."""
-    span = t_b - t_a
+    a: FrameTracks, b: FrameTracks, frames: Sequence[tuple[int, float]]
+) -> list[FrameTracks]:
+    """One track's estimates in ``frames`` (``(frame_index, timestamp)`` pairs between ``a``'s
+    and ``b``'s), linear in time from ``a`` (one row) to ``b`` (one row of the same track): box,
+    score, part centres and part boxes (a part without a box at either end has none). Occluded
+    when either end is; a part is visible only where it is at both ends (a part covered at
+    either end may be covered in between). Each is a one-row :class:`FrameTracks` marked
+    ``interpolated``, in the order of ``frames``.
+
+    Raises
+    ------
+    ValueError
+        If ``a`` or ``b`` is not one row, or their part names differ.
+    """
+    if len(a) != 1 or len(b) != 1:
+        raise ValueError(f"interpolate_track takes one row at each end, got {len(a)} and {len(b)}")
+    if a.part_names != b.part_names:
+        raise ValueError(f"the two ends have other parts: {a.part_names} and {b.part_names}")
+    times = np.array([t for _, t in frames], dtype=np.float64)
+    span = b.timestamp - a.timestamp
     if span > 0:
-        w = (np.asarray(times, dtype=np.float64) - t_a) / span
+        w = (times - a.timestamp) / span
     else:  # frames sharing one timestamp: spread them evenly instead
         w = np.arange(1, len(times) + 1, dtype=np.float64) / (len(times) + 1)
     w = np.clip(w, 0.0, 1.0)
-    boxes = _lerp_box(a.box, b.box, w)
-    scores = a.score + w * (b.score - a.score)
-    parts = _parts(a, b, w)
+    boxes = a.boxes + w[:, None] * (b.boxes - a.boxes)  # (K, 4)
+    scores = a.scores + w * (b.scores - a.scores)  # (K,)
+    xy = a.part_xy + w[:, None, None] * (b.part_xy - a.part_xy)  # (K, P, 2)
+    part_boxes = a.part_boxes + w[:, None, None] * (b.part_boxes - a.part_boxes)  # NaN stays
+    visible = a.part_visible & b.part_visible  # (1, P)
+    occluded = a.occluded | b.occluded
     return [
-        TrackEstimate(
-            track_id=a.track_id,
-            box=Box(*map(float, boxes[k])),
-            score=float(scores[k]),
-            occluded=a.occluded or b.occluded,
-            parts=parts[k],
-            interpolated=True,
+        FrameTracks(
+            index,
+            timestamp,
+            track_ids=a.track_ids,
+            boxes=boxes[k : k + 1],
+            scores=scores[k : k + 1],
+            occluded=occluded,
+            interpolated=np.ones(1, dtype=bool),
+            part_names=a.part_names,
+            part_xy=xy[k : k + 1],
+            part_boxes=part_boxes[k : k + 1],
+            part_visible=visible,
+            part_measured=np.zeros_like(visible),
         )
-        for k in range(len(w))
+        for k, (index, timestamp) in enumerate(frames)
     ]
 
 
@@ -112,26 +91,30 @@ class GapFiller:
             raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap}")
         self.max_gap = float(max_gap)
         self._frames: deque[tuple[int, float]] = deque()  # (frame_index, timestamp), in order
-        self._seen: dict[int, _Seen] = {}
+        self._seen: dict[int, FrameTracks] = {}  # each track's last row
+        self._part_names: tuple[str, ...] | None = None
 
     def push(self, frame: FrameTracks) -> list[FrameTracks]:
         """Take the next frame's tracks; return the earlier frames that gain filled estimates,
         in frame order, each holding only those estimates (the frame's other tracks were
-        reported with it)."""
+        reported with it). A frame with other part names than the previous ones starts over:
+        tracks seen before it are not joined to those after."""
+        if frame.part_names != self._part_names:
+            self._frames.clear()
+            self._seen.clear()
+            self._part_names = frame.part_names
         now = frame.timestamp
-        filled: dict[tuple[int, float], list[TrackEstimate]] = {}
-        for track in frame.tracks:
-            last = self._seen.get(track.track_id)
-            self._seen[track.track_id] = _Seen(frame.frame_index, now, track)
+        filled: dict[tuple[int, float], list[FrameTracks]] = {}
+        for row, track_id in enumerate(frame.track_ids.tolist()):
+            track = frame[row]
+            last = self._seen.get(track_id)
+            self._seen[track_id] = track
             if last is None or now - last.timestamp > self.max_gap:
                 continue
             between = [(i, t) for i, t in self._frames if i > last.frame_index]
             if not between:
                 continue
-            estimates = interpolate_track(
-                last.estimate, last.timestamp, track, now, [t for _, t in between]
-            )
-            for key, estimate in zip(between, estimates, strict=True):
+            for key, estimate in zip(between, interpolate_track(last, track, between), strict=True):
                 filled.setdefault(key, []).append(estimate)
         self._frames.append((frame.frame_index, now))
         # older frames and tracks can no longer start a gap short enough to fill
@@ -139,4 +122,4 @@ class GapFiller:
             self._frames.popleft()
         for track_id in [k for k, s in self._seen.items() if now - s.timestamp > self.max_gap]:
             del self._seen[track_id]
-        return [FrameTracks(i, t, tuple(filled[i, t])) for i, t in sorted(filled)]
+        return [FrameTracks.merge(filled[key]) for key in sorted(filled)]

@@ -1,4 +1,4 @@
-"""The one object that turns frames into per-frame track states (DESIGN.md §2).
+"""The one object that turns frames into per-frame track states (docs/architecture.md §2).
 
 Both the upload worker and the stream worker drive a :class:`FramePipeline`: they hand it frames
 with their capture timestamps (and, optionally, detections from an upstream detector) and get
@@ -16,8 +16,8 @@ import numpy as np
 from tracking.correlation import CorrelationConfig, CorrelationTracker
 from tracking.detection.base import Detections, Detector
 from tracking.people import MultiPersonTracker, PeopleTrackerConfig
-from tracking.tracks import FrameTracks, TrackEstimate
-from tracking.types import Box, as_box, checked_timestamp
+from tracking.tracks import FrameTracks
+from tracking.types import Box, TrackerOutput, as_box, checked_timestamp
 
 if TYPE_CHECKING:
     from tracking.detection.pose import PoseEstimator
@@ -73,6 +73,13 @@ class SingleTargetPipeline:
         self._index = 0
         self._started = False
         self._timestamp: float | None = None
+        self._last_output: TrackerOutput | None = None
+
+    @property
+    def last_output(self) -> TrackerOutput | None:
+        """What the correlation tracker said of the last frame (its unclipped peak, its PSR);
+        None before the second frame: the first is the given box."""
+        return self._last_output
 
     @property
     def part_names(self) -> tuple[str, ...]:
@@ -91,17 +98,30 @@ class SingleTargetPipeline:
         if not self._started:
             self._tracker.initialize(frame, self._first_box)
             self._started = True
-            track = TrackEstimate(1, self._first_box, 1.0, False)
+            box, score, occluded = self._first_box, 1.0, False
         else:
-            out = self._tracker.update(frame)
-            track = TrackEstimate(1, out.box, float(np.clip(out.peak, 0.0, 1.0)), out.occluded)
-        result = FrameTracks(self._index, float(timestamp), (track,))
+            out = self._last_output = self._tracker.update(frame)
+            box, score, occluded = out.box, float(np.clip(out.peak, 0.0, 1.0)), out.occluded
+        result = FrameTracks(
+            self._index,
+            float(timestamp),
+            track_ids=np.ones(1, dtype=np.int64),
+            boxes=box.as_array()[None],
+            scores=np.array([score]),
+            occluded=np.array([occluded]),
+            interpolated=np.zeros(1, dtype=bool),
+            part_names=(),
+            part_xy=np.zeros((1, 0, 2)),
+            part_boxes=np.zeros((1, 0, 4)),
+            part_visible=np.zeros((1, 0), dtype=bool),
+            part_measured=np.zeros((1, 0), dtype=bool),
+        )
         self._index += 1
         return result
 
 
 class PeoplePipeline:
-    """Every person in view, with parts and occlusion (thesis Part II, DESIGN.md §5).
+    """Every person in view, with parts and occlusion (thesis Part II, docs/architecture.md §5).
 
     Parameters
     ----------
@@ -125,7 +145,6 @@ class PeoplePipeline:
         reid: ReidEmbedder | None = None,
     ) -> None:
         self._tracker = MultiPersonTracker(config, detector=detector, pose=pose, reid=reid)
-        self._index = 0
 
     @property
     def part_names(self) -> tuple[str, ...]:
@@ -138,7 +157,5 @@ class PeoplePipeline:
     def process(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
     ) -> FrameTracks:
-        tracks = self._tracker.update(frame, timestamp, detections)
-        result = FrameTracks(self._index, float(timestamp), tracks)
-        self._index += 1
-        return result
+        # the tracker numbers the frames it tracked from 0, as the pipeline does
+        return self._tracker.update(frame, timestamp, detections)

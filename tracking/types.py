@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, TypeGuard
 
 import numpy as np
 
@@ -80,12 +80,12 @@ class TrackerOutput:
     occluded: bool = False
 
 
-@runtime_checkable
 class Tracker(Protocol):
     """The contract every single-target tracker keeps.
 
     State lives on the instance; two instances never share anything, so one tracker per target
-    or per camera is always safe.
+    or per camera is always safe. The type checker holds the implementations to it
+    (``tests/protocol_conformance.py``).
     """
 
     def initialize(self, frame: np.ndarray, box: Box) -> None:
@@ -101,7 +101,7 @@ class Tracker(Protocol):
         ...
 
 
-def is_int(value: object) -> bool:
+def is_int(value: object) -> TypeGuard[int | np.integer]:
     """Whether ``value`` is a Python or numpy integer; ``bool`` is not (``True`` is no count)."""
     return isinstance(value, int | np.integer) and not isinstance(value, bool)
 
@@ -165,6 +165,7 @@ def as_box(value: object) -> Box:
     TypeError
         For anything else.
     """
+    values: tuple[Any, ...]
     if isinstance(value, Box):
         values = (value.x, value.y, value.w, value.h)
     else:

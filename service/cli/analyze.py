@@ -426,7 +426,7 @@ def _analyze(args: argparse.Namespace) -> int:
             pose_model=networks.pose,
             reid_model=networks.reid,
         )
-        if options.mode == "single_target":
+        if options.mode == "single_target" and options.preset is not None:  # always set then
             warn_unused_table(args.w2c, options.preset)
         source = open_source(args)
         detections = _public_detections(args, source)
@@ -435,7 +435,7 @@ def _analyze(args: argparse.Namespace) -> int:
             if problem := box_problem(Box(b.x, b.y, b.w, b.h), (source.height, source.width)):
                 raise ValueError(f"{given.get(('first_box',), '--options: first_box')} {problem}")
         # before the bar
-        check_options(options, resources, source)
+        plan = check_options(options, resources, source, detect=detections is None)
         created = not args.out_dir.exists()
         output_folder(args.out_dir)  # before the work, not after it
         _lock_out_dir(args.out_dir)
@@ -455,9 +455,8 @@ def _analyze(args: argparse.Namespace) -> int:
     try:
         result = analyze(
             source,
-            options,
+            plan,
             scratch,
-            resources=resources,
             filename=Path(args.source).name,
             progress=progress,
             progress_interval=0.2,
@@ -475,9 +474,10 @@ def _analyze(args: argparse.Namespace) -> int:
             what, status = stopped(error)
             print(f"vtrack: {what} after {frames_read} frames; nothing written", file=sys.stderr)
             return status
+        message = str(error)
         if isinstance(error, OSError) and error.filename is None and error.strerror:
-            error = f"cannot write the results into {args.out_dir}: {error.strerror}"  # disk full
-        print(f"vtrack: {error}", file=sys.stderr)  # OptionsError is a ValueError
+            message = f"cannot write the results into {args.out_dir}: {error.strerror}"  # disk full
+        print(f"vtrack: {message}", file=sys.stderr)  # OptionsError is a ValueError
         return 2
     bar.update(result.video.frames_read - bar.n)
     bar.close()

@@ -9,6 +9,7 @@ import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from tqdm import tqdm
 
@@ -184,6 +185,7 @@ def progress_bar(total: int, quiet: bool) -> tqdm:
     """The progress bar on standard error: redrawn ten times a second on a terminal, every
     30 s into a log file or a pipe (each redraw is a line there); ``TQDM_MININTERVAL`` (tqdm's
     own variable) sets the seconds for both."""
+    timing: dict[str, Any]
     if "TQDM_MININTERVAL" in os.environ:  # tqdm reads it when nothing is passed
         timing = {}
     else:

@@ -19,7 +19,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "serve",
         help="start the HTTP service",
         description="Start the HTTP service. Every setting can also come from a VTRACK_* "
-        "environment variable (see the README); options here win.",
+        "environment variable (see docs/settings.md); options here win.",
     )
     serve.add_argument("--host", help="address to bind (VTRACK_HOST, default 127.0.0.1)")
     serve.add_argument("--port", type=int, help="port (VTRACK_PORT, default 8000)")

@@ -1,13 +1,18 @@
-"""``vtrack track``: one target followed through a video or image folder from its first box."""
+"""``vtrack track``: one target followed through a video or image folder from its first box.
+
+The frames are read as a job's are (:meth:`~service.frames.FrameSource.timed`) and tracked by
+the same :class:`~tracking.pipeline.SingleTargetPipeline`; the boxes go out as CSV rows or JSON
+lines (:class:`~service.outputs.box_rows.BoxRowWriter`).
+"""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import sys
 from pathlib import Path
+from typing import Literal
 
 from service.cli.common import (
     QUIET_HELP,
@@ -23,9 +28,11 @@ from service.cli.common import (
     warn_unused_table,
 )
 from service.frames import FrameSource, ReadProgress, frame_size_problem, is_greyscale
+from service.outputs.box_rows import BoxRowWriter
 from tracking.correlation import DEFAULT_PRESET, PRESETS
 from tracking.output_paths import output_file, staged_output
-from tracking.types import Box, TrackerOutput, box_problem
+from tracking.pipeline import SingleTargetPipeline
+from tracking.types import Box, box_problem
 
 
 def add_command(commands: argparse._SubParsersAction) -> None:
@@ -66,22 +73,6 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     track.set_defaults(handler=_track)
 
 
-def _format_row(index: int, box: Box, out: TrackerOutput | None, fmt: str) -> str:
-    """One output row; the first frame (the given box) has no peak, PSR or occlusion."""
-    peak, psr, occluded = (out.peak, out.psr, out.occluded) if out is not None else (None,) * 3
-    if fmt == "json":
-        record = {
-            "frame": index,
-            "box": [box.x, box.y, box.w, box.h],
-            "peak": peak,
-            "psr": psr,
-            "occluded": occluded,
-        }
-        return json.dumps(record)
-    scores = f"{peak:.4f},{psr:.2f},{int(occluded)}" if out is not None else ",,"
-    return f"{index},{box.x:.2f},{box.y:.2f},{box.w:.2f},{box.h:.2f},{scores}"
-
-
 def _track(args: argparse.Namespace) -> int:
     warn_unknown_variables()
     start = args.start or 0.0
@@ -109,44 +100,39 @@ def _track(args: argparse.Namespace) -> int:
         return 2
     # before any output: a bad box is a usage error, not a run that stops at its first frame
     if problem := box_problem(box, (source.height, source.width)):
-        frame = source.image_range(start).start + 1
-        where = "--box" if args.box else f"the ground truth's box of frame {frame}"
+        first = source.image_range(start).start + 1
+        where = "--box" if args.box else f"the ground truth's box of frame {first}"
         print(f"vtrack: {where} {problem}", file=sys.stderr)
         return 2
     config = PRESETS[args.preset]
     warn_unused_table(args.w2c, args.preset)
     # a file named .json gets JSON lines unless --format says otherwise
     json_name = args.out is not None and args.out.suffix.lower() in (".json", ".jsonl")
-    fmt = args.format or ("json" if json_name else "csv")
-    from tracking.correlation import CorrelationTracker
-
+    fmt: Literal["csv", "json"] = args.format or ("json" if json_name else "csv")
     try:
         if color_names := color_names_file(args.w2c):
             config = dataclasses.replace(config, color_names_path=str(color_names))
-        tracker = CorrelationTracker(config)
+        pipeline = SingleTargetPipeline(box, config)
         target, partial = staged_output(output_file(args.out)) if args.out else (None, None)
         out_file = open(partial or target, "w") if target else sys.stdout  # noqa: SIM115
     except (ValueError, OSError) as error:
         print(f"vtrack: {error}", file=sys.stderr)
         return 2
-    read, written, greyscale = ReadProgress(), 0, False
+    read, writer, greyscale = ReadProgress(), BoxRowWriter(out_file, fmt), False
     bar = progress_bar(source.frames_until(args.end), args.quiet)
-    read.on_read = lambda: bar.update(read.frames - bar.n)
+
+    def advance() -> None:
+        bar.update(read.frames - bar.n)
+
+    read.on_read = advance
     try:
         for frame in source.timed(1, read, start, args.end):
-            number = frame.index + 1  # the video's own: damaged frames leave their gap
-            if written == 0:
-                if fmt == "csv":  # with the first row: a range without frames prints nothing
-                    print("frame,x,y,w,h,peak,psr,occluded", file=out_file)
-                tracker.initialize(frame.image, box)
+            if writer.rows == 0:
                 greyscale = is_greyscale(frame.image)
-                row = _format_row(number, box, None, fmt)
-            else:
-                output = tracker.update(frame.image)
-                row = _format_row(number, output.box, output, fmt)
-            print(row, file=out_file)
-            written += 1
-        if written == 0:
+            tracks = pipeline.process(frame.image, frame.timestamp)
+            # the video's own frame number: damaged frames leave their gap
+            writer.write(frame.index + 1, tracks, pipeline.last_output)
+        if writer.rows == 0:
             raise ValueError(
                 f"no frame lies between --start {start:g} s and --end {args.end:g} s"
                 if read.reached_end
@@ -154,7 +140,7 @@ def _track(args: argparse.Namespace) -> int:
                 f"{read.end_time:.2f} s"
             )
         bar.close()
-        if partial:
+        if partial and target:
             out_file.close()
             os.replace(partial, target)
     except ValueError as error:
@@ -164,9 +150,9 @@ def _track(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as error:
         bar.close()
         verb = "printed" if target is None else "written"
-        kept = "nothing written" if partial else f"the {written} rows {verb} are complete"
+        kept = "nothing written" if partial else f"the {writer.rows} rows {verb} are complete"
         what, status = stopped(error)
-        print(f"vtrack: {what} after {written} frames; {kept}", file=sys.stderr)
+        print(f"vtrack: {what} after {writer.rows} frames; {kept}", file=sys.stderr)
         return status
     finally:
         if target:
@@ -182,7 +168,7 @@ def _track(args: argparse.Namespace) -> int:
     for warning in warnings:
         print(f"vtrack: warning: {warning}", file=sys.stderr)
     if args.out and not args.quiet:
-        print(f"vtrack: wrote {written} boxes to {args.out}", file=sys.stderr)
+        print(f"vtrack: wrote {writer.rows} boxes to {args.out}", file=sys.stderr)
     return 0
 
 
@@ -194,7 +180,7 @@ def _truth_box(source: FrameSource, start: float) -> Box:
     ValueError
         The folder has no ground truth, or none for that frame, or it is not OTB's.
     """
-    from tracking.evaluation.otb import parse_ground_truth
+    from tracking.datasets.otb import parse_ground_truth
 
     path = source.path / "groundtruth_rect.txt"
     if not source.path.is_dir() or not path.is_file():

@@ -204,7 +204,26 @@ CREATE TABLE IF NOT EXISTS stream_track_ids (camera TEXT PRIMARY KEY, reserved B
 """
 """Version 1 of the PostgreSQL schema; later versions go in :data:`_POSTGRES_MIGRATIONS`."""
 
-_POSTGRES_MIGRATIONS: tuple[str, ...] = (_POSTGRES_SCHEMA,)
+_POSTGRES_OUTBOX = """
+CREATE TABLE IF NOT EXISTS event_outbox (
+    id BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY,
+    sink TEXT NOT NULL,
+    key TEXT NOT NULL,
+    topic TEXT NOT NULL,
+    body TEXT NOT NULL,
+    created_at DOUBLE PRECISION NOT NULL,
+    attempts INTEGER NOT NULL DEFAULT 0,
+    due_at DOUBLE PRECISION NOT NULL,
+    claimed_until DOUBLE PRECISION,
+    delivered_at DOUBLE PRECISION,
+    last_error TEXT,
+    UNIQUE (sink, key)
+);
+CREATE INDEX IF NOT EXISTS event_outbox_due ON event_outbox (sink, delivered_at, id);
+"""
+"""Version 2: the events waiting for their sinks (:mod:`service.delivery.outbox`)."""
+
+_POSTGRES_MIGRATIONS: tuple[str, ...] = (_POSTGRES_SCHEMA, _POSTGRES_OUTBOX)
 """The schema's versions in order: each runs once per database, in one transaction with the
 version's row (``schema_version``), under an advisory lock so that instances starting together
 do not run one twice. A new version is a new entry; an entry is never edited once released."""
@@ -222,7 +241,7 @@ class PostgresDatabase:
     lock_rows = " FOR UPDATE"
 
     def __init__(self, url: str, max_connections: int = 4) -> None:
-        from psycopg.rows import dict_row
+        from psycopg.rows import DictRow, dict_row
         from psycopg_pool import ConnectionPool
 
         self.url = url
@@ -233,6 +252,8 @@ class PostgresDatabase:
             url,
             min_size=1,
             max_size=max_connections,
+            # the class typed by its rows (psycopg's way), which the row factory makes dicts
+            connection_class=psycopg.Connection[DictRow],
             kwargs={"autocommit": True, "row_factory": dict_row},
             # a server restarted under the pool: connections checked before use, and replaced
             check=ConnectionPool.check_connection,
@@ -279,6 +300,7 @@ class PostgresDatabase:
             connection.execute("SELECT pg_advisory_xact_lock(%s)", (_MIGRATION_LOCK,))
             connection.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER)")
             row = connection.execute("SELECT max(version) AS v FROM schema_version").fetchone()
+            assert row is not None, "an aggregate gives one row"
             current = row["v"] or 0
             if current > len(_POSTGRES_MIGRATIONS):
                 raise RuntimeError(

@@ -59,19 +59,19 @@ def sweep(settings: Settings, store: JobStore, files: JobFiles, *, orphans: bool
     if settings.retention_hours is not None:
         now = time.time()
         recordings = _expire_recordings(settings, now - settings.retention_hours * 3600)
-        for record in store.finished_before(now - settings.retention_hours * 3600):
+        for expired in store.finished_before(now - settings.retention_hours * 3600):
             try:
-                remove_job(files, store, record)
+                remove_job(files, store, expired)
             except OSError as error:  # the others go on; this one is tried again next time
-                log.warning("housekeeping: job %s could not be deleted: %s", record.id, error)
+                log.warning("housekeeping: job %s could not be deleted: %s", expired.id, error)
                 continue
             jobs += 1
             log.info(
                 "housekeeping: job %s (%s %.1f h ago) deleted with its files "
                 "(VTRACK_RETENTION_HOURS=%g)",
-                record.id,
-                record.state.value,
-                (now - (record.finished_at or now)) / 3600,
+                expired.id,
+                expired.state.value,
+                (now - (expired.finished_at or now)) / 3600,
                 settings.retention_hours,
             )
     uploads = strays = 0

@@ -46,6 +46,8 @@ class WorkerConfig:
     """The service instance the worker belongs to (its claims name it)."""
     lease: float | None = None
     """Seconds a claim holds on a shared database unless the instance renews it."""
+    sinks: tuple[str, ...] = ()
+    """The sinks (webhooks, the MQTT broker) that hear of every job that ends."""
 
 
 SHARED_IDLE_WAIT = 2.0
@@ -68,7 +70,7 @@ def worker_main(config: WorkerConfig, service_pid: int, stop, ready) -> None:
         format=f"%(asctime)s %(levelname)s worker[{os.getpid()}] %(name)s: %(message)s",
     )
     service_runs = service_alive(service_pid)
-    store = JobStore(config.database, folder=config.files.root)
+    store = JobStore(config.database, folder=config.files.root, sinks=config.sinks)
     pid = os.getpid()
     # on a shared database a queued job wakes the worker (NOTIFY): it need not look often
     idle_wait = config.poll_interval
@@ -186,6 +188,7 @@ def run_job(
         results={fmt.value: name for fmt, name in published.items()},
         warnings=result.warnings,
         frames_total=result.video.frames_read,
+        analytics=result.analytics,
     )
     log.info(
         "job %s: succeeded, %d frames in %.1f s", job.id, result.frames_processed, result.seconds

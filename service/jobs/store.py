@@ -10,13 +10,18 @@ attempt that replaced it.
 
 from __future__ import annotations
 
+import builtins
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from api_schemas.analytics import AnalyticsCounts
 from api_schemas.jobs import JobState
+from service.delivery.messages import job_summary
+from service.delivery.outbox import OUTBOX_SCHEMA, queue_events
 from service.jobs.database import Row, Statements, open_database
 from service.jobs.files import FolderFiles
 
@@ -122,15 +127,23 @@ class JobStore:
         The SQLite file (``jobs.sqlite3`` of the data folder), or a ``postgresql://`` URL.
     folder:
         The data folder, which job files are stored relative to (default: the SQLite file's).
+    sinks:
+        The sinks told of every job that ends, however it ends: its summary is queued in the
+        outbox in the transaction that ends it (:func:`_ended`).
     """
 
-    def __init__(self, where: str | Path, folder: Path | None = None) -> None:
+    def __init__(
+        self, where: str | Path, folder: Path | None = None, sinks: Sequence[str] = ()
+    ) -> None:
         self._db = open_database(where)
+        self._sinks = tuple(sinks)
+        """The sinks (webhooks, the MQTT broker) that hear of every job that ends."""
         self.path: Path | None = None if self.shared else Path(where)
         """The SQLite file (None for a PostgreSQL database)."""
         self.folder = folder if folder is not None else Path(where).parent
         self._files = FolderFiles(self.folder)
         self._db.migrate(_SCHEMA, _ADDED_COLUMNS)
+        self._db.migrate(OUTBOX_SCHEMA)  # the summaries of finished jobs go out through it
 
     @property
     def shared(self) -> bool:
@@ -157,7 +170,7 @@ class JobStore:
         state: JobState | None = None,
         before: str | None = None,
         finished_after: float | None = None,
-    ) -> list[JobRecord]:
+    ) -> builtins.list[JobRecord]:
         """Newest first; with ``before``, only jobs older than that job (a page after it); with
         ``finished_after`` (Unix time), only jobs finished after it.
 
@@ -167,7 +180,8 @@ class JobStore:
             ``before`` names no job.
         """
         order = self._db.order
-        where, args = [], []
+        where: list[str] = []
+        args: list[Any] = []
         if state is not None:
             where.append("state = ?")
             args.append(state.value)
@@ -212,12 +226,12 @@ class JobStore:
         )
         return {row["id"]: place for place, row in enumerate(rows)}
 
-    def running(self, instance: str | None = None) -> list[JobRecord]:
+    def running(self, instance: str | None = None) -> builtins.list[JobRecord]:
         """Running jobs; with ``instance``, only those its workers run."""
         jobs = self.list(limit=1_000_000, state=JobState.running)
         return [job for job in jobs if instance is None or job.instance == instance]
 
-    def finished_before(self, cutoff: float) -> list[JobRecord]:
+    def finished_before(self, cutoff: float) -> builtins.list[JobRecord]:
         """Jobs that finished (succeeded, failed, cancelled) before ``cutoff`` (epoch seconds)."""
         ended = [state.value for state in JobState if state.finished]
         marks = ", ".join("?" * len(ended))
@@ -301,7 +315,7 @@ class JobStore:
                     " error = 'cancelled before it started' WHERE id = ?",
                     (JobState.cancelled.value, time.time(), job_id),
                 )
-                _count_finished(db, JobState.cancelled, job_id)
+                _ended(db, JobState.cancelled, job_id, self._sinks)
                 state = JobState.cancelled
             elif state == JobState.running:
                 db.run("UPDATE jobs SET cancel_requested = 1 WHERE id = ?", (job_id,))
@@ -318,7 +332,7 @@ class JobStore:
 
     def requeue_orphans(
         self, max_attempts: int, instance: str | None = None
-    ) -> tuple[list[str], list[str]]:
+    ) -> tuple[builtins.list[str], builtins.list[str]]:
         """Jobs left running by a service that died: queued again, or failed once a service
         has died under them ``max_attempts`` times (a job that takes the service down with it
         must not do so forever). Starts that a clean stop ended do not count: a job survives
@@ -341,7 +355,7 @@ class JobStore:
             "state = ?", (JobState.running.value,), max_attempts, "the service died"
         )
 
-    def requeue_expired(self, max_attempts: int) -> tuple[list[str], list[str]]:
+    def requeue_expired(self, max_attempts: int) -> tuple[builtins.list[str], builtins.list[str]]:
         """Running jobs whose instance stopped renewing their lease (:meth:`renew_leases`):
         its machine died or lost the database. As :meth:`requeue_orphans`, counted as a death
         of the job's start."""
@@ -354,7 +368,7 @@ class JobStore:
 
     def _requeue_dead_starts(
         self, where: str, args: tuple[Any, ...], max_attempts: int, what: str
-    ) -> tuple[list[str], list[str]]:
+    ) -> tuple[builtins.list[str], builtins.list[str]]:
         requeued, failed = [], []
         with self._db.transaction() as db:
             rows = db.all(
@@ -365,7 +379,7 @@ class JobStore:
             for row in rows:
                 job_id, deaths = row["id"], row["deaths"]
                 if deaths >= max_attempts:
-                    _fail(db, job_id, f"{what} while this job ran, {_times(deaths)}")
+                    _fail(db, job_id, f"{what} while this job ran, {_times(deaths)}", self._sinks)
                     failed.append(job_id)
                 else:
                     _queue_again(db, job_id)
@@ -398,7 +412,7 @@ class JobStore:
         with self._db.transaction() as db:
             changed = db.run(query, args)
             if changed:
-                _count_finished(db, JobState.failed, job_id)
+                _ended(db, JobState.failed, job_id, self._sinks)
         return changed > 0
 
     def requeue_dead(self, job_id: str, worker_pid: int, max_attempts: int) -> JobState | None:
@@ -416,7 +430,9 @@ class JobStore:
                 return None
             if row["deaths"] >= max_attempts:
                 what = "the service's fork server died"
-                _fail(db, job_id, f"{what} while this job ran, {_times(row['deaths'])}")
+                _fail(
+                    db, job_id, f"{what} while this job ran, {_times(row['deaths'])}", self._sinks
+                )
                 return JobState.failed
             _queue_again(db, job_id)
         self._db.notify_queued()
@@ -499,10 +515,12 @@ class JobStore:
         *,
         error: str | None = None,
         results: dict[str, str] | None = None,
-        warnings: list[str] | None = None,
+        warnings: builtins.list[str] | None = None,
         frames_total: int | None = None,
+        analytics: AnalyticsCounts | None = None,
     ) -> bool:
-        """End the worker's attempt; ``False`` when the job was no longer its own."""
+        """End the worker's attempt; ``False`` when the job was no longer its own. The job's
+        summary (with the ``analytics`` counts of its zones and lines) goes to the sinks."""
         with self._db.transaction() as db:
             changed = db.run(
                 "UPDATE jobs SET state = ?, finished_at = ?, error = ?, results = ?, warnings = ?,"
@@ -522,7 +540,7 @@ class JobStore:
                 ),
             )
             if changed:
-                _count_finished(db, state, job.id)
+                _ended(db, state, job.id, self._sinks, analytics)
         return changed > 0
 
 
@@ -537,18 +555,44 @@ def _queue_again(db: Statements, job_id: str) -> None:
     )
 
 
-def _fail(db: Statements, job_id: str, what: str) -> None:
+def _fail(db: Statements, job_id: str, what: str, sinks: Sequence[str]) -> None:
     """Fail a job that died under its start too often; it is not started again."""
     db.run(
         "UPDATE jobs SET state = ?, finished_at = ?, error = ?, worker_pid = NULL,"
         " lease_until = NULL WHERE id = ?",
         (JobState.failed.value, time.time(), f"{what}; it is not started again", job_id),
     )
-    _count_finished(db, JobState.failed, job_id)
+    _ended(db, JobState.failed, job_id, sinks)
 
 
-def _count_finished(db: Statements, state: JobState, job_id: str) -> None:
-    row = db.one("SELECT started_at, finished_at FROM jobs WHERE id = ?", (job_id,))
+def _ended(
+    db: Statements,
+    state: JobState,
+    job_id: str,
+    sinks: Sequence[str],
+    analytics: AnalyticsCounts | None = None,
+) -> None:
+    """What follows a job's end, in its transaction: the metrics' counters, and its summary
+    queued for ``sinks`` (:func:`~service.delivery.messages.job_summary`): a job that ended
+    is announced once, and one that did not end is not."""
+    row = db.one(
+        "SELECT started_at, finished_at, options, video_filename, results, error, warnings,"
+        " frames_done FROM jobs WHERE id = ?",
+        (job_id,),
+    )
+    if row is not None and sinks:
+        summary = job_summary(
+            job_id,
+            state,
+            filename=row["video_filename"],
+            labels=json.loads(row["options"]).get("labels") or {},
+            results=json.loads(row["results"]),
+            frames=row["frames_done"],
+            error=row["error"],
+            warnings=json.loads(row["warnings"]),
+            analytics=analytics,
+        )
+        queue_events(db, sinks, [summary])
     _add_counter(db, f"jobs_{state.value}", 1)
     if row and row["started_at"] and row["finished_at"]:
         seconds = row["finished_at"] - row["started_at"]

@@ -1,4 +1,8 @@
-"""Accepting an upload as a job: receive, check the options, check the video, record it."""
+"""Accepting a received upload as a job: check the options, check the video, record it.
+
+Nothing of HTTP here: the router receives the upload (:mod:`service.uploads`) and answers the
+:class:`SubmitError` (and :class:`~service.pipelines.OptionsError`) raised here.
+"""
 
 from __future__ import annotations
 
@@ -6,21 +10,21 @@ import logging
 import sqlite3
 import uuid
 from pathlib import Path
+from typing import Any
 
-from fastapi import HTTPException, Request, status
+import anyio
 from pydantic import ValidationError
-from starlette.concurrency import run_in_threadpool
 
-from api_schemas.common import error_message
+from api_schemas.common import ErrorType, error_message
 from api_schemas.jobs import JobOptions
 from service.frames import FrameSource, FrameSourceError
 from service.jobs.files import JobFiles
 from service.jobs.probing import ProbeInterrupted, VideoProber
 from service.jobs.store import JobRecord, JobStore
-from service.pipelines import OptionsError, PipelineResources, check_options
+from service.pipelines import PipelineResources, check_options
 from service.settings import Settings
 from service.storage import storage_problem
-from service.uploads import receive_upload
+from service.uploads import ReceivedUpload
 
 log = logging.getLogger(__name__)
 
@@ -39,20 +43,32 @@ def describe_validation(error: ValidationError) -> str:
     return "; ".join(problems)
 
 
-class InvalidOptions(HTTPException):
-    """422 for job options that fail their schema: the sentence, and each failed check for
-    programs (``errors`` of ErrorResponse, located under ``options``)."""
+class SubmitError(Exception):
+    """Why an upload is not accepted as a job: ``type`` says what kind of error (its HTTP
+    status too), ``detail`` the sentence for the client, ``errors`` each failed check of
+    options that fail their schema (located under ``options``)."""
 
-    def __init__(self, error: ValidationError) -> None:
-        super().__init__(
-            422,
-            f"invalid job options: {describe_validation(error)}. The options part is JSON "
-            "with the fields of JobOptions (see /docs)",
-        )
-        self.errors = [
+    def __init__(
+        self, type: ErrorType, detail: str, errors: list[dict[str, Any]] | None = None
+    ) -> None:
+        super().__init__(detail)
+        self.type = type
+        self.detail = detail
+        self.errors = errors
+
+
+def invalid_options(error: ValidationError) -> SubmitError:
+    """The error for job options that fail their schema: the sentence, and each failed check
+    for programs (``errors`` of ErrorResponse)."""
+    return SubmitError(
+        ErrorType.validation_error,
+        f"invalid job options: {describe_validation(error)}. The options part is JSON "
+        "with the fields of JobOptions (see /docs)",
+        [
             {"loc": ["options", *item["loc"]], "msg": error_message(item), "type": item["type"]}
             for item in error.errors()
-        ]
+        ],
+    )
 
 
 def parse_options(raw: bytes | None) -> JobOptions:
@@ -61,49 +77,60 @@ def parse_options(raw: bytes | None) -> JobOptions:
     try:
         return JobOptions.model_validate_json(raw)
     except ValidationError as error:
-        raise InvalidOptions(error) from None
+        raise invalid_options(error) from None
 
 
 def probe_video(prober: VideoProber, path: Path, size: int) -> FrameSource:
-    """The upload's :class:`FrameSource`, probed in a helper process; 415 for no video."""
+    """The upload's :class:`FrameSource`, probed in a helper process; ``invalid_video`` for
+    no video."""
     if size == 0:
-        raise HTTPException(
-            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+        raise SubmitError(
+            ErrorType.invalid_video,
             "the 'video' part is empty: send a video file (MP4, AVI, MKV...)",
         )
     try:
         return prober.probe(path)
     except ProbeInterrupted:
-        raise HTTPException(
-            status.HTTP_503_SERVICE_UNAVAILABLE,
+        raise SubmitError(
+            ErrorType.unavailable,
             "the service is stopping: send the video again once it is back",
         ) from None
     except FrameSourceError as error:
         reason = error.reason or "no frame could be read from it"
-        raise HTTPException(
-            status.HTTP_415_UNSUPPORTED_MEDIA_TYPE,
+        raise SubmitError(
+            ErrorType.invalid_video,
             f"the uploaded file is not a video this service can decode: {reason}; send a "
             "video file such as MP4 (H.264) or AVI (MJPEG)",
         ) from None
 
 
+def new_job_id() -> str:
+    """The id of a new job: 32 hex digits, random (not guessable from another job's)."""
+    return uuid.uuid4().hex
+
+
 async def submit(
-    request: Request, settings: Settings, store: JobStore, files: JobFiles
+    job_id: str,
+    upload: ReceivedUpload,
+    settings: Settings,
+    store: JobStore,
+    files: JobFiles,
+    prober: VideoProber,
 ) -> JobRecord:
-    """Receive the upload of ``request`` into ``files`` and queue it as a job."""
-    job_id = uuid.uuid4().hex
-    receiving = files.receiving(job_id)
-    upload = await receive_upload(
-        request, receiving, settings.max_upload_bytes, settings.upload_idle_seconds
-    )
+    """Check the upload received for ``job_id`` (into ``files.receiving(job_id)``) and queue it
+    as a job; the upload is removed when it is refused.
+
+    Raises
+    ------
+    SubmitError
+        Options that fail their schema, no video, the service stopping, no room to record it.
+    OptionsError
+        Options the service cannot run on this video.
+    """
     try:
         options = parse_options(upload.options)
-        prober = request.app.state.prober
-        source = await run_in_threadpool(probe_video, prober, upload.video_path, upload.size)
-        try:
-            check_options(options, PipelineResources.from_settings(settings), source)
-        except OptionsError as error:
-            raise HTTPException(422, str(error)) from None
+        source = await anyio.to_thread.run_sync(probe_video, prober, upload.video_path, upload.size)
+        check_options(options, PipelineResources.from_settings(settings), source)
         video_path = files.keep_upload(job_id, upload.video_path, upload.filename)
     except BaseException:
         upload.video_path.unlink(missing_ok=True)
@@ -123,8 +150,8 @@ async def submit(
         problem = storage_problem(error) if is_storage else None
         if problem is None:
             raise
-        raise HTTPException(
-            status.HTTP_507_INSUFFICIENT_STORAGE,
+        raise SubmitError(
+            ErrorType.insufficient_storage,
             f"{problem.problem}: the job was not recorded; {problem.remedy}, then send the "
             "video again",
         ) from None

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import time
 from datetime import UTC, datetime
+from typing import TYPE_CHECKING
 
 from api_schemas.jobs import JobLinks, JobOptions, JobProgress, JobState, JobStatus, ProgressEvent
-from service.jobs.store import JobRecord
+
+if TYPE_CHECKING:  # the store's module sends jobs' summaries, which link to their results
+    from service.jobs.store import JobRecord
 
 API_PREFIX = "/v1/jobs"
 

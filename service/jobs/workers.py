@@ -196,6 +196,7 @@ class WorkerPool:
             daemon=True,
         )
         process.start()
+        assert process.pid is not None, "a started process has its pid"
         # opened at once: should the worker end before, its pid is not someone else's yet
         watch = ProcessWatch(process.pid)
         server = fork_server_pid()

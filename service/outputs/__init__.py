@@ -2,7 +2,9 @@
 
 A writer receives every tracked frame as it is computed (``write``) and completes its file in
 ``close``; an interrupted run leaves only a partial file in the attempt's scratch folder, which
-is never served (see :mod:`service.analysis`).
+is never served (see :mod:`service.analysis`). A live camera's recording is the same MCAP writer
+in stream mode (:attr:`~service.outputs.base.StreamInfo.live`, :mod:`service.streams.recording`);
+``vtrack track`` writes its boxes with :class:`~service.outputs.box_rows.BoxRowWriter`.
 """
 
 from service.outputs.base import RESULT_FILES, ResultWriter, RunSummary, open_writers

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Protocol
 
+from api_schemas.analytics import AnalyticsEvent, AnalyticsResult
 from api_schemas.jobs import JobOptions, OutputFormat
 from api_schemas.tracks import FrameTracksMessage, TrackState, VideoInfo
 from service.frames import TimedFrame
+from tracking.analytics import AnalyticsConfig
 
 RESULT_FILES: dict[OutputFormat, str] = {
     OutputFormat.json: "trajectories.json",
@@ -17,6 +20,10 @@ RESULT_FILES: dict[OutputFormat, str] = {
     OutputFormat.mp4: "annotated.mp4",
 }
 """File name of each format inside a result folder."""
+
+ANALYTICS_FILE = "analytics.json"
+"""The events and counts of a run's zones and lines (an ``AnalyticsResult``), beside the
+result files of a run that watched any."""
 
 MEDIA_TYPES: dict[OutputFormat, str] = {
     OutputFormat.json: "application/json",
@@ -45,6 +52,40 @@ class StreamInfo:
     pixel_aspect: float = 1.0
     skeleton: tuple[tuple[str, str], ...] = ()
     """Pairs of :attr:`part_names` joined by a limb, for drawing (empty: none)."""
+    analytics: AnalyticsConfig | None = None
+    """The zones and lines watched, in pixels (None: none): drawn in the MP4 and the MCAP."""
+    live: bool = False
+    """Stream mode: the frames of a live camera, not of a video. Nothing is announced (no
+    frame rate, no frame count: :attr:`RunSummary.video` is None), every frame read is
+    tracked, and the messages written are :class:`~api_schemas.streams.StreamTracksMessage`
+    (the camera, the frame's sequence number, latency... as their fields)."""
+
+    @classmethod
+    def of_stream(
+        cls,
+        width: int,
+        height: int,
+        part_names: tuple[str, ...],
+        skeleton: tuple[tuple[str, str], ...],
+        options: JobOptions,
+        images: Literal["h264", "jpeg"],
+        analytics: AnalyticsConfig | None = None,
+    ) -> StreamInfo:
+        """What a live recording knows before its first frame: the frame size, the parts, the
+        options that run (people, every frame) and the zones and lines watched."""
+        return cls(
+            width=width,
+            height=height,
+            fps=0.0,
+            frame_step=1,
+            part_names=part_names,
+            mode="people",
+            options=options,
+            mcap_images=images,
+            skeleton=skeleton,
+            analytics=analytics,
+            live=True,
+        )
 
 
 def limbs(
@@ -64,9 +105,13 @@ def limbs(
 class RunSummary:
     """What writers learn at the end."""
 
-    video: VideoInfo
+    video: VideoInfo | None
+    """The video as read; None in stream mode (:attr:`StreamInfo.live`), where nothing was
+    announced and every frame read was tracked."""
     frames_processed: int
     warnings: list[str] = field(default_factory=list)
+    analytics: AnalyticsResult | None = None
+    """The events and counts of the zones and lines (None: none watched)."""
 
 
 class ResultWriter(Protocol):
@@ -74,7 +119,14 @@ class ResultWriter(Protocol):
 
     path: Path
 
-    def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None: ...
+    def write(
+        self,
+        frame: TimedFrame,
+        message: FrameTracksMessage,
+        events: Sequence[AnalyticsEvent] = (),
+    ) -> None:
+        """Write a tracked frame, with the ``events`` of its zones and lines."""
+        ...
 
     def write_filled(self, message: FrameTracksMessage) -> None:
         """Estimates filled in for an earlier frame (job option ``fill_gaps``), given before
@@ -96,7 +148,7 @@ def open_writers(
     from service.outputs.mot_out import MotWriter
     from service.outputs.video_out import VideoWriter
 
-    makers = {
+    makers: dict[OutputFormat, Callable[[Path, StreamInfo], ResultWriter]] = {
         OutputFormat.json: JsonWriter,
         OutputFormat.mcap: McapWriter,
         OutputFormat.mot: MotWriter,

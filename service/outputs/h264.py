@@ -136,4 +136,9 @@ class AccessUnitEncoder:
         return self._units(None)
 
     def _units(self, frame) -> list[tuple[int, bytes]]:
-        return [(self._stamps.pop(p.pts), bytes(p)) for p in self._context.encode(frame)]
+        units = []
+        for packet in self._context.encode(frame):
+            if packet.pts is None:  # never: each unit comes from a frame, and each frame has one
+                raise RuntimeError("the H.264 encoder gave a unit without a pts")
+            units.append((self._stamps.pop(packet.pts), bytes(packet)))
+        return units

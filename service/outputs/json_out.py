@@ -13,8 +13,10 @@ from __future__ import annotations
 import json
 import os
 from array import array
+from collections.abc import Sequence
 from pathlib import Path
 
+from api_schemas.analytics import AnalyticsEvent
 from api_schemas.tracks import FrameTracksMessage, Trajectories, TrajectoryPoint
 from service import __version__
 from service.frames import TimedFrame
@@ -31,8 +33,13 @@ class JsonWriter:
         # per track id: start offsets and lengths of its points in the scratch file
         self._index: dict[int, tuple[array, array]] = {}
 
-    def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
-        self._append(message)
+    def write(
+        self,
+        frame: TimedFrame,
+        message: FrameTracksMessage,
+        events: Sequence[AnalyticsEvent] = (),
+    ) -> None:
+        self._append(message)  # the events come whole at the end, in the summary
 
     def write_filled(self, message: FrameTracksMessage) -> None:
         # a track's filled points come before the point that closed its gap: still in order
@@ -57,16 +64,19 @@ class JsonWriter:
             self._offset += len(data)
 
     def close(self, summary: RunSummary) -> None:
+        if summary.video is None:
+            raise ValueError("a JSON result describes its video: stream mode has none")
         head = Trajectories(
             vtrack_version=__version__,
             job_id=self._info.job_id,
             options=self._info.options,
             warnings=summary.warnings,
-            mode=self._info.mode,  # type: ignore[arg-type]
+            mode=self._info.mode,
             video=summary.video,
             part_names=list(self._info.part_names),
             skeleton=list(self._info.skeleton),
             frames_processed=summary.frames_processed,
+            analytics=summary.analytics,
             tracks=[],
         ).model_dump(mode="json", exclude={"tracks"})
         self._points.flush()

@@ -10,8 +10,14 @@ Channels (JSON message encoding, JSON Schema schemas):
   ``LINE_LOOP``, the parts as ``POINTS`` (parts the frame placed solid; predicted ones, covered or
   not measured, faded), the skeleton's limbs between two visible parts as a ``LINE_LIST`` and
   the track id as text;
+- ``/analytics/events`` - ``vtrack.AnalyticsEvent``: each event of the zones and lines (a
+  person crossing a line, entering, leaving or dwelling in a zone), at its frame's time, when
+  the job or stream watches any; the zones and lines are drawn in the annotations then, with
+  their running counts;
 - ``/tracks`` - ``vtrack.FrameTracks``: our own per-frame message
-  (:class:`api_schemas.tracks.FrameTracksMessage`) with its JSON Schema.
+  (:class:`api_schemas.tracks.FrameTracksMessage`) with its JSON Schema; in stream mode
+  (:attr:`~service.outputs.base.StreamInfo.live`, a camera's recording) ``vtrack.StreamTracks``,
+  the message its tracks key carries (:class:`api_schemas.streams.StreamTracksMessage`).
 
 Every message of a frame has the same log time, publish time and ``timestamp``: the frame's
 capture time from the video position (nanoseconds from the start of the video), never the wall
@@ -24,6 +30,7 @@ import json
 import logging
 import os
 import struct
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +41,8 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
+from api_schemas.analytics import AnalyticsEvent
+from api_schemas.streams import StreamTracksMessage
 from api_schemas.tracks import FrameTracksMessage
 from service import __version__
 from service.frames import TimedFrame
@@ -41,23 +50,33 @@ from service.outputs import foxglove, h264
 from service.outputs.base import RunSummary, StreamInfo, limbs
 from service.outputs.h264 import AccessUnitEncoder
 from service.outputs.palette import track_colour
+from service.outputs.zones import LINE_RGB, ZONE_RGB, ZoneOverlay
 
 log = logging.getLogger(__name__)
 
 IMAGE_TOPIC = "/camera/image"
 ANNOTATIONS_TOPIC = "/camera/annotations"
 TRACKS_TOPIC = "/tracks"
+EVENTS_TOPIC = "/analytics/events"
 FRAME_ID = "camera"
 JPEG_QUALITY = 85
 LABEL_SIZE = 12.0
 """Font size of the id labels, in image pixels."""
+
+CHUNK_BYTES = 1024 * 1024
+"""Message bytes per compressed MCAP chunk of a result."""
+
+LIVE_CHUNK_BYTES = 256 * 1024
+"""Message bytes per compressed MCAP chunk of a live recording (about 16 frames of 360-px H.264
+with their annotations and tracks, 1.6 s at 10 fps): a worker killed mid-recording loses its
+open chunk only (:func:`salvage` keeps the rest)."""
 
 
 def nanoseconds(timestamp: float) -> int:
     return round(timestamp * 1e9)
 
 
-def annotations(
+def image_annotations(
     message: FrameTracksMessage, stamp: int, skeleton: tuple[tuple[str, str], ...] = ()
 ) -> dict[str, Any]:
     """The ``foxglove.ImageAnnotations`` of one frame; ``skeleton`` the pairs of part names
@@ -119,6 +138,47 @@ def annotations(
     return {"circles": [], "points": points, "texts": texts}
 
 
+def zone_annotations(annotations: dict[str, Any], overlay: ZoneOverlay, stamp: int) -> None:
+    """Add the zones (``LINE_LOOP``), the lines with their 'in' arrows (``LINE_LIST``) and the
+    running counts (texts) to a frame's ``foxglove.ImageAnnotations``."""
+    time = foxglove.time_of(stamp)
+    for polygon in overlay.polygons():
+        annotations["points"].append(
+            {
+                "timestamp": time,
+                "type": foxglove.LINE_LOOP,
+                "points": [{"x": float(x), "y": float(y)} for x, y in polygon],
+                "outline_color": foxglove.color(ZONE_RGB),
+                "outline_colors": [],
+                "fill_color": foxglove.color(ZONE_RGB, 0.15),
+                "thickness": 2.0,
+            }
+        )
+    if segments := overlay.segments():
+        annotations["points"].append(
+            {
+                "timestamp": time,
+                "type": foxglove.LINE_LIST,
+                "points": [{"x": float(p[0]), "y": float(p[1])} for ends in segments for p in ends],
+                "outline_color": foxglove.color(LINE_RGB),
+                "outline_colors": [],
+                "fill_color": foxglove.color(LINE_RGB, 0.0),
+                "thickness": 2.0,
+            }
+        )
+    for label in overlay.labels():
+        annotations["texts"].append(
+            {
+                "timestamp": time,
+                "position": {"x": label.x, "y": label.y},
+                "text": label.text,
+                "font_size": LABEL_SIZE,
+                "text_color": foxglove.color((255, 255, 255)),
+                "background_color": foxglove.color((0, 0, 0), 0.6),
+            }
+        )
+
+
 def _label_baseline(top: float) -> float:
     """Where an id label's bottom edge goes (Foxglove anchors text at its bottom left): just
     above the box, or just inside it where the box starts too near the top of the image for
@@ -131,17 +191,14 @@ def _encode(document: dict[str, Any]) -> bytes:
 
 
 class McapWriter:
-    """``message_model`` is the model of the ``/tracks`` messages (its JSON Schema is stored);
-    ``chunk_size`` the bytes of messages per compressed chunk."""
+    """The MCAP of a result or, in stream mode (``info.live``), of a camera's recording: its
+    ``/tracks`` messages are then :class:`~api_schemas.streams.StreamTracksMessage` and its
+    chunks small."""
 
-    def __init__(
-        self,
-        path: Path,
-        info: StreamInfo,
-        message_model: type[BaseModel] = FrameTracksMessage,
-        chunk_size: int = 1024 * 1024,
-    ) -> None:
+    def __init__(self, path: Path, info: StreamInfo) -> None:
         self.path = path
+        message_model: type[BaseModel] = StreamTracksMessage if info.live else FrameTracksMessage
+        chunk_size = LIVE_CHUNK_BYTES if info.live else CHUNK_BYTES
         self._video = info.mcap_images == "h264"
         if self._video and (reason := h264.h264_unavailable()) is not None:
             log.warning("the MCAP stores JPEG images instead of H.264: %s", reason)
@@ -167,10 +224,24 @@ class McapWriter:
         ):
             schema_id = self._writer.register_schema(name, "jsonschema", _encode(schema))
             self._channels[topic] = self._writer.register_channel(topic, "json", schema_id)
+        self._zones = None if info.analytics is None else ZoneOverlay(info.analytics)
+        if self._zones is not None:
+            event_schema = _encode(AnalyticsEvent.model_json_schema())
+            schema_id = self._writer.register_schema(
+                "vtrack.AnalyticsEvent", "jsonschema", event_schema
+            )
+            self._channels[EVENTS_TOPIC] = self._writer.register_channel(
+                EVENTS_TOPIC, "json", schema_id
+            )
         self._sequences = dict.fromkeys(self._channels, 0)
         self._info = info
 
-    def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
+    def write(
+        self,
+        frame: TimedFrame,
+        message: FrameTracksMessage,
+        events: Sequence[AnalyticsEvent] = (),
+    ) -> None:
         stamp = nanoseconds(frame.timestamp)
         if self._video:
             if self._encoder is None:
@@ -185,7 +256,13 @@ class McapWriter:
             self._add(
                 IMAGE_TOPIC, stamp, foxglove.compressed_image(stamp, jpeg.tobytes(), FRAME_ID)
             )
-        self._add(ANNOTATIONS_TOPIC, stamp, annotations(message, stamp, self._info.skeleton))
+        annotations = image_annotations(message, stamp, self._info.skeleton)
+        if self._zones is not None:
+            self._zones.update(events)
+            zone_annotations(annotations, self._zones, stamp)
+            for event in events:
+                self._add(EVENTS_TOPIC, stamp, event.model_dump(mode="json"))
+        self._add(ANNOTATIONS_TOPIC, stamp, annotations)
         self._add(TRACKS_TOPIC, stamp, message.model_dump(mode="json"))
 
     def _add_video(self, units: list[tuple[int, bytes]]) -> None:
@@ -209,6 +286,7 @@ class McapWriter:
         if self._encoder is not None:
             self._add_video(self._encoder.flush())
         # The images alone do not give the video's size: H.264 pads odd sides by a pixel.
+        video = summary.video
         info = {
             "vtrack_version": __version__,
             "options": self._info.options.model_dump_json(),
@@ -217,17 +295,18 @@ class McapWriter:
             "height": str(self._info.height),
             "pixel_aspect_ratio": str(self._info.pixel_aspect),
             "frames_processed": str(summary.frames_processed),
-            "frames_read": str(summary.video.frames_read),
+            # a live camera's frames are all tracked; none were announced
+            "frames_read": str(summary.frames_processed if video is None else video.frames_read),
             "frame_step": str(self._info.frame_step),
             "part_names": ",".join(self._info.part_names),
             "skeleton": ",".join(f"{a}-{b}" for a, b in self._info.skeleton),
         }
-        if summary.video.fps:
-            info["fps"] = str(summary.video.fps)
-        if summary.video.start:
-            info["start"] = str(summary.video.start)
-        if summary.video.end is not None:
-            info["end"] = str(summary.video.end)
+        if video is not None and video.fps:
+            info["fps"] = str(video.fps)
+        if video is not None and video.start:
+            info["start"] = str(video.start)
+        if video is not None and video.end is not None:
+            info["end"] = str(video.end)
         if self._info.job_id:
             info["job_id"] = self._info.job_id
         self._writer.add_metadata("vtrack", info)

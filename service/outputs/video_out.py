@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
+from collections.abc import Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Protocol
@@ -23,6 +24,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from api_schemas.analytics import AnalyticsEvent
 from api_schemas.tracks import FrameTracksMessage
 from service.ffmpeg_paths import FfmpegPath
 from service.frames import TimedFrame
@@ -30,6 +32,7 @@ from service.outputs import h264
 from service.outputs.base import RunSummary, StreamInfo, limbs
 from service.outputs.h264 import H264_OPTIONS, FrameStamper, configure
 from service.outputs.palette import track_colour
+from service.outputs.zones import LINE_RGB, ZONE_RGB, ZoneOverlay
 
 log = logging.getLogger(__name__)
 
@@ -93,6 +96,21 @@ class TrackDrawer:
         return canvas
 
 
+def draw_zones(canvas: np.ndarray, overlay: ZoneOverlay) -> None:
+    """Draw the zones, the lines with their 'in' arrows, and the running counts on ``canvas``
+    (BGR, in place)."""
+    zone_bgr, line_bgr = ZONE_RGB[::-1], LINE_RGB[::-1]
+    polygons = [np.round(p).astype(np.int32) for p in overlay.polygons()]
+    cv2.polylines(canvas, polygons, True, zone_bgr, 2, cv2.LINE_AA)
+    for start, end in overlay.segments():
+        a, b = tuple(int(v) for v in np.round(start)), tuple(int(v) for v in np.round(end))
+        cv2.line(canvas, a, b, line_bgr, 2, cv2.LINE_AA)
+    for label in overlay.labels():
+        origin = (round(label.x), max(round(label.y), 12))
+        cv2.putText(canvas, label.text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3)
+        cv2.putText(canvas, label.text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1)
+
+
 class _Encoder(Protocol):
     def write(self, bgr: np.ndarray, timestamp: float) -> None: ...
 
@@ -148,7 +166,7 @@ class Mp4vEncoder:
     """BGR frames to an MPEG-4 part 2 MP4 (OpenCV) at a constant rate."""
 
     def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
-        fourcc = cv2.VideoWriter_fourcc(*"mp4v")
+        fourcc = cv2.VideoWriter.fourcc(*"mp4v")
         with FfmpegPath(path, writing=True) as name:
             self._writer = cv2.VideoWriter(name, fourcc, fps, (width, height))
         if not self._writer.isOpened():
@@ -180,15 +198,25 @@ class VideoWriter:
         self._size = (info.width, info.height)
         self._encoder = open_encoder(path, info.width, info.height, fps, info.pixel_aspect)
         self._drawer = TrackDrawer(skeleton=info.skeleton)
+        self._zones = None if info.analytics is None else ZoneOverlay(info.analytics)
         self._origin: float | None = None
 
-    def write(self, frame: TimedFrame, message: FrameTracksMessage) -> None:
+    def write(
+        self,
+        frame: TimedFrame,
+        message: FrameTracksMessage,
+        events: Sequence[AnalyticsEvent] = (),
+    ) -> None:
         bgr = cv2.cvtColor(frame.image, cv2.COLOR_RGB2BGR)
         if (bgr.shape[1], bgr.shape[0]) != self._size:
             bgr = cv2.resize(bgr, self._size)
         if self._origin is None:  # a job's start: the video is a clip, played from 0
             self._origin = frame.timestamp
-        self._encoder.write(self._drawer.draw(bgr, message), frame.timestamp - self._origin)
+        canvas = self._drawer.draw(bgr, message)
+        if self._zones is not None:
+            self._zones.update(events)
+            draw_zones(canvas, self._zones)
+        self._encoder.write(canvas, frame.timestamp - self._origin)
 
     def write_filled(self, message: FrameTracksMessage) -> None:
         pass  # the frame is encoded already; the video shows frames as they were tracked

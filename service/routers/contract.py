@@ -116,8 +116,9 @@ def _query_checked(app: FastAPI) -> set[tuple[str, str]]:
         # apart from app.routes' own)
         for context in iter_route_contexts(app.routes)
         if isinstance(route := context.original_route, APIRoute)
+        and context.path_format is not None
         and refuse_unknown_query_parameters in calls(route.dependant)
-        for method in route.methods
+        for method in route.methods or ()
     }
 
 

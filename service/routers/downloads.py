@@ -9,11 +9,15 @@ from __future__ import annotations
 
 import json
 import os
+from typing import Any
 
 import anyio
 from fastapi.responses import FileResponse
 from starlette.datastructures import Headers
 from starlette.types import Message, Receive, Scope, Send
+
+from api_schemas.common import ErrorType
+from service.errors import error_body
 
 __all__ = ["NOT_MODIFIED", "RANGE_ERRORS", "Download", "accepts_gzip"]
 
@@ -22,7 +26,7 @@ RANGE_ERRORS = {
     416: "A Range that starts beyond the end of the file.",
 }
 """Descriptions of a download's range errors, for the route's OpenAPI ``responses``."""
-NOT_MODIFIED = {
+NOT_MODIFIED: dict[int | str, dict[str, Any]] = {
     304: {"description": "If-None-Match named the file's ETag: the client has this copy."}
 }
 """The OpenAPI ``responses`` entry of a download's ``304``."""
@@ -56,8 +60,8 @@ def _matches(if_none_match: str, etag: str) -> bool:
 
 
 class Download(FileResponse):
-    """A file download: ranges as :class:`FileResponse` serves them, range errors as JSON
-    ``{"detail": ...}``, and ``304 Not Modified`` to a client that has the file (its ETag)."""
+    """A file download: ranges as :class:`FileResponse` serves them, range errors as an
+    ErrorResponse, and ``304 Not Modified`` to a client that has the file (its ETag)."""
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if self.stat_result is None:  # the ETag and a 416's size come from it
@@ -89,7 +93,7 @@ class Download(FileResponse):
     def _json_range_errors(self, headers: Headers, send: Send) -> Send:
         """``send`` with the plain-text 400/416 answers to a bad Range header made JSON (a
         200 or 206 passes untouched: the file was served)."""
-        error: dict[str, object] = {}
+        error: dict[str, Any] = {}
 
         async def sending(message: Message) -> None:
             if message["type"] == "http.response.start" and message["status"] in (400, 416):
@@ -100,6 +104,7 @@ class Download(FileResponse):
                 return
             requested = headers.get("range", "")
             if error["status"] == 416:
+                assert self.stat_result is not None  # stat in __call__, before the file
                 size = self.stat_result.st_size
                 detail = (
                     f"Range {requested!r} starts beyond the end of the file ({size} bytes; "
@@ -114,7 +119,12 @@ class Download(FileResponse):
                     f"Range {requested!r} cannot be served ({reason or 'malformed'}): ask for "
                     "bytes=START-END, bytes=START- or bytes=-LENGTH"
                 )
-            body = json.dumps({"detail": detail}).encode()
+            kind = (
+                ErrorType.range_not_satisfiable
+                if error["status"] == 416
+                else ErrorType.invalid_range
+            )
+            body = json.dumps(error_body(kind, detail)).encode()
             kept = [
                 (k, v)
                 for k, v in error["headers"]

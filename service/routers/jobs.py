@@ -10,11 +10,13 @@ import time
 from typing import Annotated
 from urllib.parse import urlencode
 
-from fastapi import APIRouter, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 from pydantic import AwareDatetime, BeforeValidator
 
+from api_schemas.analytics import AnalyticsResult, EventType
+from api_schemas.common import ErrorType
 from api_schemas.jobs import (
     JobCreated,
     JobList,
@@ -25,15 +27,19 @@ from api_schemas.jobs import (
     ProgressEvent,
 )
 from api_schemas.tracks import Trajectories
+from service.analysis import ANALYTICS_FILE
 from service.deps import AuthDep, FilesDep, KnownQueryDep, SettingsDep, StoreDep
+from service.errors import ApiError, options_error
 from service.jobs.housekeeping import remove_job
 from service.jobs.store import JobRecord, JobStore
-from service.jobs.submit import submit
+from service.jobs.submit import SubmitError, new_job_id, submit
 from service.jobs.views import API_PREFIX, events_url, job_status, progress_event, status_url
 from service.outputs.base import MEDIA_TYPES
+from service.pipelines import OptionsError
 from service.routers import BINARY_CONTENT, error_responses
 from service.routers.contract import schema_ref
 from service.routers.downloads import NOT_MODIFIED, RANGE_ERRORS, Download, accepts_gzip
+from service.uploads import receive_upload
 
 log = logging.getLogger(__name__)
 
@@ -129,8 +135,8 @@ KEEPALIVE_SECONDS = 15.0
 def _job(store: JobStore, job_id: str) -> JobRecord:
     record = store.get(job_id)
     if record is None:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND,
+        raise ApiError(
+            ErrorType.not_found,
             f"no job {job_id!r}: it never existed or was deleted (GET /v1/jobs lists the jobs)",
         )
     return record
@@ -149,7 +155,17 @@ def _job(store: JobStore, job_id: str) -> JobRecord:
 async def create_job(
     request: Request, response: Response, settings: SettingsDep, store: StoreDep, files: FilesDep
 ) -> JobCreated:
-    record = await submit(request, settings, store, files)
+    job_id = new_job_id()
+    upload = await receive_upload(
+        request, files.receiving(job_id), settings.max_upload_bytes, settings.upload_idle_seconds
+    )
+    prober = request.app.state.prober
+    try:
+        record = await submit(job_id, upload, settings, store, files, prober)
+    except SubmitError as error:
+        raise ApiError(error.type, error.detail, errors=error.errors) from None
+    except OptionsError as error:
+        raise options_error(error, "options") from None
     response.headers["Location"] = status_url(record.id)
     return JobCreated(
         id=record.id,
@@ -215,8 +231,8 @@ def list_jobs(
     try:
         records = store.list(limit=limit + 1, state=state, before=before, finished_after=after)
     except KeyError:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND,
+        raise ApiError(
+            ErrorType.not_found,
             f"no job {before!r} to page from: it was deleted since the previous page; start "
             "again from the newest (GET /v1/jobs)",
         ) from None
@@ -264,33 +280,18 @@ def get_result(
     files: FilesDep,
     format: Annotated[OutputFormat, Query(description="Which result.")] = OutputFormat.json,
 ) -> Download:
-    record = _job(store, job_id)
-    if record.state != JobState.succeeded:
-        if record.state in (JobState.queued, JobState.running):
-            total = record.frames_total if record.frames_total is not None else "?"
-            raise HTTPException(
-                status.HTTP_409_CONFLICT,
-                f"job {job_id} is {record.state.value} ({record.frames_done} of {total} frames): "
-                f"results are served once it has succeeded; poll {status_url(job_id)}",
-            )
-        raise HTTPException(
-            status.HTTP_409_CONFLICT,
-            f"job {job_id} {record.state.value} and has no results"
-            + (f": {record.error}" if record.error else ""),
-        )
+    record = _succeeded(_job(store, job_id))
     name = record.results.get(format.value)
     if name is None:
         asked = ", ".join(record.results) or "none"
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND,
+        raise ApiError(
+            ErrorType.not_found,
             f"job {job_id} was created without the {format.value!r} result (it has: {asked}); "
             "list the formats you need in options.formats",
         )
     path = files.result_file(record, name)
     if path is None:
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND, f"the {format.value} result of job {job_id} is gone"
-        )
+        raise ApiError(ErrorType.not_found, f"the {format.value} result of job {job_id} is gone")
     download = f"{job_id}-{name}"
     # The video opens in a browser tab (inline) rather than as a download; Download answers
     # Range requests, which players need to seek (Safari to play at all).
@@ -310,6 +311,58 @@ def get_result(
         content_disposition_type=disposition,
         headers=headers,
     )
+
+
+def _succeeded(record: JobRecord) -> JobRecord:
+    """``record``, a job that succeeded; else 409 saying what it is doing or why it ended."""
+    if record.state == JobState.succeeded:
+        return record
+    job_id = record.id
+    if record.state in (JobState.queued, JobState.running):
+        total = record.frames_total if record.frames_total is not None else "?"
+        raise ApiError(
+            ErrorType.conflict,
+            f"job {job_id} is {record.state.value} ({record.frames_done} of {total} frames): "
+            f"results are served once it has succeeded; poll {status_url(job_id)}",
+        )
+    raise ApiError(
+        ErrorType.conflict,
+        f"job {job_id} {record.state.value} and has no results"
+        + (f": {record.error}" if record.error else ""),
+    )
+
+
+@router.get(
+    "/{job_id}/analytics",
+    summary="The events and counts of a finished job's zones and lines",
+    description="The zones and lines as they ran (in pixels), every event in time order and "
+    "the counts (docs/analytics.md); `type` keeps the events of one type.",
+    response_model=AnalyticsResult,
+    responses=error_responses(404, 409, 422, why={
+        404: "No such job, a job without options.analytics, or its analytics are gone.",
+        409: "The job has not succeeded (yet).",
+    }),
+)  # fmt: skip
+def get_analytics(
+    job_id: str,
+    store: StoreDep,
+    files: FilesDep,
+    type: Annotated[EventType | None, Query(description="Only the events of this type.")] = None,
+) -> AnalyticsResult:
+    record = _succeeded(_job(store, job_id))
+    if not record.options.get("analytics"):
+        raise ApiError(
+            ErrorType.not_found,
+            f"job {job_id} watched no zones or lines: give options.analytics when you submit "
+            "a job (docs/analytics.md)",
+        )
+    path = files.result_file(record, ANALYTICS_FILE)
+    if path is None:
+        raise ApiError(ErrorType.not_found, f"the analytics of job {job_id} are gone")
+    result = AnalyticsResult.model_validate_json(path.read_bytes())
+    if type is not None:
+        result.events = [event for event in result.events if event.type == type]
+    return result
 
 
 @router.get(
@@ -335,8 +388,8 @@ async def job_events(
     _job(store, job_id)
     state = request.app.state
     if state.event_streams >= settings.max_event_streams:
-        raise HTTPException(
-            status.HTTP_503_SERVICE_UNAVAILABLE,
+        raise ApiError(
+            ErrorType.busy,
             f"{state.event_streams} clients follow job events already, the most this service "
             "serves (VTRACK_MAX_EVENT_STREAMS): poll GET /v1/jobs/{id} instead, or try again "
             "later",

@@ -5,11 +5,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TypeVar
 
-from fastapi import APIRouter, HTTPException, Response, status
+from fastapi import APIRouter, Response, status
 
+from api_schemas.common import ErrorType
 from api_schemas.jobs import OutputFormat
 from api_schemas.streams import StreamDetail, StreamList, StreamSpec, StreamStatus
 from service.deps import AuthDep, KnownQueryDep, StreamsDep
+from service.errors import ApiError, options_error
 from service.outputs.base import MEDIA_TYPES
 from service.pipelines import OptionsError
 from service.routers import BINARY_CONTENT, error_responses
@@ -31,9 +33,9 @@ _START_ERRORS = {
 }
 
 
-def _not_found(stream_id: str) -> HTTPException:
-    return HTTPException(
-        status.HTTP_404_NOT_FOUND,
+def _not_found(stream_id: str) -> ApiError:
+    return ApiError(
+        ErrorType.not_found,
         f"no stream {stream_id!r}: it was never started or was deleted (GET /v1/streams lists "
         "the streams)",
     )
@@ -61,11 +63,11 @@ def create_stream(spec: StreamSpec, streams: StreamsDep, response: Response) -> 
     try:
         created = streams.create(spec)
     except ZenohUnavailable as error:
-        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, str(error)) from None
+        raise ApiError(ErrorType.unavailable, str(error)) from None
     except StreamConflict as error:
-        raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from None
+        raise ApiError(ErrorType.conflict, str(error)) from None
     except OptionsError as error:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, str(error)) from None
+        raise options_error(error, "body") from None
     response.headers["Location"] = f"/v1/streams/{created.id}"
     return created
 
@@ -110,7 +112,7 @@ def delete_stream(stream_id: str, streams: StreamsDep) -> StreamStatus | Respons
     except StreamNotFound:
         raise _not_found(stream_id) from None
     except StreamConflict as error:
-        raise HTTPException(status.HTTP_409_CONFLICT, str(error)) from None
+        raise ApiError(ErrorType.conflict, str(error)) from None
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
@@ -144,8 +146,8 @@ def get_recording(stream_id: str, name: str, streams: StreamsDep) -> Download:
             )
         else:
             why = 'the stream does not record (start it with "record": true)'
-        raise HTTPException(
-            status.HTTP_404_NOT_FOUND,
+        raise ApiError(
+            ErrorType.not_found,
             f"stream {stream_id!r} has no finished recording {name!r}: {why}",
         )
     return Download(recordings[name], media_type=MEDIA_TYPES[OutputFormat.mcap], filename=name)

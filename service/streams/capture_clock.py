@@ -81,7 +81,8 @@ class CaptureClock:
         stream has no times) that arrived at ``arrival``."""
         if position is None:
             return self._in_order(arrival)
-        if self._offset is not None and self.trusted:
+        # (an offset comes from a stamped frame: the last stamp is there too)
+        if self._offset is not None and self._last is not None and self.trusted:
             drift = self._offset + position - arrival
             mismatch = (position - self._position) - (arrival - self._arrival)
             if abs(mismatch) > JUMP_SECONDS:

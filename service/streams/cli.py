@@ -10,8 +10,9 @@ import re
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import zenoh
 
@@ -30,6 +31,11 @@ from service.streams.session import (
     zenoh_endpoint,
 )
 from tracking.output_paths import output_file
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from service.streams.capture_clock import Captured
 
 
 def _settings(command: str):
@@ -147,6 +153,7 @@ def _publish(args: argparse.Namespace) -> int:
     if problem:
         print(f"vtrack publish: {problem}", file=sys.stderr)
         return 2
+    frames: Iterator[np.ndarray | bytes | Captured]
     try:
         if camera:
             timeout = DEFAULT_CAMERA_TIMEOUT if args.timeout is None else args.timeout

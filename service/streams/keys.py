@@ -35,6 +35,11 @@ class StreamKeys:
         return f"{self.prefix}/cameras/{self.camera}/tracks/current"
 
     @property
+    def events(self) -> str:
+        """What people did at the camera's zones and lines (one sample per event)."""
+        return f"{self.prefix}/cameras/{self.camera}/events"
+
+    @property
     def trackers(self) -> str:
         """Liveliness tokens of every instance that tracks this camera."""
         return f"{self.prefix}/trackers/{self.camera}/*"
@@ -49,5 +54,6 @@ class StreamKeys:
             "tracks": self.tracks,
             "ended": self.ended,
             "current": self.current,
+            "events": self.events,
             "trackers": self.trackers,
         }

@@ -21,6 +21,7 @@ starts once no tracker's token is left (two looks in a row, as a standby takes o
 
 from __future__ import annotations
 
+import builtins
 import hashlib
 import logging
 import os
@@ -33,6 +34,8 @@ from datetime import UTC, datetime
 from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
 from typing import Any
+
+import zenoh
 
 from api_schemas.streams import (
     StreamCounters,
@@ -112,6 +115,9 @@ class _Stream:
 class StreamManager:
     """Every stream of this service instance."""
 
+    # declared here: in __init__ the name zenoh is the ZenohOptions parameter
+    _hub: zenoh.Session | None  # the hub session; None: not started, unavailable or closed
+
     def __init__(
         self,
         store: StreamStore,
@@ -125,8 +131,10 @@ class StreamManager:
         check_interval: float = 0.1,
         stop_requested: threading.Event | None = None,
         spread_as: str | None = None,
+        sinks: tuple[str, ...] = (),
     ) -> None:
         self._store = store
+        self._sinks = sinks  # where the events of the streams' zones and lines go
         # this instance's name among those that share the streams table; None: it is its own
         self._name = spread_as
         self._presence: Any = None  # its liveliness token, <prefix>/instances/<name>
@@ -240,7 +248,7 @@ class StreamManager:
             self._streams[spec.camera] = stream
         owner = self._owner(spec.camera)
         with self._lock:
-            if owner == self._name or self._name is None:
+            if owner is None or owner == self._name:  # None: this instance shares nothing
                 self._spawn(stream)
             else:  # the owner reads the table at its next look and starts it
                 self._stand_by(stream, [owner])
@@ -292,7 +300,7 @@ class StreamManager:
     def recordings_dir(self, stream_id: str) -> Path:
         return self._streams_dir / stream_id
 
-    def recordings(self, stream_id: str) -> list[Path]:
+    def recordings(self, stream_id: str) -> builtins.list[Path]:
         """Finished recordings of a stream, oldest first."""
         self._get(stream_id)
         folder = self.recordings_dir(stream_id)
@@ -309,9 +317,11 @@ class StreamManager:
 
     # -- internals -------------------------------------------------------------------------
 
-    def _require_zenoh(self) -> None:
+    def _require_zenoh(self) -> zenoh.Session:
+        """The hub session; raises ``ZenohUnavailable`` when there is none."""
         if self._hub is None:
             raise ZenohUnavailable(self.unavailable or "the stream manager is not started")
+        return self._hub
 
     def _keys(self, camera: str) -> StreamKeys:
         return StreamKeys(self._prefix, camera)
@@ -326,7 +336,7 @@ class StreamManager:
     def _instance_key(self, name: str) -> str:
         return f"{self._prefix}/instances/{name}"
 
-    def _live_instances(self) -> list[str]:
+    def _live_instances(self) -> builtins.list[str]:
         """The names of the instances that share the streams table and are alive (their
         liveliness tokens); empty when this instance shares nothing."""
         if self._name is None or self._hub is None:
@@ -372,18 +382,19 @@ class StreamManager:
             self._halt(*halted)
             with self._lock:
                 for stream in halted:
-                    if (record := records.get(stream.record.id)) is not None:
-                        stream.record = record
+                    if (latest := records.get(stream.record.id)) is not None:
+                        stream.record = latest
                     stream.state = StreamState.stopped
                     stream.stopping = False
                     stream.restart_at = stream.yield_to = stream.death = None
 
-    def _other_trackers(self, camera: str) -> list[str]:
+    def _other_trackers(self, camera: str) -> builtins.list[str]:
         """Other instances whose liveliness token says they track ``camera`` (a query: call it
         without holding the lock)."""
-        return [i for i in trackers_of(self._hub, self._keys(camera)) if i != self.instance]
+        hub = self._require_zenoh()
+        return [i for i in trackers_of(hub, self._keys(camera)) if i != self.instance]
 
-    def _stand_by(self, stream: _Stream, others: list[str]) -> None:
+    def _stand_by(self, stream: _Stream, others: builtins.list[str]) -> None:
         self._fold(stream)
         stream.unowned = False
         stream.report = {}  # the other instance's tracks are the current ones
@@ -396,7 +407,7 @@ class StreamManager:
         )
         log.info("stream %s: standing by for %s", stream.record.id, ", ".join(others))
 
-    def _stand_by_or_spawn(self, stream: _Stream, others: list[str]) -> None:
+    def _stand_by_or_spawn(self, stream: _Stream, others: builtins.list[str]) -> None:
         if others:
             self._stand_by(stream, others)
         else:
@@ -420,6 +431,7 @@ class StreamManager:
             database=self._store.path,
             frame_limit=self._frame_limit,
             log_level=self._log_level,
+            sinks=self._sinks,
         )
         stream.stop = shared_flag(self._ctx)
         # A pipe whose only write end the worker holds (a Queue's is shared with the service
@@ -528,10 +540,12 @@ class StreamManager:
                             or self._streams.get(stream.record.id) is not stream
                         ):
                             continue  # stopped, failed or removed meanwhile
-                        theirs = owner is not None and owner != self._name
+                        # [its owner] when the camera belongs to another instance, else []
+                        elsewhere = [owner] if owner is not None and owner != self._name else []
+                        theirs = bool(elsewhere)
                         if stream.discovering:
                             stream.discovering = False
-                            self._stand_by_or_spawn(stream, others or ([owner] if theirs else []))
+                            self._stand_by_or_spawn(stream, others or elsewhere)
                             continue
                         if stream.state is StreamState.standby:
                             # Untracked at two looks in a row: a tracker whose worker is
@@ -548,9 +562,9 @@ class StreamManager:
                             # another instance joined, and the camera hashes to it now
                             log.info("stream %s: moves to instance %s", stream.record.id, owner)
                             if stream.process is None:
-                                self._stand_by(stream, [owner])
+                                self._stand_by(stream, elsewhere)
                             else:
-                                stream.yield_to = [owner]
+                                stream.yield_to = elsewhere
                                 stream.stop.value = True
                             continue
                         first = [i for i in others if i < self.instance]  # older instances

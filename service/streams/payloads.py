@@ -1,4 +1,5 @@
-"""Frame and detection payloads: bytes off the wire -> checked numpy frames and detections.
+"""Stream payloads: bytes off the wire -> checked numpy frames and detections; tracks -> the
+messages a stream publishes.
 
 Everything a camera can get wrong (no attachment, an attachment that is not the schema, a JPEG
 that does not decode, raw bytes of the wrong size) raises :class:`PayloadError` with one
@@ -14,11 +15,20 @@ import cv2
 import numpy as np
 from pydantic import ValidationError
 
-from api_schemas.streams import MAX_TIMESTAMP, FrameAttachment, PixelFormat, UpstreamDetections
+from api_schemas.streams import (
+    MAX_TIMESTAMP,
+    FrameAttachment,
+    PixelFormat,
+    StreamTracksEnded,
+    StreamTracksMessage,
+    UpstreamDetections,
+)
+from service.convert import frame_message
 from service.frames import MAX_PIXELS, frame_size_problem
 from service.outputs.h264 import IDR, nal_unit_types
 from tracking.detection.base import Detections
 from tracking.detection.external import detections_from_arrays
+from tracking.tracks import FrameTracks
 
 JPEG = "image/jpeg"
 RAW = "application/octet-stream"
@@ -126,7 +136,7 @@ class H264Frames:
     """
 
     def __init__(self) -> None:
-        self._decoder: av.CodecContext | None = None
+        self._decoder: av.VideoCodecContext | None = None
 
     def decode(self, unit: bytes) -> np.ndarray:
         """The unit's frame as RGB uint8 ``(H, W, 3)``; raises :class:`PayloadError`."""
@@ -217,3 +227,41 @@ def encode_jpeg(rgb: np.ndarray, quality: int = 90) -> bytes:
 def frame_attachment(sequence: int, timestamp: float, **raw: object) -> bytes:
     """The attachment bytes of one frame sample."""
     return json.dumps({"sequence": sequence, "timestamp": timestamp, **raw}).encode()
+
+
+def tracks_message(
+    tracks: FrameTracks,
+    *,
+    frame_index: int,
+    camera: str,
+    sequence: int,
+    latency: float,
+    frames_skipped: int,
+    detections: str,
+) -> StreamTracksMessage:
+    """The payload of the ``tracks`` key for one tracked frame: ``tracks`` (their ids as
+    published) converted as an upload's are (:func:`~service.convert.frame_message`), with
+    what the stream says of the frame; ``frame_index`` counts the frames the worker tracked."""
+    frame = frame_message(tracks, frame_index)
+    return StreamTracksMessage(
+        frame_index=frame_index,
+        timestamp=tracks.timestamp,  # as the camera stamped it, not rounded
+        tracks=frame.tracks,
+        camera=camera,
+        sequence=sequence,
+        latency=latency,
+        frames_skipped=frames_skipped,
+        detections=detections,
+    )
+
+
+def ended_message(last: StreamTracksMessage, reason: str) -> StreamTracksEnded:
+    """The payload of the ``tracks/ended`` key: the tracks of ``last``, the last message of a
+    run, ended for ``reason``."""
+    return StreamTracksEnded(
+        camera=last.camera,
+        reason=reason,
+        sequence=last.sequence,
+        timestamp=last.timestamp,
+        track_ids=[track.track_id for track in last.tracks],
+    )

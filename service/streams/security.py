@@ -4,17 +4,18 @@ Without any of them (the default) the service's Zenoh session is open: whoever r
 endpoint may publish frames for any camera, read every camera's tracks and declare the liveliness
 token that puts a camera on standby. With them, every session goes through one place where the
 rules are enforced: the service's hub session becomes a Zenoh *router* and everything else
-(stream workers, cameras, subscribers) connects to it as a *client* (DESIGN.md §7). In peer mode
-two peers could meet directly and bypass the hub's rules; through a router they cannot. When the
-service itself is a client of a separate router (the compose file's), that router enforces the
-same rules, which ``vtrack zenoh router-config`` writes from the same settings.
+(stream workers, cameras, subscribers) connects to it as a *client* (docs/architecture.md §7). In
+peer mode two peers could meet directly and bypass the hub's rules; through a router they cannot.
+When the service itself is a client of a separate router (the compose file's), that router
+enforces the same rules, which ``vtrack zenoh router-config`` writes from the same settings.
 
 The rules (Zenoh's ``access_control``, deny by default) grant, under ``<prefix>``:
 
 - the service's principal: everything (its workers publish tracks and declare tracker tokens);
 - a camera's principal: publishing ``cameras/<camera>/frames`` and ``.../detections`` for the
   cameras named for it, and watching their trackers' liveliness tokens;
-- a reader's principal: subscribing to ``cameras/<camera>/tracks`` (and what is below it),
+- a reader's principal: subscribing to ``cameras/<camera>/tracks`` (and what is below it)
+  and ``cameras/<camera>/events``,
   querying ``tracks/current``, and watching the trackers' tokens of the cameras named for it.
 
 A principal is a user name of Zenoh's user/password authentication, or, with mutual TLS and no
@@ -184,8 +185,9 @@ def _grants(
             ("matching", ("declare_subscriber",), ("egress",), published),
             *watch,
         ]
-    # "tracks/**": the tracks, their end, and what is below (a subscriber of both declares it)
-    tracks = [f"{b}/tracks/**" for b in base]
+    # "tracks/**": the tracks, their end, and what is below (a subscriber of both declares it);
+    # "events": what people did at the camera's zones and lines
+    tracks = [f"{b}/{what}" for b in base for what in ("tracks/**", "events")]
     current = [f"{b}/tracks/current" for b in base]
     return [
         ("subscribe", ("declare_subscriber",), ("ingress",), tracks),
@@ -322,8 +324,13 @@ def build_security(
                 )
     access = None
     if users_file is not None or tls.client_auth:
-        service = user if users_file is not None else certificate_common_name(tls.certificate)
-        principal = "usernames" if users_file is not None else "cert_common_names"
+        principal: Literal["usernames", "cert_common_names"]
+        if users_file is not None:
+            assert user is not None, "a users file goes with the service's user (checked above)"
+            service, principal = user, "usernames"
+        else:
+            service = certificate_common_name(tls.certificate)
+            principal = "cert_common_names"
         access = AccessRules.from_maps(prefix, service, cameras, readers, principal)
     elif cameras or readers:
         raise ValueError(

@@ -5,7 +5,8 @@ The service process opens the *hub* session: in peer mode it listens on ``VTRACK
 other through it without multicast scouting and without a router. Every other session connects
 to the hub (and to ``VTRACK_ZENOH_CONNECT``, e.g. the compose file's router) and, in peer mode,
 listens on an ephemeral loopback port so that the peers it learns of by gossip can reach it
-directly. A forked session is dead, so each worker opens its own after it starts (DESIGN.md §7).
+directly. A forked session is dead, so each worker opens its own after it starts
+(docs/architecture.md §7).
 
 With TLS, authentication or access control configured (:mod:`service.streams.security`) the hub
 is a router and every other session its client, so that no two sessions meet around its rules.

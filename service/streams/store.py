@@ -6,7 +6,7 @@ A stream stopped with ``DELETE`` keeps its row (``stopped_at`` set) until it is 
 second time.
 
 Beside it, ``stream_track_ids`` holds per camera the highest track id a worker may have
-published (ids are reserved in blocks, see :mod:`service.streams.worker`): a worker that starts
+published (ids are reserved in blocks, see :mod:`service.streams.track_ids`): a worker that starts
 (the service restarted, or the worker died) continues above it, so an id is never reused within
 a stream. Its row outlives the stream's: a camera tracked again after a ``DELETE`` gets new ids
 too, so a consumer that keeps tracks by camera and id never sees one id name two people.

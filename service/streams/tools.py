@@ -122,7 +122,7 @@ def publish_frames(
             sequence = first_sequence + index
             stamp = time.time()
             if isinstance(frame, Captured):
-                frame, stamp = frame.data, frame.time
+                stamp, frame = frame.time, frame.data
             extra = {}
             if isinstance(frame, bytes):
                 data, encoding = frame, zenoh.Encoding.VIDEO_H264
@@ -165,7 +165,8 @@ def _wait_for_subscribers(
     tracker's queryable proves the direct connection.
     """
     deadline = time.monotonic() + timeout
-    while not all(p.matching_status.matching for p in publishers):
+    # zenoh's stubs type matching_status as a bool; it is a MatchingStatus
+    while not all(p.matching_status.matching for p in publishers):  # type: ignore[attr-defined]
         if time.monotonic() >= deadline:
             return False
         time.sleep(0.02)
@@ -235,7 +236,8 @@ def current_tracks(
         for reply in session.get(keys.current, timeout=max(deadline - time.monotonic(), 0.1)):
             if reply.ok is not None:
                 return StreamTracksMessage.model_validate_json(reply.ok.payload.to_bytes())
-            refusals.append(reply.err.payload.to_bytes().decode(errors="replace"))
+            if reply.err is not None:
+                refusals.append(reply.err.payload.to_bytes().decode(errors="replace"))
         if refusals:
             raise TrackerReplyError(refusals[0])
         if time.monotonic() >= deadline:

@@ -3,10 +3,12 @@
 One process per stream, forked from the service's fork server
 (:func:`service.worker_processes.worker_context`); it opens its own Zenoh session. Zenoh
 delivers samples on its own threads; the subscriber callbacks only check the attachment and drop
-the sample into a one-frame slot (:class:`LatestFrame`), so the frame the tracker takes next is
-always the newest and a slow tracker skips frames instead of queueing them. The main thread
-tracks, publishes, and reports its status to the service process over a pipe a few times per
-second.
+the sample into a one-frame slot (:class:`~service.streams.inbox.LatestFrame`), so the frame the
+tracker takes next is always the newest and a slow tracker skips frames instead of queueing
+them. The main thread runs the frame loop here: it tracks, publishes, and reports its status to
+the service process over a pipe a few times per second. What it publishes is built by
+:mod:`service.streams.payloads`, with the ids of :mod:`service.streams.track_ids`; what it
+records is written by :mod:`service.streams.recording`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ import collections
 import contextlib
 import ctypes
 import logging
-import os
 import statistics
 import threading
 import time
@@ -24,80 +25,54 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import zenoh
 
-from api_schemas.jobs import JobOptions
+from api_schemas.jobs import JobOptions, OutputFormat
 from api_schemas.streams import (
     FrameAttachment,
     StreamCounters,
     StreamSpec,
     StreamState,
-    StreamTracksEnded,
     StreamTracksMessage,
 )
-from api_schemas.tracks import VideoInfo
-from service.convert import track_state
-from service.frames import TimedFrame
-from service.jobs.database import DATABASE_ERRORS
-from service.outputs.base import RunSummary, StreamInfo
-from service.outputs.mcap_out import McapWriter, salvage
 from service.pipelines import (
     PipelineResources,
     build_pipeline,
+    check_options,
     enlargement_problem,
-    resolved_options,
 )
-from service.storage import storage_problem
+from service.streams.inbox import Incoming, LatestFrame, UpstreamBuffer
 from service.streams.keys import StreamKeys
 from service.streams.payloads import (
     H264Frames,
     PayloadError,
     check_frame_size,
     decode_frame,
+    ended_message,
     frame_attachment,
     is_h264,
     parse_attachment,
     parse_detections,
     to_detections,
+    tracks_message,
 )
+from service.streams.recording import Recording
 from service.streams.session import ZenohOptions, ZenohUnavailable, open_session
-from service.streams.store import StreamStore
+from service.streams.track_ids import TrackIds
+from service.streams.zone_events import ZoneEvents
 from service.worker_processes import ignore_stop_signals, service_alive
 from tracking.detection.base import Detections
 from tracking.pipeline import FramePipeline
 
 log = logging.getLogger(__name__)
 
-UPSTREAM_ACTIVE = 5.0
-"""Seconds after the last upstream detections message during which the camera counts as having
-an upstream detector (and frames wait ``detections_wait`` for theirs)."""
-
 RECENT = 100
 """Frames over which latency percentiles and the frame rate are computed."""
-
-RECORDING_CHUNK_BYTES = 256 * 1024
-"""Message bytes per compressed MCAP chunk of a recording (about 16 frames of 360-px H.264 with
-their annotations and tracks, 1.6 s at 10 fps): a worker killed mid-recording loses its open
-chunk only."""
-
-ID_BLOCK = 100
-"""Track ids reserved in the database at a time. The reservation is written before the first
-id beyond the last one is published, so the database is written once per this many new people
-(not per frame) and a worker that starts again continues above every id that may have gone out;
-the price is a gap of up to this many ids after a restart."""
 
 STAMP_GAP = 5.0
 """Seconds between the stamps of consecutive tracked frames from which, if the frames arrived
 at least 20 times closer together, the stream warns that the timestamps are not in seconds
 (milliseconds make every frame a gap that ends the tracks, and nobody is ever tracked)."""
-
-RESERVE_RETRY = 5.0
-"""Seconds before a reservation that failed (a full disk, a locked database) is tried again;
-tracking goes on meanwhile."""
-
-DATABASE_TIMEOUT = 5.0
-"""Seconds the tracking thread waits for the database's lock (the service writes it too)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,93 +90,9 @@ class StreamContext:
     frame_limit: int = 32 * 1024**2
     log_level: str = "info"
     status_interval: float = 0.25
-
-
-@dataclass(slots=True)
-class Incoming:
-    """A frame sample as it arrived, attachment checked; ``image`` is already decoded for
-    H.264 (every unit is decoded on arrival), else ``None``: decoded when taken."""
-
-    payload: bytes
-    encoding: str
-    attachment: FrameAttachment
-    arrived: float  # time.perf_counter()
-    image: np.ndarray | None = None
-
-
-class LatestFrame:
-    """A one-frame slot: a new frame replaces an untaken one, which counts as skipped."""
-
-    def __init__(self) -> None:
-        self._ready = threading.Condition()
-        self._frame: Incoming | None = None
-        self.skipped = 0
-        self.skipped_before_taken = 0  # of them, those before the frame taken last
-
-    def offer(self, frame: Incoming) -> None:
-        with self._ready:
-            if self._frame is not None:
-                self.skipped += 1
-            self._frame = frame
-            self._ready.notify()
-
-    def take(self, timeout: float) -> Incoming | None:
-        with self._ready:
-            if self._frame is None:
-                self._ready.wait(timeout)
-            frame, self._frame = self._frame, None
-            if frame is not None:  # those skipped later came after it
-                self.skipped_before_taken = self.skipped
-            return frame
-
-    def count_skipped(self) -> None:
-        """Count a frame the tracker took but did not track as skipped."""
-        with self._ready:
-            self.skipped += 1
-
-
-class UpstreamBuffer:
-    """Upstream detections by frame sequence number, the newest ``capacity`` kept."""
-
-    def __init__(self, capacity: int = 256) -> None:
-        self._arrived = threading.Condition()
-        self._by_sequence: collections.OrderedDict[int, Detections] = collections.OrderedDict()
-        self._arrived_at: dict[int, float] = {}  # time.perf_counter(), by sequence
-        self._capacity = capacity
-        self.last_seen: float | None = None  # time.monotonic()
-        self.received = 0
-
-    def offer(self, sequence: int, detections: Detections) -> None:
-        with self._arrived:
-            self._by_sequence[sequence] = detections
-            self._by_sequence.move_to_end(sequence)
-            self._arrived_at[sequence] = time.perf_counter()
-            while len(self._by_sequence) > self._capacity:
-                oldest, _ = self._by_sequence.popitem(last=False)
-                self._arrived_at.pop(oldest, None)
-            self.last_seen = time.monotonic()
-            self.received += 1
-            self._arrived.notify_all()
-
-    def active(self) -> bool:
-        seen = self.last_seen
-        return seen is not None and time.monotonic() - seen < UPSTREAM_ACTIVE
-
-    def take(self, sequence: int, wait: float) -> Detections | None:
-        """The detections of frame ``sequence``, waiting up to ``wait`` s for them to arrive."""
-        with self._arrived:
-            self._arrived.wait_for(lambda: sequence in self._by_sequence, timeout=wait)
-            self._arrived_at.pop(sequence, None)
-            return self._by_sequence.pop(sequence, None)
-
-    def forget_before(self, moment: float) -> None:
-        """Drop the detections that arrived before ``moment`` (``time.perf_counter()``): after
-        the camera started over, they belong to frames of its previous run whose sequence
-        numbers the new run reuses."""
-        with self._arrived:
-            for sequence in [s for s, t in self._arrived_at.items() if t < moment]:
-                del self._arrived_at[sequence]
-                del self._by_sequence[sequence]
+    sinks: tuple[str, ...] = ()
+    """The sinks (webhooks, the MQTT broker) that get the events of the zones and lines,
+    through the outbox in ``database``."""
 
 
 class StreamWorker:
@@ -237,23 +128,15 @@ class StreamWorker:
         # A frame of another size than this run's, not tracked until the next frame says
         # whether the camera changed resolution (same size) or it was a bad one (the old size).
         self._odd_frame: tuple[int, tuple[int, int]] | None = None  # (sequence, (w, h))
-        self._id_offset = 0  # added to the tracker's ids (which start at 1 with each tracker)
-        self._max_id = 0  # the highest id that may have been published
-        self._store: StreamStore | None = None
-        self._reserved = 0  # ids up to this are reserved in the database
-        self._reserve_retry_at = 0.0  # time.monotonic()
+        self._ids: TrackIds | None = None  # opened by run
         self._current: StreamTracksMessage | None = None  # the latest tracks message
         self._current_json: bytes | None = None  # the same as published
         self._ended: zenoh.Publisher | None = None  # says when the tracks end
         self._no_tracks = "has no tracks yet"  # the query's answer without one
         self._state = StreamState.waiting
         self._pipeline: FramePipeline | None = None
-        self._options = job_options(self.spec)  # what runs: 'auto' resolved by the pipeline
-        self._recorder: McapWriter | None = None
-        self._recording_path: Path | None = None
-        self._segment_start = 0.0  # capture time of the recording's first frame
-        self._segment_frames = 0
-        self._recording_resumes: float | None = None  # stream time a paused recording resumes
+        self._recording = Recording(context.spec, context.recordings_dir, self._note_error)
+        self._zones = ZoneEvents(context, self._note_error)
         self._last_report = 0.0
 
     # -- Zenoh callbacks (Zenoh's threads) ---------------------------------------------------
@@ -320,14 +203,15 @@ class StreamWorker:
     # -- the loop ----------------------------------------------------------------------------
 
     def run(self, stop: ctypes.c_bool, service_runs=lambda: True) -> None:
-        self._salvage_recordings()
-        self._open_id_store()
-        self._pipeline = self._new_pipeline()
+        self._recording.salvage()
+        self._ids = TrackIds(self.spec.camera, self.context.database, self._note_error)
         try:
+            self._pipeline = self._new_pipeline()
             session = open_session(self.context.zenoh.member_config())
         except BaseException:
-            self._close_id_store()
+            self._ids.close()
             raise
+        self._zones.open(session)
         try:
             # Kept referenced: Zenoh undeclares what is garbage collected (the token at least).
             declared = (
@@ -359,49 +243,20 @@ class StreamWorker:
             for entity in declared:
                 entity.undeclare()
         finally:
-            self._close_recording()
+            self._recording.close()
+            self._zones.close()
             session.close()
-            self._close_id_store()
+            self._ids.close()
         self.report(force=True)
 
-    def _open_id_store(self) -> None:
-        """Continue above every id an earlier worker of this stream may have published."""
-        if self.context.database is None:
-            return
-        self._store = StreamStore(self.context.database, timeout=DATABASE_TIMEOUT)
-        self._reserved = self._store.reserved_track_ids(self.spec.camera)
-        self._id_offset = self._max_id = self._reserved
-        if self._reserved:
-            log.info("camera %s: track ids continue above %d", self.spec.camera, self._reserved)
-
-    def _close_id_store(self) -> None:
-        if self._store is not None:
-            self._store.close()
-            self._store = None
-
-    def _reserve_ids(self, highest: int) -> None:
-        """Reserve ids beyond ``highest`` in the database before ``highest`` is published."""
-        if self._store is None or highest <= self._reserved:
-            return
-        now = time.monotonic()
-        if now < self._reserve_retry_at:
-            return
-        up_to = highest + ID_BLOCK
-        try:
-            self._store.reserve_track_ids(self.spec.camera, up_to)
-        except DATABASE_ERRORS as error:
-            self._reserve_retry_at = now + RESERVE_RETRY
-            self._note_error(
-                f"track ids could not be reserved in the database ({error}); tracking goes on, "
-                f"but ids above {self._reserved} may be given again if the stream restarts",
-                logging.ERROR,
-            )
-            return
-        self._reserved = up_to
-
     def _new_pipeline(self) -> FramePipeline:
-        self._options = job_options(self.spec, self.context.resources)
-        return build_pipeline(self._options, self.context.resources)
+        # planned again at each start: the service's models may have changed since the last
+        plan = check_options(job_options(self.spec), self.context.resources)
+        pipeline = build_pipeline(plan)
+        # a recording holds one run of tracks, and says what ran
+        self._recording.new_run(pipeline.part_names, pipeline.skeleton, plan.options)
+        self._zones.new_run()  # the zones are placed on the new run's first frame
+        return pipeline
 
     def _check_stamp_spacing(self, attachment: FrameAttachment, arrived: float) -> None:
         """Warn once per worker when consecutive frames are stamped far further apart than
@@ -426,9 +281,9 @@ class StreamWorker:
         zero again; upstream detections that arrived before then are its previous run's.
         """
         log.info("camera %s: tracks end: %s", self.spec.camera, why)
-        self._close_recording()  # a recording holds one run of tracks
         self._pipeline = self._new_pipeline()
-        self._id_offset = self._max_id
+        assert self._ids is not None
+        self._ids.start_over()
         self._last_timestamp = None
         self._last_sequence = None
         self._frame_size = None
@@ -440,7 +295,6 @@ class StreamWorker:
             # Otherwise a frame of the new run would take the old run's detections of the
             # same sequence number (those of frames that were skipped, never taken).
             self._upstream.forget_before(camera_restarted_at)
-        self._recording_resumes = None  # stream time may start over
         if self._current is not None:
             self._no_tracks = f"has no tracks: they ended ({why})"
         self._announce_end(why)
@@ -451,15 +305,8 @@ class StreamWorker:
         current, self._current, self._current_json = self._current, None, None
         if current is None or self._ended is None:
             return
-        message = StreamTracksEnded(
-            camera=self.spec.camera,
-            reason=why,
-            sequence=current.sequence,
-            timestamp=current.timestamp,
-            track_ids=[track.track_id for track in current.tracks],
-        )
         try:
-            self._ended.put(message.model_dump_json().encode())
+            self._ended.put(ended_message(current, why).model_dump_json().encode())
         except zenoh.ZError as error:  # a closing session: the liveliness token tells the rest
             log.warning("camera %s: could not say that tracks ended: %s", self.spec.camera, error)
 
@@ -525,18 +372,14 @@ class StreamWorker:
         self._last_timestamp = attachment.timestamp
         self._last_sequence = attachment.sequence
         self._last_tracked_arrival = frame.arrived
-        tracks = [track_state(t) for t in tracked.tracks]
-        for track in tracks:
-            track.track_id += self._id_offset
-            self._max_id = max(self._max_id, track.track_id)
-        self._reserve_ids(self._max_id)
+        assert self._ids is not None
         # the frames between the previous message's and this one (skipped while this one was
         # tracked, later frames replaced each other: they count in the next message)
         skipped = self._latest.skipped_before_taken
-        message = StreamTracksMessage(
+        published = self._ids.published(tracked)
+        message = tracks_message(
+            published,
             frame_index=self._processed,
-            timestamp=attachment.timestamp,
-            tracks=tracks,
             camera=self.spec.camera,
             sequence=attachment.sequence,
             latency=time.perf_counter() - frame.arrived,
@@ -554,7 +397,8 @@ class StreamWorker:
         self._used_upstream += source == "upstream"
         self._latencies.append(done - frame.arrived)
         self._done_at.append(done)
-        self._record(image, message)
+        events = self._zones.update(published, self._processed - 1, size)
+        self._recording.write(image, message, events, self._zones.config)
 
     def _same_size(self, sequence: int, size: tuple[int, int]) -> bool:
         """Whether frame ``sequence`` of ``size`` (width, height) is to be tracked; starts the
@@ -593,120 +437,6 @@ class StreamWorker:
         )
         self._frame_size = size
         return True
-
-    # -- recording ---------------------------------------------------------------------------
-
-    def _record(self, image, message: StreamTracksMessage) -> None:
-        folder = self.context.recordings_dir
-        if not self.spec.record or folder is None:
-            return
-        if self._recording_resumes is not None and message.timestamp < self._recording_resumes:
-            return
-        try:
-            self._record_frame(folder, image, message)
-        except OSError as error:
-            self._pause_recording(error, message.timestamp)
-        else:
-            self._recording_resumes = None
-
-    def _pause_recording(self, error: OSError, timestamp: float) -> None:
-        """A recording that cannot be written (a full disk) stops; tracking goes on, and the
-        recording starts again ``record_segment`` seconds of stream time later. What it had
-        written stays as ``.mcap.partial``, finished when a worker next starts."""
-        if self._recorder is not None:
-            self._recorder.abort()
-            self._recorder = None
-        segment = self.spec.record_segment
-        self._recording_resumes = timestamp + segment
-        found = storage_problem(error)
-        problem = found.problem if found else f"{type(error).__name__}: {error}"
-        self._note_error(
-            f"recording paused: {problem}; tracking goes on and recording tries again in "
-            f"{segment:g} s",
-            logging.ERROR,
-        )
-
-    def _record_frame(self, folder: Path, image, message: StreamTracksMessage) -> None:
-        if (
-            self._recorder is not None
-            and message.timestamp - self._segment_start >= self.spec.record_segment
-        ):
-            self._close_recording()
-        if self._recorder is None:
-            folder.mkdir(parents=True, exist_ok=True)
-            self._recording_path = _recording_name(folder, self.spec.camera)
-            info = StreamInfo(
-                width=image.shape[1],
-                height=image.shape[0],
-                fps=0.0,
-                frame_step=1,
-                part_names=tuple(self._pipeline.part_names) if self._pipeline else (),
-                skeleton=tuple(self._pipeline.skeleton) if self._pipeline else (),
-                mode="people",
-                options=self._options,
-                mcap_images=self.spec.record_images,
-            )
-            partial = self._recording_path.with_suffix(".mcap.partial")
-            # Small chunks: a worker that dies loses at most its open chunk (a second or two).
-            self._recorder = McapWriter(
-                partial, info, StreamTracksMessage, chunk_size=RECORDING_CHUNK_BYTES
-            )
-            self._segment_start = message.timestamp
-            self._segment_frames = 0
-        frame = TimedFrame(message.frame_index, message.timestamp, image)
-        self._recorder.write(frame, message)
-        self._segment_frames += 1
-
-    def _close_recording(self) -> None:
-        """Finish the current recording (the ``.mcap.partial`` becomes ``.mcap``), then delete
-        the oldest finished ones beyond ``record_keep``."""
-        if self._recorder is None or self._recording_path is None:
-            return
-        video = VideoInfo(
-            width=1,
-            height=1,
-            frames_announced=0,
-            frames_read=self._segment_frames,
-            frame_step=1,
-        )
-        try:
-            self._recorder.close(RunSummary(video=video, frames_processed=self._segment_frames))
-        except OSError as error:  # the summary did not fit either
-            self._pause_recording(error, self._last_timestamp or 0.0)
-            return
-        os.replace(self._recorder.path, self._recording_path)
-        log.info("camera %s: recording saved to %s", self.spec.camera, self._recording_path)
-        self._recorder = None
-        keep = self.spec.record_keep
-        if keep:
-            for old in sorted(self._recording_path.parent.glob("*.mcap"))[:-keep]:
-                old.unlink(missing_ok=True)
-                log.info("camera %s: recording %s deleted (record_keep)", self.spec.camera, old)
-
-    def _salvage_recordings(self) -> None:
-        """Finish the recordings a killed predecessor left as ``.mcap.partial``: what it had
-        written (all but its open chunk) becomes a ``.mcap`` like any other."""
-        folder = self.context.recordings_dir
-        if folder is None or not folder.is_dir():
-            return
-        for partial in sorted(folder.glob("*.mcap.partial")):
-            target = partial.with_suffix("")  # x.mcap.partial -> x.mcap
-            try:
-                kept = salvage(partial, target)
-            except Exception:  # a file we cannot read must not keep the camera from starting
-                log.exception("camera %s: could not salvage %s", self.spec.camera, partial)
-                partial.rename(partial.with_suffix(".broken"))  # x.mcap.broken: not retried
-                continue
-            partial.unlink()
-            if kept:
-                log.warning(
-                    "camera %s: salvaged %d messages of an unfinished recording into %s",
-                    self.spec.camera,
-                    kept,
-                    target,
-                )
-            else:
-                target.unlink()
 
     # -- status ------------------------------------------------------------------------------
 
@@ -753,27 +483,15 @@ def _recent_rate(times: list[float]) -> float | None:
     return (len(times) - 1) / max(times[-1] - times[0], 1e-9)
 
 
-def _recording_name(folder: Path, camera: str) -> Path:
-    """``<camera>-<UTC time to the millisecond>.mcap``, names that sort in time order (a name
-    taken already moves on by a millisecond)."""
-    millis = int(time.time() * 1000)
-    while True:
-        stamp = time.strftime("%Y%m%dT%H%M%S", time.gmtime(millis // 1000))
-        path = folder / f"{camera}-{stamp}{millis % 1000:03d}Z.mcap"
-        if not (path.exists() or path.with_suffix(".mcap.partial").exists()):
-            return path
-        millis += 1
-
-
-def job_options(spec: StreamSpec, resources: PipelineResources | None = None) -> JobOptions:
+def job_options(spec: StreamSpec) -> JobOptions:
     """The options of a job that tracks as the stream ``spec`` asks (its detector, its
-    tracker); with ``resources``, resolved as they run (:func:`~service.pipelines.
-    resolved_options`: detector 'auto' -> 'cnn' or 'default', the CNN's model named,
-    tracker.pose and tracker.reid true or false with their models: recordings say what ran)."""
-    options = JobOptions(detector=spec.detector, tracker=spec.tracker)
-    if resources is None:
-        return options
-    return resolved_options(options, resources)
+    tracker) and writes what it records (an MCAP with its images)."""
+    return JobOptions(
+        detector=spec.detector,
+        tracker=spec.tracker,
+        formats=[OutputFormat.mcap],
+        mcap_images=spec.record_images,
+    )
 
 
 def stream_main(context: StreamContext, service_pid: int, stop, reports: Connection) -> None:

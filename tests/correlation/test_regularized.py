@@ -25,8 +25,8 @@ from tracking.correlation.signals import (
     gaussian_label,
     hann_window,
 )
+from tracking.datasets.otb import load_otb_sequence, read_frame
 from tracking.evaluation.metrics import center_location_error, iou
-from tracking.evaluation.otb import load_otb_sequence, read_frame
 from tracking.types import Box
 
 SHAPE = (5, 6)  # M, N: tiny, so that the correlation operator fits in an explicit matrix

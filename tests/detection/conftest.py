@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
+from tracking.datasets.mot import MotSequence
 from tracking.detection.dpm.model import DpmModel, load_dpm_model
-from tracking.detection.sequences import MotSequence
 
 
 @pytest.fixture(scope="session")

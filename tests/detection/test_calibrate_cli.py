@@ -8,9 +8,9 @@ import shutil
 import numpy as np
 import pytest
 
-from tracking.detection.calibrate import main
+from devtools.calibrate import main
+from tracking.datasets.mot import image_to_mot_boxes
 from tracking.detection.calibration import load_calibration
-from tracking.detection.sequences import image_to_mot_boxes
 
 
 @pytest.fixture(scope="module")
@@ -107,7 +107,7 @@ def test_bad_arguments_exit_with_a_message_before_detecting(
     argv, message, small_sequence, cnn_model, tmp_path, capsys, caplog
 ):
     args = [a.format(seq=small_sequence, tmp=tmp_path, model=cnn_model) for a in argv]
-    with caplog.at_level("INFO", logger="tracking.detection.calibrate"):
+    with caplog.at_level("INFO", logger="devtools.calibrate"):
         assert main(args) == 2
     assert message in capsys.readouterr().err
     assert "done" not in caplog.text  # no sequence was run through the detector

@@ -11,6 +11,9 @@ import cv2
 import numpy as np
 import pytest
 
+from devtools.cascade_fit import main as fit_main
+from devtools.cascade_fit import record_positive, thresholds_for
+from tracking.datasets.otb import load_otb_sequence, read_frame
 from tracking.detection.dpm import cascade as cascade_module
 from tracking.detection.dpm import kernels as dpm_kernels
 from tracking.detection.dpm.cascade import (
@@ -21,20 +24,12 @@ from tracking.detection.dpm.cascade import (
     pca_projection,
     select_thresholds,
 )
-from tracking.detection.dpm.cascade_fit import (
-    main as fit_main,
-)
-from tracking.detection.dpm.cascade_fit import (
-    record_positive,
-    thresholds_for,
-)
 from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.dpm.kernels import kernel_filters
 from tracking.detection.dpm.model import load_dpm_model
 from tracking.detection.dpm.pyramid import level_features, pyramid_levels
 from tracking.detection.dpm.scoring import LevelRoots, score_level
-from tracking.detection.metrics import match_frame
-from tracking.evaluation.otb import load_otb_sequence, read_frame
+from tracking.evaluation.detection import match_frame
 from tracking.types import Box
 
 

@@ -11,11 +11,11 @@ import cv2
 import numpy as np
 import pytest
 
+from tracking.datasets.mot import MotSequence
 from tracking.detection import make_detector
 from tracking.detection.cnn import CnnConfig, CnnDetector, CnnModelError
 from tracking.detection.cnn.decoders import decode_ssd, decode_yolox, yolox_grid
 from tracking.detection.nms import box_iou
-from tracking.detection.sequences import MotSequence
 from tracking.types import Box
 
 DETECTORS = {

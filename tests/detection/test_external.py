@@ -6,20 +6,18 @@ import cv2
 import numpy as np
 import pytest
 
-from tracking.detection.base import Detector
+from tracking.datasets.mot import MotFormatError, MotSequence, read_mot_rows
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.external import (
     MotDetections,
     SubmittedDetections,
     detections_from_arrays,
 )
-from tracking.detection.sequences import MotFormatError, MotSequence, read_mot_rows
 from tracking.types import Box
 
 
 def test_public_detections_of_pets(pets):
     dets = MotDetections.from_file(pets.detections_file)
-    assert isinstance(dets, Detector)
     first = dets.for_frame(0)  # rows with frame == 1
     # det.txt line 1: 1,-1,243.00,218.00,45.00,90.00,0.87006,-1,-1,-1 (1-based pixels)
     assert first.boxes[0].tolist() == [242.0, 217.0, 45.0, 90.0]
@@ -149,7 +147,6 @@ def test_pets_ground_truth_is_the_file_moved_by_one_pixel(pets):
 
 def test_submitted_detections_per_frame():
     sub = SubmittedDetections()
-    assert isinstance(sub, Detector)
     sub.submit(0, [[10, 10, 20, 40]], [0.7])
     two = [[30, 10, 20, 40], [80, 10, 20, 40]]
     # raw scores alone: refused (they were clipped to certain and impossible)

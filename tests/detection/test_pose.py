@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tracking.datasets.mot import MotSequence
 from tracking.detection.cnn import CnnModelError
 from tracking.detection.pose import (
     KEYPOINT_NAMES,
@@ -20,7 +21,6 @@ from tracking.detection.pose import (
     find_peaks,
     group_people,
 )
-from tracking.detection.sequences import MotSequence
 
 POSE_MODEL = "human-pose-estimation-0001/FP16-INT8/human-pose-estimation-0001.xml"
 K = len(KEYPOINT_NAMES)

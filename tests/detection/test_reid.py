@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tracking.datasets.mot import MotSequence, mot_to_image_boxes, read_mot_rows
 from tracking.detection.cnn import CnnModelError
 from tracking.detection.reid import ReidConfig, ReidEmbedder, cosine_similarity
-from tracking.detection.sequences import MotSequence, mot_to_image_boxes, read_mot_rows
 
 DEFAULT_MODEL = "0287"  # the middle one: 0277 is stronger and slower, 0288 weaker and faster
 

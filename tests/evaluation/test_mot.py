@@ -12,9 +12,9 @@ import pytest
 from tracking.evaluation.mot import (
     MotFileError,
     check_unique_ids,
-    estimates_to_rows,
     find_mot_sequences,
     format_mot_rows,
+    frame_rows,
     ground_truth_rows,
     image_to_mot_boxes,
     limit_frames,
@@ -24,8 +24,7 @@ from tracking.evaluation.mot import (
     track_rows,
     write_mot_file,
 )
-from tracking.tracks import PartEstimate, TrackEstimate
-from tracking.types import Box
+from tracking.tracks import FrameTracks
 
 # The MOT sequences in ../shared/data/mot (shared/data/README.md): frames, rate, size, gt rows.
 REAL_SEQUENCES = {
@@ -106,17 +105,26 @@ def test_track_rows_of_an_empty_frame():
     assert track_rows(4, [], np.zeros((0, 4))).shape == (0, 10)
 
 
-def test_estimates_become_rows_with_their_score():
-    parts = (PartEstimate("head", 5.0, 2.0, None, True),)
-    estimates = (
-        TrackEstimate(3, Box(4.0, 0.0, 2.0, 8.0), 0.75, False, parts),
-        TrackEstimate(9, Box(0.0, 1.0, 3.0, 3.0), 0.25, True),
+def test_a_frames_tracks_become_rows_with_their_score():
+    tracks = FrameTracks(
+        9,
+        0.9,
+        track_ids=[3, 9],
+        boxes=[[4.0, 0.0, 2.0, 8.0], [0.0, 1.0, 3.0, 3.0]],
+        scores=[0.75, 0.25],
+        occluded=[False, True],
+        interpolated=[False, False],
+        part_names=("head",),
+        part_xy=[[[5.0, 2.0]], [[1.0, 2.0]]],
+        part_boxes=np.full((2, 1, 4), np.nan),
+        part_visible=[[True], [True]],
+        part_measured=[[False], [False]],
     )
-    rows = estimates_to_rows(9, estimates)
+    rows = frame_rows(tracks)
     np.testing.assert_array_equal(
         rows[:, :7], [[10, 3, 5, 1, 2, 8, 0.75], [10, 9, 1, 2, 3, 3, 0.25]]
     )
-    assert estimates_to_rows(0, ()).shape == (0, 10)
+    assert frame_rows(FrameTracks.empty(0, 0.0, ("head",))).shape == (0, 10)
 
 
 # --------------------------------------------------------------------------------- files

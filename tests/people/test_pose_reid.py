@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracking.detection import MotSequence, make_detector
+from tracking.datasets.mot import MotSequence, read_mot_rows
+from tracking.detection import make_detector
 from tracking.detection.nms import box_iou
 from tracking.detection.pose import KEYPOINT_NAMES, PoseEstimator
 from tracking.detection.reid import ReidEmbedder
-from tracking.detection.sequences import read_mot_rows
 from tracking.people import POSE_BODY, MultiPersonTracker
 from tracking.people.keypoints import assign_skeletons, keypoint_measurements
 
@@ -94,9 +94,8 @@ def _track_on(tracks, box) -> int:
     best overlap with the box brought to the tracker's aspect (0.41), at least 0.5; 0 for
     none."""
     x, y, w, h = box
-    boxes = np.array([[t.box.x, t.box.y, t.box.w, t.box.h] for t in tracks]).reshape(-1, 4)
-    overlap = box_iou(boxes, np.array([[x + w / 2 - 0.205 * h, y, 0.41 * h, h]]))[:, 0]
-    return tracks[int(overlap.argmax())].track_id if len(tracks) and overlap.max() >= 0.5 else 0
+    overlap = box_iou(tracks.boxes, np.array([[x + w / 2 - 0.205 * h, y, 0.41 * h, h]]))[:, 0]
+    return int(tracks.track_ids[overlap.argmax()]) if len(tracks) and overlap.max() >= 0.5 else 0
 
 
 @pytest.mark.slow

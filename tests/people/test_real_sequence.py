@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from tracking.detection import MotDetections, MotSequence
-from tracking.detection.sequences import read_mot_rows
+from tracking.datasets.mot import MotSequence, read_mot_rows
+from tracking.detection import MotDetections
 from tracking.evaluation.hota import hota
-from tracking.evaluation.mot import estimates_to_rows
+from tracking.evaluation.mot import frame_rows
 from tracking.people import MultiPersonTracker
 
 FRAMES = 150
@@ -30,7 +30,7 @@ def test_pets09_on_public_detections_scores_above_the_floor(shared_data):
         tracks = tracker.update(
             sequence.read_frame(index), index / 7.0, detections.for_frame(index)
         )
-        rows.append(estimates_to_rows(index, tracks))
+        rows.append(frame_rows(tracks))  # a fresh tracker numbers the frames from 0
     ground_truth = read_mot_rows(sequence.path / "gt" / "gt.txt")  # file units
     ground_truth = ground_truth[ground_truth[:, 0] <= FRAMES]
     rows = np.concatenate(rows)

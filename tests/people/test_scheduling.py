@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracking.detection import MotDetections, MotSequence
+from tracking.datasets.mot import MotSequence
+from tracking.detection import MotDetections
 from tracking.detection.base import Detections
 from tracking.detection.hog_people import HogPeopleDetector
 from tracking.people import MultiPersonTracker, PeopleTrackerConfig

@@ -110,6 +110,7 @@ def crossing_scene(frames=44, seed=0):
 
 
 def _nearest_id(tracks, centre):
+    tracks = list(tracks)  # TrackEstimates, or a FrameTracks' rows as TrackEstimates
     distances = [np.hypot(*(np.array(t.box.center) - centre)) for t in tracks]
     return tracks[int(np.argmin(distances))].track_id if tracks else None
 
@@ -221,8 +222,8 @@ def test_a_long_gap_between_frames_ends_the_tracks_and_tracking_goes_on(gap):
     out = tracker.update(_frame(), 0.1 + gap, _detections([[120, 40, 30, 70]]))
     assert [t.track_id for t in first] == [1]
     # the old track is over (it could only be re-identified); the new person is tracked
-    assert len(out) == 1 and np.isfinite(out[0].box.as_array()).all()
-    assert 110 < out[0].box.x < 130
+    assert len(out) == 1 and np.isfinite(out.boxes).all()
+    assert 110 < out.boxes[0, 0] < 130
 
 
 @pytest.mark.parametrize(
@@ -360,8 +361,8 @@ class _ScoresBeside:
 @pytest.mark.parametrize("dense", [False, True])
 def test_dense_scores_pull_the_particles_where_the_detector_scores(dense):
     """With ``dense_likelihood``, every particle is weighed by the detector's calibrated score
-    at its position (DESIGN.md §5): a detector whose scores peak 12 px right of each person
-    draws every track a quarter of the way there (3-4 px); without it they stay within a
+    at its position (docs/architecture.md §5): a detector whose scores peak 12 px right of each
+    person draws every track a quarter of the way there (3-4 px); without it they stay within a
     pixel and a half of the people."""
     images, detections, (a, b), _ = crossing_scene(frames=12)
     detector = _ScoresBeside((a, b), shift=12.0)

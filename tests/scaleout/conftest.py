@@ -7,8 +7,10 @@ free loopback ports in folders of :func:`tempfile.mkdtemp`: as root the server r
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Iterator
 
+import psycopg
 import pytest
 
 from tests.postgres import PostgresServer, running_postgres
@@ -47,3 +49,12 @@ def _postgres_running_again(request: pytest.FixtureRequest) -> Iterator[None]:
 def fresh_postgres() -> Iterator[PostgresServer]:
     """A running server of the test's own (about 0.5 s to create), gone after the test."""
     yield from _server()
+
+
+@pytest.fixture
+def database_url(postgres) -> str:
+    """A new, empty database on the tests' server: tests do not see each other's jobs."""
+    name = f"jobs_{uuid.uuid4().hex[:12]}"
+    with psycopg.connect(postgres.url, autocommit=True) as connection:
+        connection.execute(f"CREATE DATABASE {name}")
+    return postgres.url.rsplit("/", 1)[0] + f"/{name}"

@@ -12,11 +12,11 @@ import uuid
 import psycopg
 import pytest
 
+from devtools.testing import Server, free_port, wait_for
 from service.streams.keys import StreamKeys
 from service.streams.manager import _owner_of
 from service.streams.session import ZenohOptions
 from service.streams.tools import member_session, trackers_of
-from service.testing import Server, free_port, wait_for
 
 pytestmark = pytest.mark.scaleout
 

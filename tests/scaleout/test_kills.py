@@ -12,7 +12,7 @@ import uuid
 import psycopg
 import pytest
 
-from service.testing import Server, wait_for
+from devtools.testing import Server, wait_for
 from tests.service.conftest import FAST_OPTIONS, submit, wait_for_state
 
 pytestmark = pytest.mark.scaleout

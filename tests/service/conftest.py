@@ -19,8 +19,9 @@ import httpx
 import numpy as np
 import pytest
 
+from api_schemas.common import ERROR_STATUS, ErrorResponse, ErrorType
+from devtools.testing import Server, wait_for
 from service.frames import open_frames
-from service.testing import Server, wait_for
 from tests.conftest import REPO_ROOT
 
 PETS_VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
@@ -153,6 +154,16 @@ def submit(
     files = {"video": (filename or video.name, video.read_bytes(), "video/x-msvideo")}
     data = {"options": json.dumps(options)} if options is not None else None
     return client.post("/v1/jobs", files=files, data=data)
+
+
+def error_of(response: httpx.Response, type: str) -> dict:
+    """The body of an error answer of ``type``, checked: an ErrorResponse of that type, with the
+    type's status. Tests check the type, which programs read, rather than words of the sentence,
+    which may be reworded (one test per type reads a whole sentence)."""
+    assert response.headers.get("content-type", "").startswith("application/json"), response.text
+    body = ErrorResponse.model_validate(response.json())
+    assert (response.status_code, body.type) == (ERROR_STATUS[ErrorType(type)], type), response.text
+    return response.json()
 
 
 def metrics(client: httpx.Client) -> dict[str, float]:

@@ -17,8 +17,8 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
+from devtools.testing import wait_for
 from service.frames import open_frames
-from service.testing import wait_for
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO, cut_video, schema_for, write_gray
 from tests.service.test_cli import vtrack_interrupted

@@ -23,6 +23,7 @@ from service.outputs.h264 import nal_unit_types
 from tests.service.conftest import (
     FAST_OPTIONS,
     Server,
+    error_of,
     metrics,
     schema_for,
     submit,
@@ -319,15 +320,20 @@ def test_mp4_result_plays_in_a_browser_tab_and_seeks(client, finished_job):
     assert part.headers["content-range"] == f"bytes 1000-1999/{size}"
     assert part.content == whole.content[1000:2000]
     beyond = client.get(url, headers={"Range": f"bytes={size}-"})
-    assert beyond.status_code == 416
-    # range errors answer as the API's others: JSON with a detail (they were plain text, the
-    # 416 empty)
+    # range errors answer as the API's others: an ErrorResponse (they were plain text, the
+    # 416 empty); the family's whole sentence, once
     assert beyond.headers["content-range"] == f"bytes */{size}"
-    assert f"beyond the end of the file ({size} bytes" in beyond.json()["detail"]
+    assert error_of(beyond, "range_not_satisfiable")["detail"] == (
+        f"Range 'bytes={size}-' starts beyond the end of the file ({size} bytes; Content-Range "
+        "gives the size)"
+    )
     for bad, reason in (("bytes=abc", "no range in it"), ("bytes=5-2", "start must be less")):
-        refused = client.get(url, headers={"Range": bad})
-        assert refused.status_code == 400
-        assert refused.json()["detail"].startswith(f"Range '{bad}' cannot be served ({reason}")
+        refused = error_of(client.get(url, headers={"Range": bad}), "invalid_range")
+        assert reason in refused["detail"]
+    assert error_of(client.get(url, headers={"Range": "bytes=abc"}), "invalid_range")["detail"] == (
+        "Range 'bytes=abc' cannot be served (no range in it): ask for bytes=START-END, "
+        "bytes=START- or bytes=-LENGTH"
+    )
     # a unit other than bytes is ignored, as RFC 9110 says (it was a 400): the whole file
     other = client.get(url, headers={"Range": "items=0-1"})
     assert other.status_code == 200 and other.content == whole.content
@@ -400,24 +406,28 @@ def test_jobs_are_listed_a_page_at_a_time(client, pets_short):
     found = {job["id"] for job in paged}
     assert set(later) <= found and earliest not in found
     naive = client.get("/v1/jobs", params={"finished_after": "2026-11-26T08:00:00"})
-    assert naive.status_code == 422 and "timezone" in naive.text
+    assert error_of(naive, "validation_error")["errors"][0]["loc"] == ["query", "finished_after"]
     gone = client.get("/v1/jobs", params={"before": "no-such-job"})
-    assert gone.status_code == 404 and "start again from the newest" in gone.json()["detail"]
+    assert "'no-such-job' to page from" in error_of(gone, "not_found")["detail"]
 
 
 def test_unfinished_job_has_no_result_yet_and_can_be_cancelled_then_deleted(client, long_video):
     job_id = submit(client, long_video, FAST_OPTIONS).json()["id"]
     early = client.get(f"/v1/jobs/{job_id}/result", params={"format": "json"})
-    assert early.status_code == 409
-    assert "results are served once it has succeeded" in early.json()["detail"]
+    # the family's whole sentence, once (the state and count of frames of the moment)
+    assert re.fullmatch(
+        rf"job {job_id} is (queued|running) \(\d+ of (\d+|\?) frames\): results are served "
+        rf"once it has succeeded; poll /v1/jobs/{job_id}",
+        error_of(early, "conflict")["detail"],
+    ), early.text
     cancel = client.delete(f"/v1/jobs/{job_id}")
     assert cancel.status_code in (200, 202), cancel.text
     status = wait_for_state(client, job_id, ("cancelled", "succeeded", "failed"), timeout=60)
     assert status["state"] == "cancelled", status
     gone = client.get(f"/v1/jobs/{job_id}/result")
-    assert gone.status_code == 409 and "cancelled" in gone.json()["detail"]
+    assert error_of(gone, "conflict")["detail"].startswith(f"job {job_id} cancelled")
     assert client.delete(f"/v1/jobs/{job_id}").status_code == 204
-    assert client.get(f"/v1/jobs/{job_id}").status_code == 404
+    error_of(client.get(f"/v1/jobs/{job_id}"), "not_found")
 
 
 def test_truncated_video_is_accepted_and_tracked_as_far_as_it_decodes(
@@ -530,8 +540,8 @@ def test_a_queued_job_says_how_many_start_before_it(make_server, long_video, pet
             lines = events.iter_lines()  # kept: a dropped iterator closes the response
             assert next(lines) == "event: progress"
             refused = client.get(f"/v1/jobs/{first}/events")
-            assert refused.status_code == 503 and refused.headers["retry-after"] == "5"
-            assert "1 clients follow job events already" in refused.json()["detail"]
+            assert refused.headers["retry-after"] == "5"
+            assert error_of(refused, "busy")["detail"].startswith("1 clients follow job events")
         wait_for(lambda: _follows(client, first), 10, "the place of the follower that left")
         assert client.delete(f"/v1/jobs/{second}").json()["state"] == "cancelled"
         assert ahead(third) == 0

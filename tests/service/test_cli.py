@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 import pytest
 
+from devtools.testing import free_port, try_get, wait_for
 from service.cli import _attach_box_values, build_parser
-from service.testing import free_port, try_get, wait_for
 from tests.conftest import sigint_as_in_a_terminal
 from tests.correlation.test_tracker import moving_target_scene
 from tests.service.conftest import PETS_VIDEO

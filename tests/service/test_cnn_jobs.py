@@ -16,7 +16,14 @@ from service.pipelines import NO_CNN_WARNING
 from service.streams.keys import StreamKeys
 from service.streams.session import ZenohOptions
 from service.streams.tools import member_session, publish_frames, video_frames
-from tests.service.conftest import FAST_OPTIONS, PETS_VIDEO, submit, wait_for, wait_for_state
+from tests.service.conftest import (
+    FAST_OPTIONS,
+    PETS_VIDEO,
+    error_of,
+    submit,
+    wait_for,
+    wait_for_state,
+)
 from tests.service.test_analyze_cli import vtrack
 
 DEFAULT_MODEL = Path("person-detection-0202") / "FP16"
@@ -39,7 +46,7 @@ def _result(client, status: dict, fmt: str) -> bytes:
 
 @pytest.fixture(scope="module")
 def cnn_server(tmp_path_factory, shared_data):
-    from service.testing import Server
+    from devtools.testing import Server
 
     root = tmp_path_factory.mktemp("cnn")
     models = models_folder(shared_data, root / "models")
@@ -121,13 +128,12 @@ def test_a_cnn_job_can_name_a_model_of_the_folder(cnn_server, pets_short):
             "detector": {"name": "cnn", "model": "person-detection-0200"},
         }
         response = submit(client, pets_short, options)
-        assert response.status_code == 422
-        assert "person-detection-0200" in response.json()["detail"]
-        assert "vtrack models fetch" in response.json()["detail"]
+        detail = error_of(response, "invalid_options")["detail"]
+        assert "person-detection-0200" in detail and "vtrack models fetch" in detail
         options["detector"]["model"] = (
             "../models/person-detection-0202/FP16/person-detection-0202.xml"
         )
-        assert submit(client, pets_short, options).status_code == 422
+        error_of(submit(client, pets_short, options), "validation_error")
         options["detector"]["model"] = "person-detection-0202/FP16/person-detection-0202.xml"
         response = submit(client, pets_short, options)
         assert response.status_code == 202, response.text
@@ -158,8 +164,7 @@ def test_without_a_model_auto_runs_the_embedded_detector_and_says_how_to_get_one
         assert shown["detector_warning"] == NO_CNN_WARNING
         # asking for the CNN by name is refused before the upload is kept
         response = submit(client, pets_short, {"detector": {"name": "cnn"}})
-        assert response.status_code == 422
-        detail = response.json()["detail"]
+        detail = error_of(response, "invalid_options")["detail"]
         assert "VTRACK_MODELS_DIR" in detail and "vtrack models fetch" in detail
 
 

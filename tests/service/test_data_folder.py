@@ -18,12 +18,18 @@ import sys
 
 import pytest
 
+from devtools.testing import Server, free_port, wait_for
 from service.data_folder import LOCK_NAME, DataFolderInUse, claim_data_folder
 from service.jobs.store import JobStore
 from service.settings import Settings
 from service.streams.store import StreamStore
-from service.testing import Server, free_port, wait_for
-from tests.service.conftest import FAST_OPTIONS, submit, wait_for_frames, wait_for_state
+from tests.service.conftest import (
+    FAST_OPTIONS,
+    error_of,
+    submit,
+    wait_for_frames,
+    wait_for_state,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -108,10 +114,11 @@ def test_an_unexpected_error_in_a_request_answers_json_and_is_logged_once(make_s
     uploads.write_text("not a folder")
     with server.client() as client:
         response = submit(client, pets_short, FAST_OPTIONS)
-        assert response.status_code == 500
-        assert response.headers["content-type"] == "application/json"
-        detail = response.json()["detail"]
-        assert "internal error (FileExistsError)" in detail and "log" in detail
+        # the family's whole sentence, once
+        assert error_of(response, "internal")["detail"] == (
+            "internal error (FileExistsError) while answering POST /v1/jobs: the service's log "
+            "has the details; tell its operator"
+        )
         assert client.get("/readyz").status_code == 200  # the service goes on
     server.stop()
     assert server.log().count("Traceback (most recent call last)") == 1
@@ -139,8 +146,7 @@ def test_a_folder_made_read_only_under_a_running_service_is_named_not_an_interna
                 )
                 response = submit(client, pets_short, FAST_OPTIONS)
                 if name == "uploads":
-                    assert response.status_code == 507, response.text
-                    detail = response.json()["detail"]
+                    detail = error_of(response, "insufficient_storage")["detail"]
                 else:  # the upload is kept; the job fails when its results cannot be written
                     assert response.status_code == 202, response.text
                     job = wait_for_state(client, response.json()["id"], ("succeeded", "failed"))
@@ -169,8 +175,7 @@ def test_a_job_whose_results_cannot_be_removed_is_kept_and_the_reason_given(
         results.chmod(0o555)
         try:
             refused = client.delete(f"/v1/jobs/{job_id}")
-            assert refused.status_code == 507, refused.text
-            detail = refused.json()["detail"]
+            detail = error_of(refused, "insufficient_storage")["detail"]
             assert detail.startswith(f"the data folder cannot be written ({results / job_id}")
             assert client.get(f"/v1/jobs/{job_id}").json()["state"] == "succeeded"  # kept
         finally:

@@ -17,8 +17,8 @@ from service.pipelines import (
     OptionsError,
     PipelineResources,
     check_options,
-    job_detector,
     people_config,
+    plan_detector,
 )
 from tests.service.conftest import PETS_VIDEO
 from tracking.detection import DPM_TRACKING_CONFIG, box_iou
@@ -51,11 +51,10 @@ def test_dpm_job_with_upscale_finds_small_people_with_parts(resources, shared_da
     people[:, :2] -= 1
 
     options = JobOptions.model_validate({"detector": {"name": "dpm", "upscale": 1.5}})
-    check_options(options, resources)
-    enlarged = job_detector(options.detector, resources)
+    enlarged = plan_detector(check_options(options, resources))
     assert enlarged.config == dataclasses.replace(DPM_TRACKING_CONFIG, upscale=1.5)
-    plain = job_detector(
-        JobOptions.model_validate({"detector": {"name": "dpm"}}).detector, resources
+    plain = plan_detector(
+        check_options(JobOptions.model_validate({"detector": {"name": "dpm"}}), resources)
     )
     assert plain.config == DPM_TRACKING_CONFIG  # the DPM's operating point for tracking
     found = enlarged.detect(frame)
@@ -75,6 +74,7 @@ def test_tracker_options_reach_the_tracker_configuration():
     )
     config = people_config(options, PipelineResources())
     assert (config.report_missing, config.confirm_hits, config.seed) == (0.6, 2, 3)
+    assert check_options(options, PipelineResources()).people == config  # what the plan runs
     assert config.particles == PeopleTrackerConfig().particles  # unset: the default
     with pytest.raises(ValidationError, match="report_missing"):
         JobOptions.model_validate({"tracker": {"report_missing": -1}})
@@ -102,8 +102,7 @@ def test_dpm_job_with_fewer_pyramid_levels_still_finds_people(resources, shared_
     people[:, :2] -= 1
 
     options = JobOptions.model_validate({"detector": {"name": "dpm", "levels_per_octave": 5}})
-    check_options(options, resources)
-    coarse = job_detector(options.detector, resources)
+    coarse = plan_detector(check_options(options, resources))
     assert coarse.config == dataclasses.replace(DPM_TRACKING_CONFIG, levels_per_octave=5)
     assert coarse.interval == 5  # the model's own is 10
     found = coarse.detect(frame)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from service.testing import Server
+from devtools.testing import Server
 from tests.service.conftest import FAST_OPTIONS, submit, wait_for_state
 
 pytestmark = pytest.mark.slow

@@ -16,9 +16,9 @@ import av
 import numpy as np
 import pytest
 
+from devtools.testing import Server, wait_for
 from service import frames
 from service.frames import FrameSource, FrameSourceError, open_frames
-from service.testing import Server, wait_for
 from service.uploads import _client_filename
 from tests.service.conftest import wait_for_state
 
@@ -216,7 +216,11 @@ def test_a_stalled_request_line_gets_408_and_a_silent_connection_is_closed(serve
     # before: held for ever, and with no limit on their number
     answer, seconds = _timed_answer(server, b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n")
     assert answer is not None and answer[0] == 408, answer
-    assert "VTRACK_HEADER_SECONDS" in json.loads(answer[2])["detail"]
+    # the family's whole sentence, once
+    assert json.loads(answer[2]) == {
+        "type": "timeout",
+        "detail": "the request's headers did not arrive within 1 s (VTRACK_HEADER_SECONDS)",
+    }
     assert answer[1]["connection"] == "close"
     assert 0.8 < seconds < 10
     answer, seconds = _timed_answer(server, b"")
@@ -228,6 +232,11 @@ def test_headers_that_never_end_get_431(server):
     endless = b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n" + b"X-Filler: 0123456789\r\n" * 4000
     answer, seconds = _timed_answer(server, endless)
     assert answer is not None and answer[0] == 431, answer
+    # the family's whole sentence
+    assert json.loads(answer[2]) == {
+        "type": "headers_too_large",
+        "detail": "the request's line and headers are over 64 KiB",
+    }
     assert seconds < 5  # at once, not at the deadline
 
 
@@ -239,7 +248,7 @@ def test_a_stalled_oversized_upload_gets_its_413_within_the_idle_time(server):
     )
     answer, seconds = _timed_answer(server, head)
     assert answer is not None and answer[0] == 413, answer
-    assert "VTRACK_MAX_UPLOAD_BYTES" in json.loads(answer[2])["detail"]
+    assert json.loads(answer[2])["type"] == "payload_too_large"
     assert seconds < 10
 
 
@@ -251,7 +260,8 @@ def test_a_stalled_request_body_gets_408(server):
     )
     answer, seconds = _timed_answer(server, head)
     assert answer is not None and answer[0] == 408, answer
-    assert "VTRACK_BODY_IDLE_SECONDS) after 1 bytes" in json.loads(answer[2])["detail"]
+    refusal = json.loads(answer[2])
+    assert refusal["type"] == "timeout" and "after 1 bytes" in refusal["detail"]
     assert 0.8 < seconds < 10
 
 
@@ -310,7 +320,12 @@ def test_connections_over_the_cap_get_503_and_the_service_answers_after(tmp_path
             holders.append(holder)
         answer, _ = _timed_answer(server, b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
         assert answer is not None and answer[0] == 503, answer
-        assert "VTRACK_MAX_CONNECTIONS" in json.loads(answer[2])["detail"]
+        # the family's whole sentence, once
+        assert json.loads(answer[2]) == {
+            "type": "busy",
+            "detail": "the service has as many connections open as it serves at once "
+            "(VTRACK_MAX_CONNECTIONS): try again in a moment",
+        }
         assert answer[1]["retry-after"] == "1" and answer[1]["connection"] == "close"
         for holder in holders:
             holder.close()

@@ -16,7 +16,7 @@ from service.outputs.mcap_out import (
     ANNOTATIONS_TOPIC,
     LABEL_SIZE,
     McapWriter,
-    annotations,
+    image_annotations,
 )
 from service.outputs.palette import track_colour
 
@@ -29,7 +29,7 @@ def _labels(*tops: float) -> list[dict]:
         for i, top in enumerate(tops)
     ]
     message = FrameTracksMessage(frame_index=0, timestamp=0.0, tracks=tracks)
-    return annotations(message, 0)["texts"]
+    return image_annotations(message, 0)["texts"]
 
 
 def test_id_labels_sit_above_their_box():
@@ -70,7 +70,7 @@ def _lines(annotation: dict) -> list[dict]:
 
 def test_limbs_between_visible_parts_are_a_line_list_in_the_track_colour():
     message = FrameTracksMessage(frame_index=0, timestamp=0.0, tracks=[_person()])
-    (lines,) = _lines(annotations(message, 0, SKELETON))
+    (lines,) = _lines(image_annotations(message, 0, SKELETON))
     # two points per drawn limb; the limb to the hidden left shoulder is left out
     assert lines["points"] == [
         {"x": 50.0, "y": 20.0},
@@ -85,10 +85,10 @@ def test_limbs_between_visible_parts_are_a_line_list_in_the_track_colour():
 def test_a_track_without_a_drawable_limb_has_no_line_list():
     hidden = _person(hidden=("neck",))  # every limb ends at the neck
     message = FrameTracksMessage(frame_index=0, timestamp=0.0, tracks=[hidden])
-    assert _lines(annotations(message, 0, SKELETON)) == []
+    assert _lines(image_annotations(message, 0, SKELETON)) == []
     message = FrameTracksMessage(frame_index=0, timestamp=0.0, tracks=[_person()])
-    assert _lines(annotations(message, 0)) == []  # no skeleton: parts only
-    assert [p["type"] for p in annotations(message, 0)["points"]] == [
+    assert _lines(image_annotations(message, 0)) == []  # no skeleton: parts only
+    assert [p["type"] for p in image_annotations(message, 0)["points"]] == [
         foxglove.LINE_LOOP,
         foxglove.POINTS,
     ]

@@ -26,6 +26,7 @@ from types import MappingProxyType
 
 import pytest
 
+from devtools.testing import free_port
 from service.models import (
     CATALOG,
     DEFAULT_DETECTOR,
@@ -40,7 +41,6 @@ from service.models import (
     model_path,
     model_state,
 )
-from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.test_docker import instructions
 

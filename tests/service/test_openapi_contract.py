@@ -25,8 +25,10 @@ from pydantic import ValidationError
 from schemathesis.config import SchemathesisConfig
 
 from api_schemas import JobOptions, StreamSpec
+from api_schemas.common import ERROR_STATUS, ErrorType
 from service.app import create_app
 from tests.conftest import benchmark_module, documented_commands
+from tests.service.conftest import error_of
 
 EXAMPLES = 50
 """Most generated requests per operation in the fuzzing phase (the examples and coverage phases
@@ -126,6 +128,11 @@ def test_every_error_is_an_error_response_and_no_other() -> None:
     schemas = document["components"]["schemas"]
     # FastAPI's own 422 model is gone: the service answers an ErrorResponse
     assert not {"HTTPValidationError", "ValidationError"} & set(schemas)
+    # each error carries its code, and the document lists the codes
+    assert schemas["ErrorResponse"]["required"] == ["type", "detail"]
+    assert schemas["ErrorType"]["enum"] == [code.value for code in ErrorType]
+    assert all(f"``{code.value}`` ({ERROR_STATUS[code]})" in schemas["ErrorType"]["description"]
+               for code in ErrorType)  # fmt: skip
     error = {"$ref": "#/components/schemas/ErrorResponse"}
     for path, operations in document["paths"].items():
         for method, operation in operations.items():
@@ -196,8 +203,8 @@ def test_finished_after_is_documented_as_it_is_taken(service) -> None:
     with service.server.client() as client:
         for number in ("1700000000", "0.5", "1700000000000"):
             refused = client.get("/v1/jobs", params={"finished_after": number})
-            assert refused.status_code == 422, number
-            assert "a number is not read as a Unix time" in refused.json()["detail"]
+            body = error_of(refused, "validation_error")
+            assert "a number is not read as a Unix time" in body["detail"], number
         since = client.get("/v1/jobs", params={"finished_after": "2026-11-26T08:00:00Z"})
         assert since.status_code == 200
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from service.models.catalog import CATALOG, DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID
-from tests.service.conftest import submit, wait_for_state
+from tests.service.conftest import error_of, submit, wait_for_state
 from tests.service.test_analyze_cli import vtrack
 from tests.service.test_cnn_jobs import _result, models_folder
 
@@ -58,7 +58,7 @@ def graph(folder: Path, name: str) -> Path:
 def networks_server(tmp_path_factory, shared_data):
     """A service whose models folder has the detector, the pose and the re-identification
     networks (their defaults)."""
-    from service.testing import Server
+    from devtools.testing import Server
 
     root = tmp_path_factory.mktemp("networks")
     models = add_models(shared_data, models_folder(shared_data, root / "models"), *DEFAULTS)
@@ -106,6 +106,7 @@ def test_jobs_run_pose_and_reid_when_the_service_has_them_and_the_results_say_so
 
 def test_options_naming_a_network_are_refused_unless_it_can_run(networks_server, pets_short):
     with networks_server.client() as client:
+        # options the service cannot run: the sentence says what to do
         cases = {
             # a catalog model the folder lacks: the command that fetches it
             "vtrack models fetch person-reidentification-retail-0288 --dir": {
@@ -113,18 +114,24 @@ def test_options_naming_a_network_are_refused_unless_it_can_run(networks_server,
                 "reid_model": "person-reidentification-retail-0288",
             },
             "is a person-detection model": {"pose": True, "pose_model": "person-detection-0202"},
-            "only with pose true": {"pose_model": DEFAULT_POSE},
-            "inside the models folder": {"reid": True, "reid_model": "a/../../x.xml"},
         }
         for expected, tracker in cases.items():
             response = submit(client, pets_short, {"formats": ["json"], "tracker": tracker})
-            assert response.status_code == 422, (tracker, response.text)
-            assert expected in json.dumps(response.json()["detail"]), response.text
+            assert expected in error_of(response, "invalid_options")["detail"], tracker
+        # options the schema refuses: the failed check's place
+        cases = {
+            "pose_model": {"pose_model": DEFAULT_POSE},  # only with pose true
+            "reid_model": {"reid": True, "reid_model": "a/../../x.xml"},  # outside the folder
+        }
+        for field, tracker in cases.items():
+            response = submit(client, pets_short, {"formats": ["json"], "tracker": tracker})
+            checks = error_of(response, "validation_error")["errors"]
+            assert [e["loc"] for e in checks] == [["options", "tracker", field]], tracker
         # the tracker's options belong to mode people
         single = {"mode": "single_target", "first_box": {"x": 10, "y": 10, "w": 20, "h": 40}}
         response = submit(client, pets_short, {**single, "tracker": {"reid": False}})
-        assert response.status_code == 422
-        assert "only for mode 'people'" in response.text
+        checks = error_of(response, "validation_error")["errors"]
+        assert [e["loc"] for e in checks] == [["options", "tracker"]]
 
 
 def test_a_network_asked_for_on_a_service_without_its_model_is_refused(
@@ -136,8 +143,7 @@ def test_a_network_asked_for_on_a_service_without_its_model_is_refused(
         ready = client.get("/readyz").json()
         assert ready["pose"] == {"model": DEFAULT_POSE} and ready["reid"] is None
         response = submit(client, pets_short, {"formats": ["json"], "tracker": {"reid": True}})
-        assert response.status_code == 422
-        detail = response.json()["detail"]
+        detail = error_of(response, "invalid_options")["detail"]
         assert "VTRACK_REID_MODEL" in detail, detail
         assert f"vtrack models fetch {DEFAULT_REID} --dir {models}" in detail, detail
 
@@ -150,7 +156,6 @@ def test_the_settings_name_the_networks_and_jobs_resolve_them(shared_data, tmp_p
         PipelineResources,
         check_options,
         choose_networks,
-        resolved_options,
     )
     from service.settings import Settings
     from service.streams.worker import job_options
@@ -184,11 +189,11 @@ def test_the_settings_name_the_networks_and_jobs_resolve_them(shared_data, tmp_p
     with pytest.raises(ValueError, match="is set but empty"):
         Settings(reid_model=" ")
     # what a job and a stream run, as their results say it
-    options = resolved_options(JobOptions(tracker={"reid": False}), resources)
+    options = check_options(JobOptions(tracker={"reid": False}), resources).options
     assert (options.tracker.pose, options.tracker.pose_model) == (True, DEFAULT_POSE)
     assert (options.tracker.reid, options.tracker.reid_model) == (False, None)
-    assert resolved_options(options, resources) == options  # the results' options run again
-    streamed = job_options(StreamSpec(camera="gate"), resources).tracker
+    assert check_options(options, resources).options == options  # the results' options rerun
+    streamed = check_options(job_options(StreamSpec(camera="gate")), resources).options.tracker
     assert (streamed.pose, streamed.reid) == (True, True)
     # asked for on a service without any models folder: the setting and the command
     with pytest.raises(OptionsError, match="VTRACK_REID_MODEL") as refused:
@@ -237,11 +242,13 @@ def test_cnn_jobs_keep_the_detections_box_shape(shared_data, tmp_path):
     """The CNN's boxes fit the people: its tracks report their aspect; the embedded detector's
     are padded: its tracks have the pedestrian aspect 0.41."""
     from api_schemas.jobs import JobOptions
-    from service.pipelines import PipelineResources, build_pipeline
+    from service.pipelines import PipelineResources, build_pipeline, check_options
 
     models = models_folder(shared_data, tmp_path / "models")
     resources = PipelineResources(models_dir=models, cnn_model=graph(models, DEFAULT_DETECTOR))
-    cnn = build_pipeline(JobOptions(), resources)
-    embedded = build_pipeline(JobOptions(detector={"name": "default"}), resources)
+    plan = check_options(JobOptions(), resources)
+    assert plan.people is not None and plan.people.box_aspect is None
+    cnn = build_pipeline(plan)
+    embedded = build_pipeline(check_options(JobOptions(detector={"name": "default"}), resources))
     assert cnn._tracker.config.box_aspect is None
     assert embedded._tracker.config.box_aspect == 0.41

@@ -12,6 +12,7 @@ import time
 
 import pytest
 
+from devtools.testing import wait_for
 from service.frames import FrameSourceError, open_frames
 from service.jobs.probing import ProbeInterrupted, VideoProber
 
@@ -90,8 +91,7 @@ def test_probes_at_once_use_at_most_the_helpers_allowed(pets_short, tmp_path):
         threads = [threading.Thread(target=probe, args=(p,)) for p in hanging]
         for thread in threads:
             thread.start()
-        time.sleep(1.0)
-        assert len(_helpers()) == 2
+        wait_for(lambda: len(_helpers()) == 2, 10, "a helper for each hanging probe")
         started = time.monotonic()
         assert prober.probe(pets_short).frame_count == 8  # waits for a helper to be free
         assert time.monotonic() - started >= 0.5
@@ -117,8 +117,7 @@ def test_a_stop_signal_to_a_starting_helper_is_not_the_files_fault(prober, pets_
 
     thread = threading.Thread(target=probe)
     thread.start()
-    while not _helpers():
-        time.sleep(0.002)
+    wait_for(_helpers, 30, "the helper to start", interval=0.002)
     (helper,) = _helpers()
     os.kill(helper, signal.SIGTERM)
     thread.join(30)

@@ -87,10 +87,16 @@ def test_a_stalled_job_is_failed_and_its_worker_replaced(make_server, long_video
         waiting = submit(client, pets_short, FAST_OPTIONS).json()["id"]
         worker = _worker_pid(server.data_dir, stalled)
         os.kill(worker, signal.SIGSTOP)
-        time.sleep(1.5)
-        figures = metrics(client)
-        assert 1.0 <= figures["vtrack_running_job_stall_seconds"] < 3.5
-        assert figures["vtrack_oldest_queued_job_seconds"] >= 1.0
+
+        def a_second_stalled() -> dict[str, float] | None:
+            figures = metrics(client)
+            stalled = figures["vtrack_running_job_stall_seconds"] >= 1.0
+            return (
+                figures if stalled and figures["vtrack_oldest_queued_job_seconds"] >= 1.0 else None
+            )
+
+        figures = wait_for(a_second_stalled, 10, "a second of stall in the metrics")
+        assert figures["vtrack_running_job_stall_seconds"] < 3.5
         status = wait_for_state(client, stalled, ("succeeded", "failed"), timeout=30)
         assert status["state"] == "failed"
         assert "read no frame for 3 s (VTRACK_JOB_STALL_TIMEOUT)" in status["error"]
@@ -179,9 +185,11 @@ def test_a_stop_signal_while_the_workers_start_replaces_none_of_them(tmp_path):
                 b"Content-Type: multipart/form-data; boundary=b\r\nContent-Length: 100000\r\n\r\n"
                 b'--b\r\nContent-Disposition: form-data; name="video"; filename="a.avi"\r\n\r\n'
             )
-            time.sleep(0.2)  # the service reads the upload
+            uploads = server.data_dir / "uploads"
+            wait_for(lambda: any(uploads.glob("*.receiving")), 20, "the service to read the upload")
             server.signal_group(signal.SIGTERM)
-            # the stop waits for the upload: longer than a worker's death is held back
+            # the stop waits for the upload: held open longer than a worker's death is held back
+            # (a pause that is the test: the service must keep its workers all that time)
             time.sleep(5)
         assert server.process.wait(timeout=30) == -signal.SIGTERM
     finally:

@@ -10,6 +10,7 @@ import sys
 import threading
 import time
 
+from devtools.testing import wait_for
 from service.worker_processes import StopSignalDeaths, service_alive
 
 
@@ -19,7 +20,7 @@ def test_a_crash_is_replaced_at_once_and_a_stop_signal_death_after_the_grace():
     assert deaths.replace_now(101, 1)  # an exception in the worker
     assert not deaths.replace_now(102, -signal.SIGTERM)  # maybe the group's stop signal
     assert not deaths.replace_now(103, -signal.SIGINT)
-    time.sleep(0.35)
+    time.sleep(0.35)  # the grace runs out: the time passing is what is tested
     # no stop came: the signal was for that worker alone
     assert deaths.replace_now(102, -signal.SIGTERM)
     assert deaths.replace_now(103, -signal.SIGINT)
@@ -30,7 +31,7 @@ def test_nothing_is_replaced_once_the_service_stops():
     deaths = StopSignalDeaths(stop, grace=0.3)
     assert not deaths.replace_now(102, -signal.SIGTERM)
     stop.set()
-    time.sleep(0.35)
+    time.sleep(0.35)  # the grace runs out: the time passing is what is tested
     assert not deaths.replace_now(102, -signal.SIGTERM)
     assert not deaths.replace_now(100, -signal.SIGKILL)
 
@@ -42,9 +43,6 @@ def test_a_worker_sees_its_service_end_though_it_is_not_its_parent():
         assert alive() and alive()
     finally:
         service.kill()
-    deadline = time.monotonic() + 10
-    while alive() and time.monotonic() < deadline:  # ended before it is reaped
-        time.sleep(0.01)
-    assert not alive()
+    wait_for(lambda: not alive(), 10, "the service's end to be seen")  # before it is reaped
     service.wait()
     assert not service_alive(service.pid)()  # gone before the worker looked

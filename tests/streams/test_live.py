@@ -19,10 +19,10 @@ import zenoh
 from mcap.reader import make_reader
 
 from api_schemas.streams import StreamTracksMessage
+from devtools.simulated_cameras import RtspCamera, access_units
 from service.streams.keys import StreamKeys
 from service.streams.payloads import encode_jpeg, frame_attachment
 from service.streams.session import ZenohOptions
-from service.streams.simulated_cameras import RtspCamera, access_units
 from service.streams.tools import (
     TrackerReplyError,
     current_tracks,
@@ -32,7 +32,7 @@ from service.streams.tools import (
     trackers_of,
 )
 from tests.conftest import REPO_ROOT, process_alive
-from tests.service.conftest import PETS_VIDEO, Server, wait_for
+from tests.service.conftest import PETS_VIDEO, Server, error_of, wait_for
 from tests.streams.live import (
     PUBLIC_SCALE,
     VTRACK,
@@ -169,7 +169,7 @@ def test_an_h264_camera_is_tracked_from_its_next_key_frame(server, session, pets
         follower = Follower(session, keys)
         for i in range(3, 30):  # from its 4th frame; key frames at 0, 1.0 and 2.0 s
             put_frame(session, keys, units[i], frame_attachment(i, start + i / 10), "video/h264")
-            time.sleep(0.02)
+            time.sleep(0.02)  # a camera's pace, faster than its stamps: units come one by one
         settled = all_taken(client, camera, 27)
         assert settled["malformed"] == 7  # units 3-9, before the key frame of 1.0 s
         assert settled["frames_processed"] >= 1
@@ -253,10 +253,10 @@ def test_malformed_payloads_are_counted_and_the_stream_goes_on(server, session, 
     with server.client() as client:
         start_stream(client, session, camera)
         follower = Follower(session, keys)
-        for payload, attachment, encoding in bad:
+        for index, (payload, attachment, encoding) in enumerate(bad):
             put_frame(session, keys, payload, attachment, encoding)
             # One at a time, so that none is skipped before it is looked at.
-            time.sleep(0.05)
+            all_taken(client, camera, index + 1)
         wait_for(
             lambda: status(client, camera)["counters"]["malformed"] == len(bad),
             30,
@@ -436,30 +436,29 @@ def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
     camera = "rec"
     keys = StreamKeys("vtrack", camera)
     with server.client() as client:
-        assert client.post("/v1/streams", json={"camera": "a/b"}).status_code == 422
+        error_of(client.post("/v1/streams", json={"camera": "a/b"}), "validation_error")
         bad = client.post("/v1/streams", json={"camera": "x", "speed": 2})
-        assert bad.status_code == 422 and "speed" in bad.json()["detail"]
+        assert error_of(bad, "validation_error")["errors"][0]["loc"] == ["body", "speed"]
         # before: "invalid request: body.15: JSON decode error"
         broken = client.post(
             "/v1/streams",
             content=b'{"camera": "x" "record": true}',
             headers={"content-type": "application/json"},
         )
-        assert broken.status_code == 422
-        assert broken.json()["detail"] == (
+        assert error_of(broken, "validation_error")["detail"] == (
             "invalid request: the body is not valid JSON: Expecting ',' delimiter at character 15"
         )
         dpm = client.post("/v1/streams", json={"camera": "x", "detector": {"name": "dpm"}})
-        assert dpm.status_code == 422 and "VTRACK_DPM_MODEL" in dpm.json()["detail"]
+        assert "VTRACK_DPM_MODEL" in error_of(dpm, "invalid_options")["detail"]
         # before: accepted, and nothing was recorded
         idle = client.post("/v1/streams", json={"camera": "x", "record_keep": 3})
-        assert idle.status_code == 422 and "record_keep" in idle.json()["detail"]
-        assert "only with record: true" in idle.json()["detail"]
-        assert client.get("/v1/streams/nobody").status_code == 404
+        checks = error_of(idle, "validation_error")["errors"]
+        assert [(e["loc"], e["type"]) for e in checks] == [(["body", "record_keep"], "value_error")]
+        error_of(client.get("/v1/streams/nobody"), "not_found")
 
         start_stream(client, session, camera, record=True)
         again = client.post("/v1/streams", json={"camera": camera})
-        assert again.status_code == 409 and "tracked already" in again.json()["detail"]
+        assert "tracked already" in error_of(again, "conflict")["detail"]
         publish_frames(session, keys, iter(pets_frames[:10]), 20.0, block=True)
         # A tracker slower than the camera skips frames: wait for all to arrive, some tracked.
         wait_for(
@@ -480,8 +479,8 @@ def test_rest_lifecycle_recording_and_errors(server, session, pets_frames):
         assert recording.status_code == 200
         assert recording.headers["content-type"] == "application/vnd.mcap"
         missing = client.get(f"/v1/streams/{camera}/recordings/nothing.mcap")
-        assert missing.status_code == 404
-        assert f"finished: ['{final['recordings'][0].rsplit('/', 1)[1]}']" in missing.text
+        finished = final["recordings"][0].rsplit("/", 1)[1]
+        assert f"finished: ['{finished}']" in error_of(missing, "not_found")["detail"]
         topics = read_mcap_topics(recording.content)
         assert topics["/tracks"] == final["counters"]["frames_processed"]
         assert topics["/camera/image"] == topics["/tracks"]
@@ -638,10 +637,8 @@ def test_zenoh_port_taken_streams_unavailable_jobs_go_on(tmp_path, server):
     try:
         with clash.client() as client:
             response = client.post("/v1/streams", json={"camera": "gate"})
-            assert response.status_code == 503
-            detail = response.json()["detail"]
-            assert "Zenoh is unavailable" in detail
-            assert "another endpoint with VTRACK_ZENOH_LISTEN" in detail
+            detail = error_of(response, "unavailable")["detail"]
+            assert "VTRACK_ZENOH_LISTEN" in detail  # what to change
             assert client.get("/readyz").status_code == 200
             assert client.get("/v1/streams").json() == {"streams": []}
     finally:
@@ -815,7 +812,7 @@ def test_a_stream_whose_worker_dies_gets_a_new_one(server, session, pets_frames)
         first = status(client, camera)
         # before: "a recording is finished when the stream stops", of a stream that records none
         missing = client.get(f"/v1/streams/{camera}/recordings/{camera}.mcap")
-        assert missing.status_code == 404 and "the stream does not record" in missing.text
+        assert "does not record" in error_of(missing, "not_found")["detail"]
         environment = Path(f"/proc/{first['worker_pid']}/environ").read_bytes().split(b"\0")
         assert b"OPENBLAS_NUM_THREADS=1" in environment, "workers run single-threaded BLAS"
         publish_frames(session, keys, iter(pets_frames[:5]), 10.0, wait_for_subscriber=10)
@@ -974,7 +971,7 @@ def test_stream_workers_survive_reports_cut_short_and_end_with_their_service(tmp
         # A worker killed in the middle of a report. Before: the service read the rest of the
         # cut report for ever, holding the streams' lock (no status, no restart, no stop).
         server.process.send_signal(signal.SIGSTOP)
-        time.sleep(UNREAD)
+        time.sleep(UNREAD)  # a pause that is the test: the reports pile up unread
         os.kill(workers["east"], signal.SIGKILL)
         server.process.send_signal(signal.SIGCONT)
         with server.client() as client:
@@ -993,7 +990,7 @@ def test_stream_workers_survive_reports_cut_short_and_end_with_their_service(tmp
         # The service dies while it reads no reports. Before: its workers, their pipes full,
         # waited for room in them for ever (they held the read end too): 300 MB each.
         server.process.send_signal(signal.SIGSTOP)
-        time.sleep(UNREAD)
+        time.sleep(UNREAD)  # a pause that is the test: the reports pile up unread
         server.kill()
         for camera, pid in workers.items():
             wait_for(lambda p=pid: not process_alive(p), 30, f"the worker of {camera} to end")

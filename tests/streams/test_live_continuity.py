@@ -203,7 +203,9 @@ def test_a_bad_frame_is_dropped_and_the_tracks_go_on(
             frame_attachment(21, time.time()),
             zenoh.Encoding.IMAGE_JPEG,
         )
-        # As the malformed-payload test: one at a time, so the slot does not skip it unseen.
+        # As the malformed-payload test: one at a time, so the slot does not skip it unseen. A
+        # pause, not a condition: the worker holds the odd frame uncounted until the next one
+        # says what it was, and waiting longer than a moment would end the tracks (no frame).
         time.sleep(0.2)
         publish_run(session, keys, pets_frames[22:40], public_detections, 22, first_sequence=22)
         final = all_taken(client, camera, 40)
@@ -256,7 +258,7 @@ def test_timestamps_in_milliseconds_are_warned_of_once(server, session, pets_fra
         for index, frame in enumerate(pets_frames[:6]):
             attachment = frame_attachment(index, started + 100 * index)
             put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
-            time.sleep(0.1)
+            time.sleep(0.1)  # the camera's pace: the arrival times are what is tested
         final = all_taken(client, camera, 6)
         errors = status(client, camera)["errors"]
         assert len(errors) == 1, errors
@@ -280,7 +282,7 @@ def test_unix_time_in_milliseconds_is_refused_and_the_recording_stream_goes_on(
         for index, frame in enumerate(pets_frames[:3]):
             attachment = frame_attachment(index, (now + 0.1 * index) * 1000)
             put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
-            time.sleep(0.1)
+            time.sleep(0.1)  # the camera's pace, as its timestamps say
         wait_for(lambda: status(client, camera)["counters"]["malformed"] == 3, 30, "3 refusals")
         errors = status(client, camera)["errors"]
         assert errors == [
@@ -291,7 +293,7 @@ def test_unix_time_in_milliseconds_is_refused_and_the_recording_stream_goes_on(
         for index, frame in enumerate(pets_frames[3:6], start=3):
             attachment = frame_attachment(index, now + 0.1 * index)
             put_frame(session, keys, encode_jpeg(frame), attachment, zenoh.Encoding.IMAGE_JPEG)
-            time.sleep(0.1)
+            time.sleep(0.1)  # the camera's pace, as its timestamps say
         assert all_taken(client, camera, 6)["frames_processed"] >= 1
         final = status(client, camera)
         assert final["state"] == "running" and final["error"] is None, final

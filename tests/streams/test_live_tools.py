@@ -13,8 +13,8 @@ import time
 import pytest
 
 from api_schemas.streams import StreamTracksEnded, StreamTracksMessage
+from devtools.testing import free_port
 from service.streams.keys import StreamKeys
-from service.testing import free_port
 from tests.conftest import REPO_ROOT, sigint_as_in_a_terminal
 from tests.service.conftest import PETS_VIDEO, wait_for
 from tests.streams.live import (
@@ -285,7 +285,9 @@ def test_subscribe_stopped_while_messages_pour_in_ends_cleanly(server, session, 
         wait_for(lambda: said.has("following"), 30, "the subscriber to follow")
         thread.start()
         wait_for(lambda: out.exists() and out.stat().st_size > 30_000, 30, "messages")
-        time.sleep(1.0)  # the pipe is full by now
+        # a pause, not a condition: the flood goes on while the tool's stdout pipe, unread,
+        # fills up (by now), which is the case tested
+        time.sleep(1.0)
         tool.send_signal(signal.SIGINT)
         threading.Thread(target=tool.stdout.read, daemon=True).start()  # the reader catches up
         assert tool.wait(timeout=30) == 0

@@ -13,11 +13,20 @@ import threading
 import time
 from fractions import Fraction
 from itertools import islice
+from pathlib import Path
 
 import av
 import numpy as np
 import pytest
 
+from devtools.simulated_cameras import (
+    FileServer,
+    RtspCamera,
+    TcpCamera,
+    access_units,
+    h264_video,
+)
+from devtools.testing import free_port, wait_for
 from service.outputs.h264 import (
     IDR,
     PPS,
@@ -39,15 +48,7 @@ from service.streams.network_camera import (
     redacted,
 )
 from service.streams.payloads import H264Frames
-from service.streams.simulated_cameras import (
-    FileServer,
-    RtspCamera,
-    TcpCamera,
-    access_units,
-    h264_video,
-)
 from service.streams.tools import video_frames
-from service.testing import free_port
 from tests.conftest import REPO_ROOT
 from tests.service.conftest import PETS_VIDEO
 from tests.service.test_limits import OVER, write_mjpeg
@@ -135,6 +136,12 @@ def test_a_tcp_camera_gives_the_frames_it_sends(camera, transport_stream):
     np.testing.assert_allclose(np.diff(positions), 0.1, atol=1e-6)
 
 
+def _listening_udp(port: int) -> bool:
+    """Whether a UDP socket of this machine is bound to ``port`` (Linux's table of them)."""
+    tables = (Path("/proc/net/udp"), Path("/proc/net/udp6"))
+    return any(f":{port:04X} " in t.read_text() for t in tables if t.exists())
+
+
 def test_an_mpegts_camera_over_udp_gives_the_frames_it_sends(transport_stream):
     # As an encoder sends MPEG-TS to udp://host:port: seven TS packets per datagram, 10 fps.
     port = free_port()
@@ -142,11 +149,11 @@ def test_an_mpegts_camera_over_udp_gives_the_frames_it_sends(transport_stream):
 
     def send() -> None:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
-            time.sleep(0.3)  # the gateway is listening by then
+            wait_for(lambda: _listening_udp(port), 10, "the gateway to listen")
             for frame in frames:
                 for at in range(0, len(frame), 7 * 188):
                     sender.sendto(frame[at : at + 7 * 188], ("127.0.0.1", port))
-                time.sleep(0.1)
+                time.sleep(0.1)  # the camera's 10 fps: the presentation times are tested
 
     threading.Thread(target=send, daemon=True).start()
     connection = CameraConnection(f"udp://127.0.0.1:{port}", CameraSettings(5.0, 1.0), False)

@@ -35,6 +35,13 @@ class CorrelationFilter(Protocol):
         ...
 
 
+def _learnt(state: np.ndarray | None) -> np.ndarray:
+    """A filter's learnt state, which its ``initialize`` sets; RuntimeError before that."""
+    if state is None:
+        raise RuntimeError("initialize() must be called first")
+    return state
+
+
 class MosseFilter:
     """MOSSE for multi-channel features: eq. 2.4 with the multi-channel solution of eq. 2.12.
 
@@ -68,16 +75,17 @@ class MosseFilter:
         self._lambda_scaled = self._lambda * x.size
 
     def update(self, x: np.ndarray) -> None:
+        learnt_numerator, learnt_denominator = _learnt(self._numerator), _learnt(self._denominator)
         numerator, denominator = self._terms(x)
         g = self._gamma
-        self._numerator = (1 - g) * self._numerator + g * numerator  # eq. 2.4a
-        self._denominator = (1 - g) * self._denominator + g * denominator  # eq. 2.4b
+        self._numerator = (1 - g) * learnt_numerator + g * numerator  # eq. 2.4a
+        self._denominator = (1 - g) * learnt_denominator + g * denominator  # eq. 2.4b
 
     def response(self, z: np.ndarray) -> np.ndarray:
         z_hat = spectrum(z * self._window)
         # H^d = H_N^d / (H_D + lambda)   (eq. 2.4c);   y_hat = F^-1{sum_d H^d Z^d}
-        product = np.einsum("ijk,ijk->ij", self._numerator, z_hat)
-        return inverse(product / (self._denominator + self._lambda_scaled), self._shape)
+        product = np.einsum("ijk,ijk->ij", _learnt(self._numerator), z_hat)
+        return inverse(product / (_learnt(self._denominator) + self._lambda_scaled), self._shape)
 
 
 class KernelFilter:
@@ -150,8 +158,9 @@ class KernelFilter:
         )
 
     def _learn(self, x: np.ndarray, first: bool) -> None:
+        appearance = _learnt(self._appearance)
         if self._projection is not None:
-            self._projection.update(self._appearance)  # Algorithm 4.1 on x_hat^t
+            self._projection.update(appearance)  # Algorithm 4.1 on x_hat^t
         x_tilde = self._project(x)
         x_tilde_hat = spectrum(x_tilde)
         u_x = self._kernel(x_tilde, x_tilde_hat, x_tilde, x_tilde_hat)
@@ -163,14 +172,14 @@ class KernelFilter:
             if first:
                 self._a_num, self._a_den = num, den
             else:
-                self._a_num = (1 - g) * self._a_num + g * num  # eq. 2.21a
-                self._a_den = (1 - g) * self._a_den + g * den  # eq. 2.21b
+                self._a_num = (1 - g) * _learnt(self._a_num) + g * num  # eq. 2.21a
+                self._a_den = (1 - g) * _learnt(self._a_den) + g * den  # eq. 2.21b
             # A = A_N / A_D (eq. 2.21c); a den of exactly 0 only where U_x = 0 and lambda = 0.
             self._alpha = self._a_num / np.where(self._a_den == 0, 1e-12, self._a_den)
         else:
             alpha = y / (u_x + lam)  # eq. 2.10
-            self._alpha = alpha if first else (1 - g) * self._alpha + g * alpha
-        model = self._project(self._appearance)
+            self._alpha = alpha if first else (1 - g) * _learnt(self._alpha) + g * alpha
+        model = self._project(appearance)
         self._model = (model, spectrum(model))
 
     def initialize(self, x: np.ndarray) -> None:
@@ -179,14 +188,16 @@ class KernelFilter:
 
     def update(self, x: np.ndarray) -> None:
         g = self._config.learning_rate
-        self._appearance = (1 - g) * self._appearance + g * x  # eq. 2.21d
+        self._appearance = (1 - g) * _learnt(self._appearance) + g * x  # eq. 2.21d
         self._learn(x, first=False)
 
     def response(self, z: np.ndarray) -> np.ndarray:
+        if self._model is None:
+            raise RuntimeError("initialize() must be called first")
         z_tilde = self._project(z)
         model, model_hat = self._model
         u_z = self._kernel(z_tilde, spectrum(z_tilde), model, model_hat)
-        return inverse(self._alpha * u_z, self._shape)  # eq. 2.11
+        return inverse(_learnt(self._alpha) * u_z, self._shape)  # eq. 2.11
 
 
 def make_filter(

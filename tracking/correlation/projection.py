@@ -49,9 +49,9 @@ class AdaptiveProjection:
         samples = appearance.reshape(-1, appearance.shape[-1]).astype(np.float64)
         centred = samples - samples.mean(axis=0)  # lines 1-2: the mean carries no structure
         covariance = centred.T @ centred / samples.shape[0]  # C_t
-        first = self._q is None
+        previous = self._q  # Q_{t-1}; None at t = 1
         # R_t = C_t at t = 1, else (1 - mu) Q_{t-1} + mu C_t   (lines 3-7)
-        r = covariance if first else (1.0 - self.mu) * self._q + self.mu * covariance
+        r = covariance if previous is None else (1.0 - self.mu) * previous + self.mu * covariance
         eigenvalues, eigenvectors = np.linalg.eigh(r)  # ascending
         keep = min(self.dim, samples.shape[1])
         order = np.argsort(eigenvalues)[::-1][:keep]
@@ -59,7 +59,11 @@ class AdaptiveProjection:
         lam = np.clip(eigenvalues[order], 0.0, None)  # line 10: Lambda_t
         reconstructed = (basis * lam) @ basis.T  # B_t Lambda_t B_t^T
         # Q_t = B Lambda B^T at t = 1, else (1 - mu) Q_{t-1} + mu B Lambda B^T   (lines 11-15)
-        self._q = reconstructed if first else (1.0 - self.mu) * self._q + self.mu * reconstructed
+        self._q = (
+            reconstructed
+            if previous is None
+            else (1.0 - self.mu) * previous + self.mu * reconstructed
+        )
         self.basis = basis.astype(np.float32)
         self.eigenvalues = lam
         return self.basis

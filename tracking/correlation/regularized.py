@@ -167,7 +167,7 @@ class TemporalRegularizedFilter:
     def train(self, x_hat: np.ndarray) -> None:
         """Solve for the filter from a windowed sample's spectrum ``x_hat`` (ADMM, eq. 5-10)."""
         first = self._filter_hat is None
-        previous = np.zeros_like(x_hat) if first else self._filter_hat
+        previous = np.zeros_like(x_hat) if self._filter_hat is None else self._filter_hat
         mu = 0.0 if first else self._mu  # nothing to stay close to on the first frame
         f_hat = np.zeros_like(x_hat)
         g_hat = np.zeros_like(x_hat)
@@ -206,6 +206,8 @@ class TemporalRegularizedFilter:
     def response(self, z: np.ndarray) -> np.ndarray:
         """The response ``(M, N)`` to a search sample ``(M, N, D)``, or the responses
         ``(S, M, N)`` to a batch of samples ``(S, M, N, D)``."""
+        if self._filter_hat is None:
+            raise RuntimeError("initialize() must be called first")
         axes = (z.ndim - 3, z.ndim - 2)
         self._search_hat = fft.rfft2(z * self._window, axes=axes)
         product = np.einsum("...ijk,ijk->...ij", self._search_hat, np.conj(self._filter_hat))

@@ -88,10 +88,16 @@ class ScaleFilter:
                 ]
             )
         else:
-            samples = self._pooled_samples(frame, center, scale)
+            samples = self._pooled_samples(self._pixel_features, frame, center, scale)
         return fft.fft(samples * self._window, axis=0)
 
-    def _pooled_samples(self, frame: np.ndarray, center: tuple[float, float], scale: float):
+    def _pooled_samples(
+        self,
+        pixel_features: FeatureMap,
+        frame: np.ndarray,
+        center: tuple[float, float],
+        scale: float,
+    ):
         """All ``S`` samples at once: per-pixel features on one canvas covering the largest
         sample, then the mean over every cell of every sample from an integral image.
 
@@ -108,7 +114,7 @@ class ScaleFilter:
         density = 2.0 * self._model_size[0] / (w * scale * factors[0])
         extent = (w * scale * factors[-1], h * scale * factors[-1])
         canvas_size = (max(round(extent[0] * density), 2), max(round(extent[1] * density), 2))
-        canvas = self._pixel_features(extract_patch(frame, center, extent, canvas_size))
+        canvas = pixel_features(extract_patch(frame, center, extent, canvas_size))
         height, width = canvas.shape[:2]
         integral = np.zeros((height + 1, width + 1, canvas.shape[2]))
         integral[1:, 1:] = canvas.cumsum(0).cumsum(1)
@@ -133,23 +139,31 @@ class ScaleFilter:
         denominator = np.einsum("sd,sd->s", x_hat, np.conj(x_hat)).real  # sum_d |X^d|^2
         return numerator, denominator
 
+    def _learnt(self) -> tuple[np.ndarray, np.ndarray]:
+        """The numerator and denominator learnt so far."""
+        if self._numerator is None or self._denominator is None:
+            raise RuntimeError("initialize the scale filter first")
+        return self._numerator, self._denominator
+
     def initialize(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> None:
         self._last = None
         self._numerator, self._denominator = self._terms(frame, center, scale)
 
     def update(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> None:
+        learnt_numerator, learnt_denominator = self._learnt()
         numerator, denominator = self._terms(frame, center, scale)
         self._last = None
         g = self._config.learning_rate
-        self._numerator = (1 - g) * self._numerator + g * numerator  # eq. 2.4a
-        self._denominator = (1 - g) * self._denominator + g * denominator  # eq. 2.4b
+        self._numerator = (1 - g) * learnt_numerator + g * numerator  # eq. 2.4a
+        self._denominator = (1 - g) * learnt_denominator + g * denominator  # eq. 2.4b
 
     def estimate(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> float:
         """The new scale: the current one times the factor with the strongest response."""
+        numerator, denominator = self._learnt()
         z_hat = self._spectrum(frame, center, scale)
         self._last = (frame, center, scale, z_hat)
-        product = np.einsum("sd,sd->s", self._numerator, z_hat)
-        response = fft.ifft(product / (self._denominator + self._config.regularization)).real
+        product = np.einsum("sd,sd->s", numerator, z_hat)
+        response = fft.ifft(product / (denominator + self._config.regularization)).real
         best = int(np.argmax(response))
         return float(np.clip(scale * self._factors[best], self._min_scale, self._max_scale))
 

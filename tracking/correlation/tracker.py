@@ -163,7 +163,7 @@ class CorrelationTracker:
 
         ``frame`` must have the size of the first one (ValueError otherwise).
         """
-        self._require_target("update")
+        self._target("update")
         frame = validate_uint8_frame(frame, "the correlation tracker")
         if frame.shape[:2] != self._frame_size:
             # the target's position and patch were planned in the first frame's geometry
@@ -218,6 +218,7 @@ class CorrelationTracker:
 
         Returns the response, its image pixels per cell, the scale it was sampled at and that
         sample's index in the batch."""
+        correlation_filter, geometry = self._target("update")
         c = self.config
         if c.search_scales == 1:
             found = self.respond(frame)
@@ -229,15 +230,15 @@ class CorrelationTracker:
         # steps are a percent or two, and features cost five times the rest of a frame.
         x = self._sample(frame, self._center, self._scale)
         samples = np.stack([zoom_about_centre(x, f) for f in factors])
-        responses = self._filter.response(samples)
+        responses = correlation_filter.response(samples)
         index = int(np.argmax(responses.reshape(len(scales), -1).max(axis=1)))
         scale = float(scales[index])
-        return responses[index], self._geometry.pixels_per_cell(scale), scale, index
+        return responses[index], geometry.pixels_per_cell(scale), scale, index
 
     def _bounded_scale(self, scale: float) -> float:
         """``scale`` kept where the target has at least 6 pixels a side (or its first size,
         if smaller) and fits in the frame (STRCF's bounds)."""
-        w, h = self._geometry.base_target
+        w, h = self._target("update")[1].base_target
         low = min(6.0 / min(w, h), 1.0)
         high = max(min(self._frame_size[1] / w, self._frame_size[0] / h), 1.0)
         return float(np.clip(scale, low, high))
@@ -251,11 +252,11 @@ class CorrelationTracker:
         """The correlation response over the search patch at ``center`` and ``scale`` (default:
         the current ones), without moving or learning: for callers that fuse it with other
         evidence, like the particle filter of Part II."""
-        self._require_target("respond")
+        correlation_filter, geometry = self._target("respond")
         center = self._center if center is None else center
         scale = self._scale if scale is None else scale
-        response = self._filter.response(self._sample(frame, center, scale))
-        return ResponseMap(response, center, self._geometry.pixels_per_cell(scale))
+        response = correlation_filter.response(self._sample(frame, center, scale))
+        return ResponseMap(response, center, geometry.pixels_per_cell(scale))
 
     def learn(
         self,
@@ -265,18 +266,20 @@ class CorrelationTracker:
     ) -> None:
         """Learn the appearance at ``center`` and ``scale`` and make them the current target
         (Algorithm 2.1, lines 10-12; the scale filter learns too)."""
-        self._require_target("learn")
+        correlation_filter, _ = self._target("learn")
         if center is not None:
             self._center = (float(center[0]), float(center[1]))
         if scale is not None:
             self._scale = float(scale)
-        self._filter.update(self._sample(frame, self._center, self._scale))
+        correlation_filter.update(self._sample(frame, self._center, self._scale))
         if self._scale_filter is not None:
             self._scale_filter.update(frame, self._center, self._scale)
 
-    def _require_target(self, method: str) -> None:
+    def _target(self, method: str) -> tuple[CorrelationFilter, _Geometry]:
+        """The filter and geometry that ``initialize`` makes; RuntimeError before it."""
         if self._filter is None or self._geometry is None:
             raise RuntimeError(f"initialize() must be called before {method}()")
+        return self._filter, self._geometry
 
     @property
     def box(self) -> Box:
@@ -287,7 +290,7 @@ class CorrelationTracker:
         return Box.from_center(*self._center, w * self._scale, h * self._scale)
 
     def _sample(self, frame: np.ndarray, center: tuple[float, float], scale: float) -> np.ndarray:
-        g = self._geometry
+        g = self._target("sample")[1]
         size = (g.base_patch[0] * scale, g.base_patch[1] * scale)
         x = self._features(extract_patch(frame, center, size, g.model_pixels))
         return x if self._projection is None else x @ self._projection

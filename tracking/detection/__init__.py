@@ -10,8 +10,8 @@
 - :func:`make_detector` builds any of them from a name or a path.
 
 Every detector returns :class:`Detections` (boxes, raw scores, calibrated probabilities, parts);
-:class:`LogisticCalibration` maps scores to probabilities (``python -m
-tracking.detection.calibrate`` fits one).
+:class:`LogisticCalibration` maps scores to probabilities (``python -m devtools.calibrate``, from
+a checkout, fits one).
 """
 
 from tracking.detection.base import DenseScores, Detections, Detector
@@ -45,7 +45,6 @@ from tracking.detection.hog_people import (
 from tracking.detection.nms import box_iou, nms
 from tracking.detection.pose import PoseConfig, PoseEstimator, Poses
 from tracking.detection.reid import ReidConfig, ReidEmbedder, cosine_similarity
-from tracking.detection.sequences import MotFormatError, MotSequence
 
 __all__ = [
     "DETECTOR_NAMES",
@@ -66,8 +65,6 @@ __all__ = [
     "LogisticCalibration",
     "ModelFileError",
     "MotDetections",
-    "MotFormatError",
-    "MotSequence",
     "PoseConfig",
     "PoseEstimator",
     "Poses",

@@ -9,7 +9,7 @@ image likelihood from.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 
@@ -150,7 +150,6 @@ class DenseScores:
         return out
 
 
-@runtime_checkable
 class Detector(Protocol):
     """What every person detector offers.
 
@@ -158,7 +157,8 @@ class Detector(Protocol):
     class attribute ``frame_indexed = True``: their :meth:`detect` answers for the next frame
     and moves on, and their :meth:`detect_region` for the current one without moving, so a
     caller must call :meth:`detect` once per frame (the people tracker's scheduler does, for
-    them, on every frame: their searches cost nothing).
+    them, on every frame: their searches cost nothing). The type checker holds the
+    implementations to this protocol (``tests/protocol_conformance.py``).
     """
 
     part_names: tuple[str, ...]

@@ -5,7 +5,7 @@ A logistic mapping (Platt, "Probabilistic Outputs for Support Vector Machines", 
     p(person | s) = 1 / (1 + exp(-(a s + b)))
 
 fitted by maximum likelihood on detections labelled against ground truth (a detection is a
-positive when it matches a ground-truth person, :func:`tracking.detection.metrics.match_frame`).
+positive when it matches a ground-truth person, :func:`tracking.evaluation.detection.match_frame`).
 Part II turns these probabilities into the image likelihood of its particle filter.
 
 Calibrations are stored as small JSON files (``{"a": ..., "b": ..., ...}``) beside the model

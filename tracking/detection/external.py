@@ -8,7 +8,7 @@ detections of the *current frame index* and advances it (a sequence is read in o
 caller positions it with ``seek(index)``. Frame indices and boxes here are 0-based, as
 everywhere in the project; MOTChallenge files count frames and pixels from 1, so index ``i``
 reads the rows with ``frame == i + 1`` and a row's ``x, y`` become ``x - 1, y - 1``
-(:func:`~tracking.detection.sequences.mot_to_image_boxes`; the file's pixel ``(1, 1)`` is the
+(:func:`~tracking.datasets.mot.mot_to_image_boxes`; the file's pixel ``(1, 1)`` is the
 image's ``(0, 0)``). They have no dense scores (``dense_scores`` returns ``None``) and no parts.
 
 Probabilities: a calibration if one is given, else the file's confidence clipped to ``[0, 1]``
@@ -23,23 +23,24 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from tracking.datasets.mot import mot_to_image_boxes, read_mot_rows
 from tracking.detection.base import DenseScores, Detections
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.regions import centres_inside, checked_region
-from tracking.detection.sequences import mot_to_image_boxes, read_mot_rows
 from tracking.types import Box, is_int
 
 __all__ = ["MotDetections", "SubmittedDetections", "detections_from_arrays"]
 
 
 def detections_from_arrays(
-    boxes: object,
-    scores: object,
-    probabilities: object | None = None,
+    boxes: ArrayLike,
+    scores: ArrayLike,
+    probabilities: ArrayLike | None = None,
     *,
     calibration: LogisticCalibration | None = None,
-    parts: object | None = None,
+    parts: ArrayLike | None = None,
     part_names: tuple[str, ...] = (),
 ) -> Detections:
     """Validated :class:`Detections` from plain arrays.
@@ -132,7 +133,7 @@ class MotDetections:
     ----------
     rows:
         ``(N, >= 7)`` the file's rows ``frame, id, x, y, w, h, conf, ...`` in file units (frames
-        and pixels 1-based), as :func:`~tracking.detection.sequences.read_mot_rows` returns them;
+        and pixels 1-based), as :func:`~tracking.datasets.mot.read_mot_rows` returns them;
         after construction, only the rows kept (confidence, positive size). The boxes of
         :meth:`for_frame` are these moved to 0-based pixels.
     calibration:
@@ -237,10 +238,10 @@ class SubmittedDetections:
     def submit(
         self,
         frame_index: int,
-        boxes: object,
-        scores: object,
-        probabilities: object | None = None,
-        parts: object | None = None,
+        boxes: ArrayLike,
+        scores: ArrayLike,
+        probabilities: ArrayLike | None = None,
+        parts: ArrayLike | None = None,
     ) -> Detections:
         """Store the detections of 0-based ``frame_index``; returns them validated.
 

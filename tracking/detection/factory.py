@@ -57,10 +57,10 @@ def make_detector(
     if key in ("default", "hog"):
         if config is not None and not isinstance(config, HogPeopleConfig):
             raise ValueError(f"the embedded detector takes a HogPeopleConfig, got {config!r}")
-        detector = HogPeopleDetector(config or HogPeopleConfig())
+        hog = HogPeopleDetector(config or HogPeopleConfig())
         if calibration is not None:
-            detector.calibration = calibration
-        return detector
+            hog.calibration = calibration
+        return hog
     if key == "submitted":
         return SubmittedDetections(calibration=calibration)
     path = Path(key)
@@ -68,17 +68,17 @@ def make_detector(
     if suffix == ".mat":
         if config is not None and not isinstance(config, DpmConfig):
             raise ValueError(f"a DPM model takes a DpmConfig, got {config!r}")
-        detector = DpmDetector.from_file(path, config or DpmConfig())
+        dpm = DpmDetector.from_file(path, config or DpmConfig())
         if calibration is not None:
-            detector.calibration = calibration
-        return detector
+            dpm.calibration = calibration
+        return dpm
     if suffix in MODEL_SUFFIXES:
         if config is not None and not isinstance(config, CnnConfig):
             raise ValueError(f"a CNN model takes a CnnConfig, got {config!r}")
-        detector = CnnDetector.from_file(path, config)
+        cnn = CnnDetector.from_file(path, config)
         if calibration is not None:
-            detector.calibration = calibration
-        return detector
+            cnn.calibration = calibration
+        return cnn
     if suffix == ".txt":
         return MotDetections.from_file(path, calibration=calibration)
     raise ValueError(

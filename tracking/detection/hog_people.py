@@ -55,7 +55,7 @@ _WINDOW = (64, 128)  # width, height of the detection window in pixels
 
 # Fitted with our calibration command on every frame of PETS09-S2L1 (795) and TUD-Stadtmitte
 # (179), the default configuration at SVM threshold -0.5 (4677 positives, 8252 negatives):
-#   python -m tracking.detection.calibrate --detector default \
+#   python -m devtools.calibrate --detector default \
 #       --sequences <data>/mot/PETS09-S2L1 <data>/mot/TUD-Stadtmitte --out hog.calibration.json
 # p = 0.5 at an SVM score of 0.97.
 HOG_PEOPLE_CALIBRATION = LogisticCalibration(
@@ -84,10 +84,10 @@ class HogPeopleConfig:
         the factor off ``auto_upscale``. Surveillance frames show people at sizes that scale
         with the frame: in the 480x360 PETS video most are 40-60 px tall and need 2.0 (720
         px; HOTA of the service pipeline 39.1 at 2.0 against 21.9 at 1.5,
-        docs/benchmarks.md), while in a 1080-px frame the people that need 1.5 (under about
+        docs/benchmarks-history.md), while in a 1080-px frame the people that need 1.5 (under about
         90 px) are under a twelfth of its height, and the enlarged frame costs 2.5 times as
         much (on PETS09-S2L1 and TUD-Stadtmitte resized to 1080 px, 1.0 matched 1.5's
-        detection AP and tracking HOTA: docs/benchmarks.md).
+        detection AP and tracking HOTA: docs/benchmarks-history.md).
     max_upscale:
         The largest automatic factor, 2.0: frames below 360 px (shorter side) stay under 720 px.
     hit_threshold:
@@ -188,7 +188,9 @@ class HogPeopleDetector:
     _pool: ThreadPoolExecutor | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self._svm = cv2.HOGDescriptor_getDefaultPeopleDetector().ravel().astype(np.float64)
+        # (OpenCV's stubs type the detector as a sequence; it is a float32 array (3781, 1))
+        people = cv2.HOGDescriptor.getDefaultPeopleDetector()
+        self._svm = np.asarray(people, dtype=np.float64).ravel()
         self._hog = cv2.HOGDescriptor()
         self._hog.setSVMDetector(self._svm.astype(np.float32))
         workers = self.config.workers or cv2.getNumThreads()
@@ -224,10 +226,10 @@ class HogPeopleDetector:
             else cv2.resize(image, size, interpolation=cv2.INTER_LINEAR_EXACT)
         )
         stride = (self.config.win_stride, self.config.win_stride)
-        corners, scores = self._hog.detect(
+        found, scores = self._hog.detect(
             level, hitThreshold=self.config.hit_threshold, winStride=stride, padding=(0, 0)
         )
-        corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
+        corners = np.asarray(found, dtype=np.float64).reshape(-1, 2)
         windows = np.empty((len(corners), 4))
         windows[:, :2] = np.rint(corners * scale)
         windows[:, 2:] = (round(_WINDOW[0] * scale), round(_WINDOW[1] * scale))
@@ -294,9 +296,9 @@ class HogPeopleDetector:
         clipped = clip_region(checked_region(region), image.shape)
         if clipped is None:
             return self._detections(np.zeros((0, 4)), np.zeros(0))
-        if heights is None:
-            heights = tuple(f * clipped.h for f in self.config.region_heights)
-        heights = checked_heights(heights)
+        heights = checked_heights(
+            tuple(f * clipped.h for f in self.config.region_heights) if heights is None else heights
+        )
         crop, x0, y0 = self._crop(image, clipped, heights[1])
         # The factor follows the whole frame, so a region sees people as the full frame does;
         # only the levels whose people fit ``heights`` are scanned (all of them cost more than
@@ -322,9 +324,9 @@ class HogPeopleDetector:
         clipped = clip_region(checked_region(region), image.shape)
         if clipped is None:
             return None
-        if heights is None:
-            heights = tuple(f * clipped.h for f in self.config.region_heights)
-        low, high = checked_heights(heights)
+        low, high = checked_heights(
+            tuple(f * clipped.h for f in self.config.region_heights) if heights is None else heights
+        )
         sh = self.config.box_scale[1]
         crop, x0, y0 = self._crop(image, clipped, high)
         stride = self.config.win_stride
@@ -380,7 +382,8 @@ def _pyramid_scales(shape: tuple[int, ...], step: float) -> list[float]:
     """The shrink factors of ``detectMultiScale``'s levels: ``step**l`` while the shrunk
     image still holds a window (at most 64 levels, OpenCV's ``nlevels``)."""
     height, width = shape[:2]
-    scales, scale = [], 1.0
+    scales: list[float] = []
+    scale = 1.0
     while (
         len(scales) < 64
         and round(width / scale) >= _WINDOW[0]

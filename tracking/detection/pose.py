@@ -456,7 +456,7 @@ def decode_openpose(
     heatmaps: np.ndarray,
     pafs: np.ndarray,
     scale: float | tuple[float, float],
-    stride: int = 8,
+    stride: float = 8,
     config: PoseConfig | None = None,
 ) -> Poses:
     """Skeletons in frame pixels from the network's outputs.
@@ -502,7 +502,7 @@ def decode_openpose(
         min_keypoints=config.min_keypoints,
         min_mean_score=config.min_mean_score,
     )
-    sx, sy = (scale, scale) if np.isscalar(scale) else scale
+    sx, sy = scale if isinstance(scale, tuple) else (scale, scale)
     keypoints = poses.keypoints.copy()
     keypoints[..., 0] = (stride * keypoints[..., 0] + stride / 2) / sx - 0.5
     keypoints[..., 1] = (stride * keypoints[..., 1] + stride / 2) / sy - 0.5

@@ -44,7 +44,8 @@ def clip_region(region: Box, shape: tuple[int, ...]) -> Box | None:
 def checked_heights(heights: object) -> tuple[float, float]:
     """``(min, max)`` person heights in pixels with ``0 < min <= max``, or ValueError."""
     try:
-        low, high = (float(h) for h in heights)  # type: ignore[union-attr]
+        # not iterable, or not two numbers: the TypeError or ValueError below
+        low, high = (float(h) for h in heights)  # type: ignore[attr-defined]
     except (TypeError, ValueError) as error:
         raise ValueError(f"heights must be (min, max) in pixels, got {heights!r}") from error
     if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):

@@ -31,6 +31,7 @@ from types import MappingProxyType
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from tracking.detection.calibration import LogisticCalibration
 from tracking.detection.cnn.runtime import CnnModelError, Network, load_network
@@ -165,7 +166,7 @@ class ReidEmbedder:
         """``D``: the length of each embedding (256 for Open Model Zoo's networks)."""
         return int(self.network.output_shapes[0][1])
 
-    def embed(self, frame: np.ndarray, boxes: object) -> np.ndarray:
+    def embed(self, frame: np.ndarray, boxes: ArrayLike) -> np.ndarray:
         """The embedding of each box of ``frame``.
 
         Parameters
@@ -239,7 +240,7 @@ class ReidEmbedder:
         return np.concatenate(out)
 
 
-def cosine_similarity(a: object, b: object) -> np.ndarray:
+def cosine_similarity(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """``(K, M)`` cosine similarities of the rows of ``a`` ``(K, D)`` and ``b`` ``(M, D)``.
 
     The rows are taken as L2-normalised (as :meth:`ReidEmbedder.embed` gives them), so this is

@@ -20,9 +20,9 @@ exact. A tracker that never looks at pixels (SORT, ByteTrack, OC-SORT) can take 
 as they are and write them back unchanged: the shift cancels.
 
 Reading the text files, the exception and the two box conversions are those of
-:mod:`tracking.detection.sequences` (re-exported here): :func:`read_mot_rows` returns rows in
+:mod:`tracking.datasets.mot` (re-exported here): :func:`read_mot_rows` returns rows in
 file units, as written; :data:`MotFileError` is
-:class:`~tracking.detection.sequences.MotFormatError`.
+:class:`~tracking.datasets.mot.MotFormatError`.
 
 The evaluation itself (HOTA, CLEAR MOT, identity metrics) is TrackEval's; it runs in its own
 environment (``benchmarks/_mot_env.py``) and reads the files written here.
@@ -31,31 +31,31 @@ environment (``benchmarks/_mot_env.py``) and reads the files written here.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from tracking.detection.sequences import (
+from tracking.datasets.mot import (
     MOT_PIXEL_ORIGIN,
     MotFormatError,
     image_to_mot_boxes,
     mot_to_image_boxes,
     read_mot_rows,
     read_seqinfo,
+    seqinfo_frame_rate,
+    seqinfo_whole_number,
 )
-from tracking.seqinfo import seqinfo_frame_rate, seqinfo_whole_number
-from tracking.tracks import TrackEstimate
+from tracking.tracks import FrameTracks
 
 __all__ = [
     "MOT_PIXEL_ORIGIN",
     "MotFileError",
     "SequenceInfo",
     "check_unique_ids",
-    "estimates_to_rows",
     "find_mot_sequences",
     "format_mot_rows",
+    "frame_rows",
     "ground_truth_rows",
     "image_to_mot_boxes",
     "limit_frames",
@@ -237,14 +237,10 @@ def track_rows(
     return rows
 
 
-def estimates_to_rows(frame_index: int, estimates: Iterable[TrackEstimate]) -> np.ndarray:
-    """Result rows (:func:`track_rows`) of the :class:`TrackEstimate` s of 0-based frame
-    ``frame_index``."""
-    estimates = tuple(estimates)
-    ids = np.array([e.track_id for e in estimates], dtype=np.int64)
-    boxes = np.array([[e.box.x, e.box.y, e.box.w, e.box.h] for e in estimates], dtype=np.float64)
-    scores = np.array([e.score for e in estimates], dtype=np.float64)
-    return track_rows(frame_index, ids, boxes, scores)
+def frame_rows(tracks: FrameTracks) -> np.ndarray:
+    """Result rows (:func:`track_rows`) of one frame's tracks: what the benchmarks score and the
+    service's MOT download holds (both written by :func:`format_mot_rows`)."""
+    return track_rows(tracks.frame_index, tracks.track_ids, tracks.boxes, tracks.scores)
 
 
 def check_unique_ids(rows: np.ndarray) -> None:

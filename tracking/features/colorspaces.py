@@ -157,7 +157,7 @@ def gray_features(image: np.ndarray) -> np.ndarray:
     ``cv2.COLOR_RGB2GRAY``; grayscale frames ``(H, W)`` or ``(H, W, 1)`` are used as they are.
     """
     image = require_image(image, "gray")
-    values = image.astype(np.float32)
+    values: np.ndarray = image.astype(np.float32)
     if values.ndim == 3 and values.shape[2] == 3:
         values = cv2.cvtColor(values, cv2.COLOR_RGB2GRAY)
     values = values.reshape(image.shape[0], image.shape[1], 1)
@@ -176,7 +176,7 @@ def lab_features(image: np.ndarray) -> np.ndarray:
     a* and b* are centred on zero already; their nominal range [-128, 128] maps to [-0.5, 0.5]
     (the sRGB gamut reaches about a* in [-86, 98], b* in [-108, 95]).
     """
-    lab = cv2.cvtColor(_unit_rgb(image, "lab"), cv2.COLOR_RGB2Lab)
+    lab: np.ndarray = cv2.cvtColor(_unit_rgb(image, "lab"), cv2.COLOR_RGB2Lab)
     lab *= np.array([1 / 100, 1 / 256, 1 / 256], dtype=np.float32)
     lab[..., 0] -= np.float32(0.5)
     return lab
@@ -206,7 +206,7 @@ def hsv_features(image: np.ndarray) -> np.ndarray:
     Hue is circular but kept as a linear channel (so red near 0 and near 360 degrees lie at the
     two ends); greys have H = 0 (OpenCV's convention).
     """
-    hsv = cv2.cvtColor(_unit_rgb(image, "hsv"), cv2.COLOR_RGB2HSV)  # H in [0, 360)
+    hsv: np.ndarray = cv2.cvtColor(_unit_rgb(image, "hsv"), cv2.COLOR_RGB2HSV)  # H in [0, 360)
     hsv *= np.array([1 / 360, 1, 1], dtype=np.float32)
     hsv -= np.float32(0.5)
     return hsv

@@ -88,13 +88,14 @@ def _check_cell_size(cell_size: object) -> int:
 def _check_margin(margin: object) -> tuple[int, int]:
     """``(rows, columns)`` of a margin as non-negative ints, or ValueError."""
     message = f"margin must be two non-negative ints (rows, columns), got {margin!r}"
+    rows: object
+    cols: object
     try:
-        rows, cols = margin  # type: ignore[misc]
+        rows, cols = margin  # type: ignore[misc]  # not a pair: the ValueError below
     except (TypeError, ValueError):
         raise ValueError(message) from None
-    for value in (rows, cols):
-        if not is_int(value) or value < 0:
-            raise ValueError(message)
+    if not (is_int(rows) and is_int(cols) and rows >= 0 and cols >= 0):
+        raise ValueError(message)
     return int(rows), int(cols)
 
 

@@ -47,15 +47,21 @@ class FeatureSpec:
     name: str
     dim: int
     needs_rgb: bool
-    compute: Callable[[np.ndarray, ColorNameTable], np.ndarray]
+    compute: Callable[[np.ndarray, ColorNameTable | None], np.ndarray]
     cell_size: int = 1
 
 
 def _pixelwise(
     function: Callable[[np.ndarray], np.ndarray],
-) -> Callable[[np.ndarray, ColorNameTable], np.ndarray]:
+) -> Callable[[np.ndarray, ColorNameTable | None], np.ndarray]:
     # Adapts a colorspaces function (image -> map) to the spec signature.
     return lambda image, _color_names: function(image)
+
+
+def _color_names_map(image: np.ndarray, color_names: ColorNameTable | None) -> np.ndarray:
+    # FeatureExtractor gives every feature that has "cn" a table.
+    assert color_names is not None, "Color Names need a table"
+    return color_names(image)
 
 
 _SPECS: MappingProxyType[str, FeatureSpec] = MappingProxyType(
@@ -74,7 +80,7 @@ _SPECS: MappingProxyType[str, FeatureSpec] = MappingProxyType(
             FeatureSpec("opp_angle", cs.HUE_BINS, True, _pixelwise(cs.opp_angle_features)),
             FeatureSpec("so", 6 * len(cs.SO_SCALES), True, _pixelwise(cs.so_features)),
             # §3.2.1: the 10-dim orthonormal normalisation of Color Names, one table lookup.
-            FeatureSpec("cn", 10, True, lambda image, color_names: color_names(image)),
+            FeatureSpec("cn", 10, True, _color_names_map),
             # HOG hook (not registered yet; hog.py is owned elsewhere), e.g.:
             # FeatureSpec("hog", 31, False, _hog, cell_size=4) with
             # def _hog(image, _cn): from tracking.features.hog import fhog; return fhog(image, 4)

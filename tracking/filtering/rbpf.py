@@ -134,6 +134,8 @@ def update(
         log_w = log_w + log_likelihood
     mean, cov = state.mean, state.cov
     if blocks is not None and blocks.shape[-1] > 0:
+        if measurement is None or observation is None or noise is None:
+            raise ValueError("blocks need their measurement, observation and noise")
         index = np.broadcast_to(blocks[..., None, :], (*state.weights.shape, blocks.shape[-1]))
         picked_mean = np.take_along_axis(mean, index[..., None], axis=-2)
         picked_cov = np.take_along_axis(cov, index[..., None, None], axis=-3)

@@ -1,5 +1,5 @@
 """Multi-person tracking with parts: the detector-fused Rao-Blackwellized particle filter of
-thesis Part II (DESIGN.md §5)."""
+thesis Part II (docs/architecture.md §5)."""
 
 from tracking.people.body import EMBEDDED_BODY, POSE_BODY, BodyModel, deformation_prior
 from tracking.people.config import PeopleTrackerConfig

@@ -2,7 +2,7 @@
 
 A part's offset ``d`` from the box centre is measured in person heights, so
 ``position = centre + height * d`` is linear in ``d`` given the root: what lets the particle
-filter carry parts in Kalman filters (DESIGN.md §5).
+filter carry parts in Kalman filters (docs/architecture.md §5).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ class BodyModel:
 
 
 def deformation_prior(quadratic: np.ndarray, linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The Gaussian a DPM deformation cost stands for (DESIGN.md §5, model likelihood).
+    """The Gaussian a DPM deformation cost stands for (docs/architecture.md §5, model likelihood).
 
     A placement cost ``a dx^2 + b dx`` (per axis, ``a > 0``) is ``-log`` of a Gaussian up to a
     constant: ``a (dx + b / 2a)^2 + const``, so ``exp(-cost)`` has mean ``-b / (2a)`` and variance

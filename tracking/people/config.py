@@ -1,4 +1,5 @@
-"""Every tunable number of the multi-person tracker (DESIGN.md §5), in one frozen object."""
+"""Every tunable number of the multi-person tracker (docs/architecture.md §5), in one frozen
+object."""
 
 from __future__ import annotations
 
@@ -203,17 +204,17 @@ class PeopleTrackerConfig:
         When the detector can score densely (the DPM engine and the embedded detector), weigh
         each particle by the detector's calibrated score at its position and height, read over
         the region and heights a region search would scan (``region_margin``,
-        ``region_heights``): the image likelihood of DESIGN.md §5. Otherwise only associated
-        detections count. Off by default: with the embedded detector it costs 28 ms per person
-        and frame on PETS09-S2L1 and lowers HOTA from 48.7 to 42.0 on PETS09-S2L1 and
+        ``region_heights``): the image likelihood of docs/architecture.md §5. Otherwise only
+        associated detections count. Off by default: with the embedded detector it costs 28 ms
+        per person and frame on PETS09-S2L1 and lowers HOTA from 48.7 to 42.0 on PETS09-S2L1 and
         TUD-Stadtmitte together (the scores say "a person", not "this person", and draw
-        particles onto neighbours; docs/benchmarks.md).
+        particles onto neighbours; docs/benchmarks-history.md).
     full_detection_interval:
         Seconds between full-frame detections when the tracker runs its own detector; in
         between, only regions around the tracks are searched
         (:func:`tracking.people.scheduling.search_regions`), at a fraction of a full
         search's cost. People who enter are found at the next full search. 0 (default): every
-        frame in full (docs/benchmarks.md measures 0.2 and 0.5 against it).
+        frame in full (docs/benchmarks-history.md measures 0.2 and 0.5 against it).
     region_margin:
         Margin, in heights, around a track's box when searching a region of interest.
     region_heights:

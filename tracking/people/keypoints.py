@@ -1,6 +1,7 @@
 """Body keypoints as part measurements (issue 76): a pose network's skeletons assigned to the
-tracked people, each keypoint a measurement of the part of the same name (DESIGN.md §5: the
-per-part Kalman filters get real measurements instead of only the body model's prediction)."""
+tracked people, each keypoint a measurement of the part of the same name (docs/architecture.md
+§5: the per-part Kalman filters get real measurements instead of only the body model's
+prediction)."""
 
 from __future__ import annotations
 

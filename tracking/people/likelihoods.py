@@ -1,4 +1,5 @@
-"""Measurement likelihoods of the root state (DESIGN.md §5), vectorized over particles."""
+"""Measurement likelihoods of the root state (docs/architecture.md §5), vectorized over
+particles."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The person's root motion (DESIGN.md §5, transition): constant velocity in the image with the
-real time step, a random walk on log height, process noise proportional to the height."""
+"""The person's root motion (docs/architecture.md §5, transition): constant velocity in the image
+with the real time step, a random walk on log height, process noise proportional to the height."""
 
 from __future__ import annotations
 

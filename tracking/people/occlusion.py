@@ -1,5 +1,5 @@
-"""Occlusion reasoning (DESIGN.md §5): the person whose box ends lower in the image is nearer
-the camera and covers the other."""
+"""Occlusion reasoning (docs/architecture.md §5): the person whose box ends lower in the image is
+nearer the camera and covers the other."""
 
 from __future__ import annotations
 

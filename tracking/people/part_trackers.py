@@ -1,5 +1,5 @@
 """Per-part appearance trackers: body-part measurements for detectors without parts
-(DESIGN.md §5: "the peaks of per-part RCSK trackers")."""
+(docs/architecture.md §5: "the peaks of per-part RCSK trackers")."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
-"""Body parts in the particle filter: one 2-D Kalman filter per part and particle (DESIGN.md
-§5). The linear state of part ``p`` is its offset's deviation ``delta`` from the body-model
-mean ``mu_p``, in heights; its image position is ``centre + h (mu_p + delta)``."""
+"""Body parts in the particle filter: one 2-D Kalman filter per part and particle
+(docs/architecture.md §5). The linear state of part ``p`` is its offset's deviation ``delta``
+from the body-model mean ``mu_p``, in heights; its image position is
+``centre + h (mu_p + delta)``."""
 
 from __future__ import annotations
 
@@ -83,7 +84,7 @@ def from_detections(
 
 def hidden(body: BodyModel, state: RbpfState, boxes: np.ndarray, min_overlap: float):
     """Which parts ``(T, P)`` a nearer person's box covers (they get no measurement and are
-    reported not visible, DESIGN.md §5)."""
+    reported not visible, docs/architecture.md §5)."""
     return hidden_points(positions(body, state), occluders(boxes, min_overlap), boxes)
 
 

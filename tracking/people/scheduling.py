@@ -1,5 +1,5 @@
 """When the tracker runs its own detector: the full frame now and then, regions of interest
-around the tracks in between (DESIGN.md §5, detector scheduling)."""
+around the tracks in between (docs/architecture.md §5, detector scheduling)."""
 
 from __future__ import annotations
 

@@ -1,11 +1,11 @@
-"""The detector-fused Rao-Blackwellized particle filter over people (DESIGN.md §5)."""
+"""The detector-fused Rao-Blackwellized particle filter over people (docs/architecture.md §5)."""
 
 from __future__ import annotations
 
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -30,7 +30,7 @@ from tracking.people.motion import CX, CY, LOG_H, ROOT_DIM, VX, VY, boxes_from_r
 from tracking.people.occlusion import covered_share, hidden_points, occluders
 from tracking.people.part_trackers import PartTrackers
 from tracking.people.scheduling import DetectionScheduler, widened
-from tracking.tracks import PartEstimate, TrackEstimate
+from tracking.tracks import FrameTracks
 from tracking.types import Box, checked_timestamp, validate_uint8_frame
 
 if TYPE_CHECKING:
@@ -38,6 +38,8 @@ if TYPE_CHECKING:
     from tracking.detection.reid import ReidEmbedder
 
 logger = logging.getLogger(__name__)
+
+_T = TypeVar("_T")
 
 
 @dataclass(slots=True)
@@ -96,7 +98,7 @@ class MultiPersonTracker:
     associate detections with people; weigh each particle by the detection likelihood and by
     the person's RCSK appearance response read at the particle, and by the Kalman evidence of
     each part measurement; update the part filters; resample; estimate; reason about
-    occlusion; learn appearances; start, confirm and end tracks (DESIGN.md §5).
+    occlusion; learn appearances; start, confirm and end tracks (docs/architecture.md §5).
 
     Parameters
     ----------
@@ -152,7 +154,8 @@ class MultiPersonTracker:
         return self._body.skeleton
 
     def reset(self) -> None:
-        """Forget every person; ids start again at 1."""
+        """Forget every person; ids start again at 1, frame indices at 0."""
+        self._frames_tracked = 0  # frames reported so far: the next one's index
         self._tracks: list[_Track] = []
         self._lost: list[_Lost] = []
         self._state: RbpfState | None = None
@@ -166,8 +169,9 @@ class MultiPersonTracker:
 
     def update(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
-    ) -> tuple[TrackEstimate, ...]:
-        """Track the people of one frame.
+    ) -> FrameTracks:
+        """Track the people of one frame; the result's ``frame_index`` counts the frames
+        tracked since the tracker was made or :meth:`reset`.
 
         Parameters
         ----------
@@ -205,9 +209,9 @@ class MultiPersonTracker:
                 frame.shape,
             )
             # New ids continue from the old ones: an id never names two people.
-            next_id = self._next_id
+            next_id, frames = self._next_id, self._frames_tracked
             self.reset()
-            self._next_id = next_id
+            self._next_id, self._frames_tracked = next_id, frames
         dt = 0.0 if self._last_timestamp is None else timestamp - self._last_timestamp
         self._frame_shape = frame.shape
         self._last_timestamp = timestamp
@@ -237,7 +241,9 @@ class MultiPersonTracker:
             self._weigh_and_update(current)
             self._learn(current)
         self._manage(current)
-        return self._report(current)
+        tracks = self._report(current)
+        self._frames_tracked += 1
+        return tracks
 
     # -- steps ---------------------------------------------------------------------------------
 
@@ -245,9 +251,8 @@ class MultiPersonTracker:
         c = self.config
         gain = np.array([c.occluded_noise_gain if t.occluded else 1.0 for t in self._tracks])
         a, q = part_model.transition(self._body, dt, c)
-        state = self._state
         self._state = predict(
-            state,
+            _known(self._state, "the people's particles"),
             lambda p: propagate(
                 p,
                 np.full(len(self._tracks), dt),
@@ -292,7 +297,7 @@ class MultiPersonTracker:
         dets = current.detections
         overlap = box_iou(_normalised(current.predicted), _normalised(dets.boxes))
         fit = predictive_log_likelihood(
-            self._state.particles,
+            _known(self._state, "the people's particles").particles,
             dets.boxes,
             sigma=c.detection_sigma,
             log_height_sigma=c.detection_log_height_sigma,
@@ -302,7 +307,8 @@ class MultiPersonTracker:
         allowed = (overlap >= c.match_iou) & (fit >= -0.5 * c.association_gate)
         score = fit + c.appearance_weight * look
         colour = signature_similarity(
-            np.array([t.signature for t in self._tracks]), current.signatures
+            np.array([_known(t.signature, "a person's colours") for t in self._tracks]),
+            current.signatures,
         )
         allowed &= colour >= c.identity_gate
         score += c.identity_weight * colour
@@ -345,16 +351,16 @@ class MultiPersonTracker:
                 )
                 if score >= c.reid_min_score:
                     candidates.append((score, i, int(j)))
-        for _, i, j in sorted(candidates, reverse=True):
+        for _, i, column in sorted(candidates, reverse=True):
             track = self._tracks[i]
-            if track.measured or taken[j]:
+            if track.measured or taken[column]:
                 continue
-            track.measured, track.detection = True, j
-            taken[j] = True
+            track.measured, track.detection = True, column
+            taken[column] = True
 
     def _weigh_and_update(self, current: _Frame) -> None:
         c = self.config
-        state = self._state
+        state = _known(self._state, "the people's particles")
         dets = current.detections
         log_lik = np.zeros(state.weights.shape)
         roots = current.roots
@@ -395,7 +401,7 @@ class MultiPersonTracker:
                 track.score = 0.7 * track.score + 0.3 * float(dets.probabilities[track.detection])
         current.boxes = self._predicted_boxes()
         cover = occluders(current.boxes, c.occlusion_overlap)
-        for track, covered in zip(self._tracks, cover.any(axis=1), strict=True):
+        for track, covered in zip(self._tracks, np.any(cover, axis=1), strict=True):
             track.occluded = bool(covered)
 
     def _dense_log_likelihood(self, current: _Frame, state: RbpfState) -> np.ndarray:
@@ -431,7 +437,7 @@ class MultiPersonTracker:
         has them, else the peaks of the person's part trackers; none for covered parts."""
         c = self.config
         if self._pose is not None:
-            return self._keypoint_measurements(current, state)
+            return self._keypoint_measurements(current, state, self._pose)
         z, found = part_model.from_detections(self._body, self._tracks, current.detections)
         heights = np.exp(roots[:, LOG_H])
         expected = part_model.positions(self._body, state)
@@ -446,7 +452,9 @@ class MultiPersonTracker:
             track.parts_measured = placed
         return part_model.filter_arguments(self._body, state, z, found, sigma)
 
-    def _keypoint_measurements(self, current: _Frame, state: RbpfState) -> dict[str, np.ndarray]:
+    def _keypoint_measurements(
+        self, current: _Frame, state: RbpfState, pose: PoseEstimator
+    ) -> dict[str, np.ndarray]:
         """Part measurements from the pose network: the frame's skeletons assigned to the
         people (each person's associated detection box, else its predicted box), each keypoint
         measuring the part of its name with a noise from its heatmap value. The grouping of
@@ -456,7 +464,7 @@ class MultiPersonTracker:
         from tracking.detection.pose import KEYPOINT_NAMES
 
         c = self.config
-        poses = self._pose.estimate(current.image)
+        poses = pose.estimate(current.image)
         boxes = current.predicted.copy()
         for i, track in enumerate(self._tracks):
             if track.measured:
@@ -480,15 +488,17 @@ class MultiPersonTracker:
         embedding to the most similar of the person's gallery (the network's calibration);
         NaN where either has no embedding. Each person's row is computed once per frame (the
         association, the weights and the recognition of lost people all ask)."""
-        embeddings = current.embeddings
+        embeddings = _known(current.embeddings, "the detections' embeddings")
         missing = [t for t in tracks if id(t) not in current.identity]
         if missing and len(embeddings):
-            galleries = np.stack([t.gallery for t in missing])  # (T, G, E)
+            galleries = np.stack(  # (T, G, E)
+                [_known(t.gallery, "a person's gallery") for t in missing]
+            )
             with np.errstate(invalid="ignore"):
                 cosine = np.einsum("tge,de->tgd", galleries, embeddings)
                 best = np.max(np.where(np.isnan(cosine), -np.inf, cosine), axis=1)
             best[~np.isfinite(best)] = np.nan
-            calibration = self._reid.calibration
+            calibration = _known(self._reid, "the re-identification network").calibration
             for track, row in zip(missing, calibration.a * best + calibration.b, strict=True):
                 current.identity[id(track)] = row
         if not tracks or len(embeddings) == 0:
@@ -497,18 +507,21 @@ class MultiPersonTracker:
 
     def _learn(self, current: _Frame) -> None:
         """Appearance learning at the estimate, only where a detection confirms the person and
-        nobody covers it (an occluded person stops learning, DESIGN.md §5): the RCSK model, the
-        colour signature (from the associated detection's box) and the visible parts' trackers."""
-        roots, _ = estimate(self._state)
+        nobody covers it (an occluded person stops learning, docs/architecture.md §5): the RCSK
+        model, the colour signature (from the associated detection's box) and the visible parts'
+        trackers."""
+        state = _known(self._state, "the people's particles")
+        roots, _ = estimate(state)
         boxes = boxes_from_roots(roots, np.array([t.aspect for t in self._tracks]))
-        positions = part_model.positions(self._body, self._state)
-        covered = part_model.hidden(self._body, self._state, boxes, self.config.occlusion_overlap)
+        positions = part_model.positions(self._body, state)
+        covered = part_model.hidden(self._body, state, boxes, self.config.occlusion_overlap)
         for i, (track, root) in enumerate(zip(self._tracks, roots, strict=True)):
             if not track.measured or track.occluded:
                 continue
             rate = self.config.signature_learning_rate
             seen = current.signatures[track.detection]
-            track.signature = (1 - rate) * track.signature + rate * seen
+            signature = _known(track.signature, "a person's colours")
+            track.signature = (1 - rate) * signature + rate * seen
             confident = current.detections.probabilities[track.detection] >= (
                 self.config.low_confidence
             )
@@ -527,7 +540,7 @@ class MultiPersonTracker:
         c = self.config
         t = current.timestamp
         height, width = current.image.shape[:2]
-        keep = []
+        alive_flags = []
         boxes = (
             current.boxes if len(current.boxes) == len(self._tracks) else self._predicted_boxes()
         )
@@ -546,8 +559,8 @@ class MultiPersonTracker:
             else:
                 alive = inside and t - track.born <= c.confirm_window
                 alive = alive and missing <= c.confirm_window / 2
-            keep.append(alive)
-        keep = np.array(keep, dtype=bool)
+            alive_flags.append(alive)
+        keep = np.array(alive_flags, dtype=bool)
         # Duplicates: of two tracks on the same person, the younger ends. Two people crossing
         # overlap as much, but stand at different depths: a duplicate also has the same bottom
         # edge and height (within a tenth of the height).
@@ -641,7 +654,10 @@ class MultiPersonTracker:
             self._remember(track, current.embeddings[index], current)
         if c.part_appearance is not None and current.detections.parts.shape[1] == 0:
             track.parts = PartTrackers(
-                c.part_appearance, self._body, self._part_features, c.part_min_peak
+                c.part_appearance,
+                self._body,
+                _known(self._part_features, "the part trackers' features"),
+                c.part_min_peak,
             )
             centre = np.array([x + w / 2, y + h / 2])
             track.parts.initialize(current.image, centre + h * self._body.mean, h)
@@ -706,7 +722,8 @@ class MultiPersonTracker:
             log_odds = self._identity_log_odds([track], current)[0, index]
             same = 0.0 if np.isnan(log_odds) else _sigmoid(log_odds)
             return -math.inf if same < c.reid_min_probability else same - distance / reach
-        colour = signature_similarity(track.signature, current.signatures[index])[0, 0]
+        signature = _known(track.signature, "a person's colours")
+        colour = signature_similarity(signature, current.signatures[index])[0, 0]
         return float(colour) - distance
 
     def _remove(self, drop: np.ndarray) -> None:
@@ -717,12 +734,16 @@ class MultiPersonTracker:
         if not self._tracks:
             self._state = None
             return
-        s = self._state
+        s = _known(self._state, "the people's particles")
         self._state = RbpfState(s.particles[keep], s.weights[keep], s.mean[keep], s.cov[keep])
 
-    def _report(self, current: _Frame) -> tuple[TrackEstimate, ...]:
+    def _report(self, current: _Frame) -> FrameTracks:
+        """The confirmed people to report in this frame, as columns: boxes from the particle
+        estimate of the roots, parts at the body model's positions given the roots, visible
+        unless covered by a nearer person or outside the frame."""
+        index = self._frames_tracked
         if self._state is None:
-            return ()
+            return FrameTracks.empty(index, current.timestamp, self._body.names)
         c = self.config
         roots, _ = estimate(self._state)
         aspect = np.array([t.aspect for t in self._tracks])
@@ -738,40 +759,50 @@ class MultiPersonTracker:
             | (positions[..., 1] < 0)
             | (positions[..., 1] >= height)
         )
-        out = []
-        for i, track in enumerate(self._tracks):
-            missing = current.timestamp - track.last_seen
-            if not track.confirmed or (
-                missing > c.report_missing and not (track.occluded and c.report_occluded)
-            ):
-                continue
-            x, y, w, h = (float(v) for v in report_boxes[i])
-            parts = tuple(
-                PartEstimate(
-                    name=name,
-                    x=float(positions[i, p, 0]),
-                    y=float(positions[i, p, 1]),
-                    box=Box.from_center(
-                        float(positions[i, p, 0]),
-                        float(positions[i, p, 1]),
-                        float(self._body.size[p, 0] * h),
-                        float(self._body.size[p, 1] * h),
-                    ),
-                    visible=not (hidden[i, p] or outside[i, p])
-                    if track.parts_seen is None
-                    else bool(track.parts_seen[p] and not outside[i, p]),
-                    measured=track.parts_measured is not None and bool(track.parts_measured[p]),
-                )
-                for p, name in enumerate(self._body.names)
-            )
-            # Confidence fades while the person goes without detections.
-            decay = math.exp(-missing / max(c.max_missing, 1e-6))
-            out.append(
-                TrackEstimate(
-                    track.track_id, Box(x, y, w, h), track.score * decay, track.occluded, parts
-                )
-            )
-        return tuple(out)
+        missing = [current.timestamp - t.last_seen for t in self._tracks]
+        keep = np.array(
+            [
+                track.confirmed
+                and not (gone > c.report_missing and not (track.occluded and c.report_occluded))
+                for track, gone in zip(self._tracks, missing, strict=True)
+            ],
+            dtype=bool,
+        )
+        kept = [t for t, k in zip(self._tracks, keep, strict=True) if k]
+        out_boxes = report_boxes[keep]
+        xy = positions[keep]
+        # part boxes of the body model's size for the person's height, centred on the part
+        size = self._body.size[None, :, :] * out_boxes[:, 3, None, None]  # (N, P, 2)
+        part_boxes = np.concatenate([xy - size / 2.0, size], axis=-1)
+        beyond = outside[keep]
+        visible = ~(hidden[keep] | beyond)
+        measured = np.zeros(visible.shape, dtype=bool)
+        for row, track in enumerate(kept):
+            if track.parts_seen is not None:  # a skeleton was assigned: its keypoints say
+                visible[row] = np.asarray(track.parts_seen, bool) & ~beyond[row]
+            if track.parts_measured is not None:
+                measured[row] = np.asarray(track.parts_measured, bool)
+        # Confidence fades while the person goes without detections.
+        scale = max(c.max_missing, 1e-6)
+        scores = [
+            t.score * math.exp(-gone / scale)
+            for t, gone, k in zip(self._tracks, missing, keep, strict=True)
+            if k
+        ]
+        return FrameTracks(
+            index,
+            current.timestamp,
+            track_ids=np.array([t.track_id for t in kept], dtype=np.int64),
+            boxes=out_boxes,
+            scores=np.array(scores, dtype=np.float64),
+            occluded=np.array([t.occluded for t in kept], dtype=bool),
+            interpolated=np.zeros(len(kept), dtype=bool),
+            part_names=self._body.names,
+            part_xy=xy,
+            part_boxes=part_boxes,
+            part_visible=visible,
+            part_measured=measured,
+        )
 
 
 def _normalised(boxes: np.ndarray, aspect: float = 0.41) -> np.ndarray:
@@ -781,6 +812,14 @@ def _normalised(boxes: np.ndarray, aspect: float = 0.41) -> np.ndarray:
     return np.stack(
         [boxes[:, 0] + (boxes[:, 2] - width) / 2, boxes[:, 1], width, boxes[:, 3]], axis=1
     )
+
+
+def _known(value: _T | None, what: str) -> _T:
+    """``value``, which the tracker sets before any step that uses it; RuntimeError if it is
+    not set (a step run out of order)."""
+    if value is None:
+        raise RuntimeError(f"{what} used before it is set")
+    return value
 
 
 def _sigmoid(x: np.ndarray | float) -> np.ndarray | float:

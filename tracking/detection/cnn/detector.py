@@ -8,7 +8,7 @@ which the people tracker's scheduler uses between full searches). Outputs are de
 
 - ``scores`` are the network confidence's log-odds, ``log(c / (1 - c))``, so that the logistic
   calibration ``p = sigma(a s + b)`` is Platt scaling of the network's logit (a temperature
-  ``a`` and a bias ``b``), fitted with ``python -m tracking.detection.calibrate --detector cnn``;
+  ``a`` and a bias ``b``), fitted with ``python -m devtools.calibrate --detector cnn``;
 - ``probabilities`` are the calibrated ones.
 
 The networks find people, not their parts (``part_names == ()``), and score no dense maps
@@ -48,7 +48,7 @@ __all__ = ["KNOWN_CALIBRATIONS", "CnnDetector"]
 # Each fitted with our calibration command on 1 frame in 2 of PETS09-S2L1 and TUD-Stadtmitte
 # (488 frames), the CnnConfig defaults (input at the frame's aspect, 768x576 for both: TUD's
 # 640x480 enlarged to 576 px) and confidence >= 0.05 while fitting, e.g. for 0202:
-#   python -m tracking.detection.calibrate --detector cnn \
+#   python -m devtools.calibrate --detector cnn \
 #       --model <data>/models/person-detection-0202/FP16/person-detection-0202.xml \
 #       --sequences <data>/mot/PETS09-S2L1 <data>/mot/TUD-Stadtmitte --step 2 --out <file>
 # (the others with their own --model; --out since the shared model folder is read-only).
@@ -116,7 +116,7 @@ class CnnDetector:
     family: str = field(init=False)
 
     def __post_init__(self) -> None:
-        family = self.config.family
+        family: str = self.config.family
         if family == "auto":
             family = {4: "ssd", 3: "yolox"}.get(self.network.output_rank, "")
         expected = {"ssd": 4, "yolox": 3}.get(family)
@@ -187,9 +187,11 @@ class CnnDetector:
             clipped = clip_region(checked_region(region), image.shape)
             if clipped is None:
                 continue
-            if heights is None:
-                heights = tuple(f * clipped.h for f in self.config.region_heights)
-            heights = checked_heights(heights)
+            heights = checked_heights(
+                tuple(f * clipped.h for f in self.config.region_heights)
+                if heights is None
+                else heights
+            )
             side = max(clipped.w, clipped.h, 1.25 * heights[1])
             x0 = max(0, math.floor(clipped.x + clipped.w / 2 - side / 2))
             y0 = max(0, math.floor(clipped.y + clipped.h / 2 - side / 2))

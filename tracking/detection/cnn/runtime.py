@@ -13,6 +13,7 @@ import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +53,7 @@ class Network:
     input_shape: tuple[int, int, int, int]
     output_shapes: tuple[tuple[int, ...], ...]
     reshapeable: bool
-    _model: object = field(repr=False)
+    _model: Any = field(repr=False)  # an openvino.Model (OpenVINO ships no types)
     _compiled: OrderedDict = field(default_factory=OrderedDict, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
@@ -92,7 +93,7 @@ class Network:
                 self._compiled.move_to_end(shape)
                 return compiled
             model = self._model.clone()
-            config = {"PERFORMANCE_HINT": "LATENCY"}
+            config: dict[str, str | int] = {"PERFORMANCE_HINT": "LATENCY"}
             if self.threads:
                 config["INFERENCE_NUM_THREADS"] = self.threads
             try:
@@ -167,8 +168,9 @@ def _read(path: Path, threads: int) -> Network:
     shape = model.inputs[0].get_partial_shape()
     if shape.rank.is_dynamic or shape.rank.get_length() != 4 or shape.is_dynamic:
         raise CnnModelError(f"{path.name}'s input is {shape}, not an image (N, 3, H, W)")
-    input_shape = tuple(int(d.get_length()) for d in shape)
-    if input_shape[1] != 3:
+    n, c, h, w = (int(d.get_length()) for d in shape)
+    input_shape = (n, c, h, w)
+    if c != 3:
         raise CnnModelError(f"{path.name}'s input is {shape}, not a 3-channel image (N, 3, H, W)")
     outputs = tuple(
         tuple(d.get_length() if d.is_static else -1 for d in output.get_partial_shape())
@@ -176,7 +178,6 @@ def _read(path: Path, threads: int) -> Network:
     )
     # Whether the graph takes another size: its shapes re-inferred for one (a few ms; the
     # compile that follows a real size costs a tenth of a second or more, so it is not tried).
-    n, c, h, w = input_shape
     try:
         model.clone().reshape([n, c, h + 32, w + 32])  # the one input
         reshapeable = True

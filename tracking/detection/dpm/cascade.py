@@ -11,7 +11,7 @@ exact one, so every root that passes all stages has exactly the score of :func:`
 score_level` and its argmax placements (ties of equal scores aside).
 
 Two pruning rules per part stage, both with thresholds fitted on positive examples
-(:mod:`.cascade_fit`): the partial score after the stage must reach ``stage[i]``, and a
+(``devtools/cascade_fit.py``): the partial score after the stage must reach ``stage[i]``, and a
 placement ``q`` of the part is tried only when ``partial - d(q) >= deformation[i]`` (the
 deformation cost alone already rules the others out). Thresholds that are ``-inf`` prune
 nothing: the cascade is then exact. Fitted thresholds are the lowest partial scores of the
@@ -277,7 +277,8 @@ def cascade_level(
     records = []
     for ci, component in enumerate(components):
         n_parts = len(component.parts)
-        if approx_roots is not None:
+        # approx_roots come with the projection and projected features only
+        if approx_roots is not None and projected is not None and projection is not None:
             found, found_cols, scores, place, stages, margins = _cascade_component(
                 model, features, projected, projection, level, thresholds, threshold,
                 window, positions, (r0, c0), ci, filters[ci], approx_roots[ci],
@@ -334,6 +335,7 @@ def cascade_level_roots(
     if setup is None:
         return None
     origin, _, filters, approx_roots = setup
+    assert approx_roots is not None, "made with the projection and projected features"
     n_symbols = max(len(c.symbols) for c in model.components)
     found_rows, found_cols, found_scores, found_components, found_places = [], [], [], [], []
     for ci, component in enumerate(model.components):
@@ -375,10 +377,9 @@ def _level_setup(
     if rectangle is None:
         return None
     (r0, r1), (c0, c1) = rectangle
-    approximate = projection is not None and projected is not None
     if filters is None:
-        filters = kernel_filters(model, pad, projection if approximate else None)
-    elif approximate:
+        filters = kernel_filters(model, pad, projection if projected is not None else None)
+    elif projection is not None and projected is not None:
         # the compiled cascade reads the projected parts without bounds checks
         for kernel in filters:
             n_parts, part_rows, width = kernel.parts.shape
@@ -391,7 +392,7 @@ def _level_setup(
                     "kernel_filters(model, pad, projection) for the cascade"
                 )
     approx_roots = None
-    if approximate:
+    if projection is not None and projected is not None:
         full = _approx_root_responses(
             projected[level.index], projection.roots, root_grid(model, root_features.shape)
         )

@@ -31,7 +31,7 @@ class DpmConfig:
         as they are, taller ones shrunk to it (a 4K frame by half). The cost grows with the
         pixels, and people in such frames are far above the smallest window: on PETS09-S2L1
         enlarged to 2160 px, half size finds them as well as full size at a quarter of the time
-        (``docs/benchmarks.md``).
+        (``docs/benchmarks-history.md``).
     levels_per_octave:
         Pyramid levels per octave; ``None``: the model's ``interval`` (10). Fewer levels are
         proportionally faster and sample scale more coarsely (5: steps of 15% in size).
@@ -50,7 +50,7 @@ class DpmConfig:
         ``nms.m``). "smaller" suppresses a person standing half in front of a higher-scoring
         neighbour, or inside a higher-scoring box around a group; "iou" keeps them. On every
         frame of PETS09-S2L1 and TUD-Stadtmitte the INRIA model's AP is 0.874 / 0.838 with
-        IoU 0.5 against 0.845 / 0.774 with release 5's suppression (``docs/benchmarks.md``).
+        IoU 0.5 against 0.845 / 0.774 with release 5's suppression (``docs/benchmarks-history.md``).
     bbox_prediction:
         Refine boxes with the model's bounding-box regression (``bboxpred``).
     max_candidates:
@@ -79,7 +79,7 @@ class DpmConfig:
         every positive the thresholds were fitted on is lost. Needs a bounded
         ``deformation_window``. Dense scores always score exactly.
     cascade_thresholds:
-        JSON thresholds file (``python -m tracking.detection.dpm.cascade_fit``); ``None``:
+        JSON thresholds file (``python -m devtools.cascade_fit``); ``None``:
         ``<model>.cascade.json`` beside the model if it exists, else the thresholds shipped for
         the voc-release5 INRIA person model (``KNOWN_CASCADES``), else no cascade.
     """

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,7 +70,7 @@ __all__ = [
 # Fitted with our calibration command on 1 frame in 4 of PETS09-S2L1 and TUD-Stadtmitte
 # (244 frames; 1324 positives, 1759 negatives), default options (suppression by IoU 0.5 since
 # 2026-12-05; release 5's gave a = 3.73723, b = -0.320898), threshold model.thresh - 1:
-#   python -m tracking.detection.calibrate --detector dpm --model INRIA/inriaperson_final.mat \
+#   python -m devtools.calibrate --detector dpm --model INRIA/inriaperson_final.mat \
 #       --sequences <data>/mot/PETS09-S2L1 <data>/mot/TUD-Stadtmitte --step 4
 # p = 0.5 at a score of 0.105 (the model's threshold, -0.126, gives p = 0.31).
 DEFAULT_DPM_CALIBRATION = LogisticCalibration(
@@ -81,7 +81,7 @@ DEFAULT_DPM_CALIBRATION = LogisticCalibration(
 )
 """Used for a model without a calibration file beside it, none configured and no entry in
 :data:`KNOWN_CALIBRATIONS`; fitted for the INRIA person model (other models' scores are on a
-similar scale but not the same: fit theirs with ``python -m tracking.detection.calibrate``)."""
+similar scale but not the same: fit theirs with ``python -m devtools.calibrate``)."""
 
 KNOWN_CALIBRATIONS: Mapping[tuple[str, int], LogisticCalibration] = MappingProxyType(
     {
@@ -103,7 +103,7 @@ KNOWN_CASCADES: Mapping[tuple[str, int], Path] = MappingProxyType(
     {
         # Fitted with our command on 180 positives of the OTB sequences Crossing, Skating1 and
         # Basketball (1 frame in 4), none of them a benchmark sequence:
-        #   python -m tracking.detection.dpm.cascade_fit --model INRIA/inriaperson_final.mat \
+        #   python -m devtools.cascade_fit --model INRIA/inriaperson_final.mat \
         #       --sequences <data>/otb/Crossing <data>/otb/Skating1 \
         #       <data>/otb/Basketball_first200 --out tracking/detection/dpm/cascades/...
         ("inriaperson", 2): Path(__file__).with_name("cascades") / "inriaperson.cascade.json",
@@ -304,7 +304,8 @@ class DpmDetector:
                 return cascade_level_roots(
                     self.model, features, projected if pruned else None,
                     projection if pruned else None, plan.root, self.pad,
-                    cascade_setup[0] if pruned else self._exact, self.threshold,
+                    cascade_setup[0] if pruned and cascade_setup is not None else self._exact,
+                    self.threshold,
                     self.config.deformation_window, rows=plan.rows, cols=plan.cols,
                     filters=self._filters,
                 )  # fmt: skip
@@ -325,7 +326,11 @@ class DpmDetector:
                 shared is not None or sum(_positions(plan) for plan in group) >= _CASCADE_MIN_ROOTS
             )
             # the cascade's approximate stages read the features projected
-            projected = {k: projection.project(v) for k, v in features.items()} if pruned else {}
+            projected = (
+                {k: projection.project(v) for k, v in features.items()}
+                if pruned and projection is not None
+                else {}
+            )
             return features, projected, pruned
 
         def score_all(
@@ -347,7 +352,7 @@ class DpmDetector:
                 by_chain.setdefault(chain_of[plan.root.index], []).append(plan)
             groups = [by_chain[i] for i in sorted(by_chain)]  # largest images first
         if shared is not None and self._pool is not None and len(groups) < 3 * self._workers:
-            results = self._score_by_level(groups, features_of, score, shared)
+            results = self._score_by_level(self._pool, groups, features_of, score, shared)
         else:
             jobs = [
                 (lambda g=group: score_all(g, shared if shared is not None else g[0].image))
@@ -359,6 +364,7 @@ class DpmDetector:
 
     def _score_by_level(
         self,
+        pool: ThreadPoolExecutor,
         groups: list[list[_Plan]],
         features_of: Callable[[list[_Plan], np.ndarray], tuple],
         score: Callable[..., LevelScores | LevelRoots | None],
@@ -375,7 +381,6 @@ class DpmDetector:
         with 5 levels 80 instead of 88. With 10 the chains balance by themselves, and making
         all their features before scoring would hold them all in memory at once.
         """
-        pool = self._pool
 
         def prepare(group: list[_Plan]) -> list[Future]:
             prepared = features_of(group, image)
@@ -388,7 +393,7 @@ class DpmDetector:
         chains = [pool.submit(prepare, group) for group in groups]
         return [level.result() for chain in chains for level in chain.result()]
 
-    def _map(self, jobs: list[Callable[[], object]]) -> list:
+    def _map(self, jobs: Sequence[Callable[[], object]]) -> list:
         """Run ``jobs`` in order, on ``config.workers`` threads when there are several."""
         if self._pool is not None and len(jobs) > 1:
             return list(self._pool.map(lambda job: job(), jobs))

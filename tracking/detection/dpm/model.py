@@ -36,6 +36,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -189,12 +190,17 @@ def flip_filter(weights: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(weights[:, ::-1, _FLIP_PERMUTATION])
 
 
+# A struct of the MATLAB file as scipy.io reads it: its fields are attributes, listed in
+# ``_fieldnames``; nothing is known of them statically.
+_Struct = Any
+
+
 def _readonly(array: np.ndarray) -> np.ndarray:
     array.setflags(write=False)
     return array
 
 
-def _field(struct: object, name: str, where: str) -> object:
+def _field(struct: _Struct, name: str, where: str) -> _Struct:
     if not hasattr(struct, "_fieldnames") or name not in struct._fieldnames:
         raise ModelFileError(f"{where} has no field {name!r}")
     return getattr(struct, name)
@@ -230,7 +236,7 @@ def _vector(value: object, size: int, where: str) -> np.ndarray:
 class _Reader:
     """Reads parameters out of the loaded MATLAB struct (``model_get_block.m``)."""
 
-    def __init__(self, model: object) -> None:
+    def __init__(self, model: _Struct) -> None:
         self.model = model
         self.blocks = _as_list(_field(model, "blocks", "model"))
         self.filters = _as_list(_field(model, "filters", "model"))
@@ -245,19 +251,19 @@ class _Reader:
                 f"{self.num_features}"
             )
 
-    def block(self, ref: object, where: str) -> np.ndarray:
+    def block(self, ref: _Struct, where: str) -> np.ndarray:
         label = _int(_field(ref, "blocklabel", where), f"{where}.blocklabel")
         if not 1 <= label <= len(self.blocks):
             raise ModelFileError(f"{where}.blocklabel {label} is outside 1..{len(self.blocks)}")
         block = self.blocks[label - 1]
         return np.asarray(_field(block, "w", f"model.blocks({label})"), dtype=np.float64)
 
-    def scalar_block(self, rule: object, name: str, where: str) -> float:
+    def scalar_block(self, rule: _Struct, name: str, where: str) -> float:
         if name not in getattr(rule, "_fieldnames", ()):
             return 0.0
         return float(_vector(self.block(getattr(rule, name), f"{where}.{name}"), 1, where)[0])
 
-    def location(self, rule: object, where: str) -> np.ndarray:
+    def location(self, rule: _Struct, where: str) -> np.ndarray:
         if "loc" not in getattr(rule, "_fieldnames", ()):
             return np.zeros(3)  # models from before the location features
         return _vector(self.block(rule.loc, f"{where}.loc"), 3, f"{where}.loc")
@@ -332,7 +338,7 @@ class _Reader:
         )
 
 
-def _bbox_regression(model: object, index: int, num_symbols: int) -> np.ndarray | None:
+def _bbox_regression(model: _Struct, index: int, num_symbols: int) -> np.ndarray | None:
     """Coefficients of ``bboxpred{index + 1}``: rows x1, y1, x2, y2."""
     if "bboxpred" not in model._fieldnames:
         return None
@@ -355,7 +361,7 @@ def _bbox_regression(model: object, index: int, num_symbols: int) -> np.ndarray 
     return _readonly(np.stack(rows))
 
 
-def _component(reader: _Reader, rule: object, index: int) -> DpmComponent:
+def _component(reader: _Reader, rule: _Struct, index: int) -> DpmComponent:
     where = f"model.rules{{start}}({index + 1})"
     if str(_field(rule, "type", where)) != "S":
         raise ModelFileError(f"{where} must be a structural rule")
@@ -394,7 +400,7 @@ def _component(reader: _Reader, rule: object, index: int) -> DpmComponent:
     )
 
 
-def _load_matlab(path: Path) -> object:
+def _load_matlab(path: Path) -> _Struct:
     if not path.is_file():
         raise ModelFileError(f"DPM model file not found: {path}")
     try:

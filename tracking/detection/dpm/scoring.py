@@ -228,10 +228,10 @@ def _symbol_tables(
         for group in _anchor_groups(origins, rect_h, rect_w):
             rows = (int(origins[group, 0].min()), int(origins[group, 0].max()) + rect_h)
             cols = (int(origins[group, 1].min()), int(origins[group, 1].max()) + rect_w)
-            responses = filter_responses(features, [symbols[j].weights for j in group], rows, cols)
-            for j, r in zip(group, responses, strict=True):
-                top, left = origins[j, 0] - rows[0], origins[j, 1] - cols[0]
-                stack[j] = r[top : top + rect_h, left : left + rect_w]
+            maps = filter_responses(features, [symbols[m].weights for m in group], rows, cols)
+            for member, response in zip(group, maps, strict=True):
+                top, left = origins[member, 0] - rows[0], origins[member, 1] - cols[0]
+                stack[member] = response[top : top + rect_h, left : left + rect_w]
         out, ix, iy = bounded_distance_transform(
             stack, weights, reach, rows=(reach, step, ny), cols=(reach, step, nx)
         )
@@ -247,8 +247,8 @@ def _symbol_tables(
         grid_h, grid_w = full.shape[1:]
         r = np.clip(rows_idx, 0, max(grid_h - 1, 0))[:, :, None]
         c = np.clip(cols_idx, 0, max(grid_w - 1, 0))[:, None, :]
-        j = np.arange(len(symbols))[:, None, None]
-        out, px, py = full[j, r, c], ix_full[j, r, c], iy_full[j, r, c]
+        every = np.arange(len(symbols))[:, None, None]
+        out, px, py = full[every, r, c], ix_full[every, r, c], iy_full[every, r, c]
         for k in np.flatnonzero(rigid):
             out[k] = responses[k][r[k], c[k]]
             py[k], px[k] = np.broadcast_to(r[k], out[k].shape), np.broadcast_to(c[k], out[k].shape)

@@ -1,10 +1,14 @@
-"""MOTChallenge files: the one reader of their rows, the pixel convention, and sequences as the
-detection benchmark and the calibration command read them.
+"""MOTChallenge files: ``seqinfo.ini``, the one reader of their rows, the pixel convention, and
+sequences as the detection benchmark and the calibration tool read them.
 
 Layout (MOTChallenge 2015): ``<seq>/img1/NNNNNN.jpg`` (frame ``N``, 1-based),
 ``<seq>/gt/gt.txt`` and ``<seq>/det/det.txt`` with comma-separated rows
 ``frame, id, x, y, w, h, conf, ...`` (pixels, top-left corner, frame 1-based), and an optional
 ``seqinfo.ini``.
+
+It imports nothing of the detectors or the evaluation: the service reads a folder's frame rate
+(:mod:`service.frames`), :class:`~tracking.detection.external.MotDetections` reads ``det.txt``
+and :mod:`tracking.evaluation.mot` writes results with it.
 
 Ground truth: in MOT15-style ``gt.txt`` the 7th column is a flag, 0 meaning "ignore this row"
 (MOT16+ also puts a class in column 8 and a visibility in column 9; rows whose class is not 1,
@@ -29,14 +33,16 @@ the two is made here and only here:
 
 from __future__ import annotations
 
+import configparser
+import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from tracking.image_files import read_rgb
-from tracking.seqinfo import MotFormatError, read_seqinfo
 
 __all__ = [
     "MOT_PIXEL_ORIGIN",
@@ -47,10 +53,79 @@ __all__ = [
     "parse_mot_rows",
     "read_mot_rows",
     "read_seqinfo",
+    "seqinfo_frame_rate",
+    "seqinfo_whole_number",
 ]
 
 MOT_PIXEL_ORIGIN = 1.0
 """Coordinate of the first pixel in MOTChallenge files (0 in the project's boxes)."""
+
+
+class MotFormatError(ValueError):
+    """A MOTChallenge file or folder is missing or malformed."""
+
+
+def read_seqinfo(folder: str | os.PathLike[str]) -> Mapping[str, str]:
+    """The ``[Sequence]`` entries of ``folder/seqinfo.ini`` (``name``, ``frameRate``,
+    ``imDir``, ...; keys in any case), ``{}`` when the folder has no such file.
+
+    Raises
+    ------
+    MotFormatError
+        If the file cannot be parsed or has no ``[Sequence]`` section.
+    """
+    ini = Path(folder) / "seqinfo.ini"
+    if not ini.is_file():
+        return {}
+    parser = configparser.ConfigParser()
+    try:
+        parser.read(ini, encoding="utf-8")
+    except (configparser.Error, UnicodeDecodeError) as exc:
+        raise MotFormatError(f"{ini}: {exc}") from exc
+    if not parser.has_section("Sequence"):
+        raise MotFormatError(f"{ini}: no [Sequence] section")
+    return parser["Sequence"]
+
+
+def seqinfo_frame_rate(ini: Path, section: Mapping[str, str]) -> float | None:
+    """``frameRate`` of ``ini``'s ``[Sequence]`` (``None`` when the file has none).
+
+    Raises
+    ------
+    MotFormatError
+        If it is not a finite, positive number; the message names the file and the value.
+    """
+    if "frameRate" not in section:  # keys in any case, as configparser reads them
+        return None
+    text = section["frameRate"]
+    try:
+        rate = float(text)
+    except ValueError:
+        raise MotFormatError(
+            f"{ini}: frameRate {text!r} is not a number of frames per second"
+        ) from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise MotFormatError(
+            f"{ini}: frameRate {text!r} is not a positive number of frames per second"
+        )
+    return rate
+
+
+def seqinfo_whole_number(ini: Path, section: Mapping[str, str], key: str) -> int | None:
+    """Integer ``key`` of ``ini``'s ``[Sequence]`` (``None`` when the file has none).
+
+    Raises
+    ------
+    MotFormatError
+        If it is not a whole number; the message names the file, the key and the value.
+    """
+    if key not in section:
+        return None
+    text = section[key]
+    try:
+        return int(text)
+    except ValueError:
+        raise MotFormatError(f"{ini}: {key} {text!r} is not a whole number") from None
 
 
 def read_mot_rows(path: str | os.PathLike[str], min_columns: int = 7) -> np.ndarray:

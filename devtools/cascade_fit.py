@@ -1,6 +1,6 @@
 """Fit the star cascade's thresholds on positive examples: people with ground-truth boxes.
 
-    python -m tracking.detection.dpm.cascade_fit --model PATH --sequences DIR [DIR ...]
+    python -m devtools.cascade_fit --model PATH --sequences DIR [DIR ...]
         [--step N] [--out PATH]
 
 The sequences are OTB-layout folders (``img/`` and ``groundtruth_rect.txt``) whose target is a
@@ -31,6 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tracking.datasets.otb import OtbSequence, load_otb_sequence, read_frame
 from tracking.detection.dpm.boxes import root_windows
 from tracking.detection.dpm.cascade import (
     CascadeThresholds,
@@ -44,7 +45,6 @@ from tracking.detection.dpm.model import DpmModel, load_dpm_model
 from tracking.detection.dpm.pyramid import level_features
 from tracking.detection.dpm.scoring import score_level
 from tracking.detection.nms import box_iou
-from tracking.evaluation.otb import OtbSequence, load_otb_sequence, read_frame
 from tracking.output_paths import output_file
 
 __all__ = ["SCORE_GRID", "fit_records", "main", "record_positive", "save_cascade", "thresholds_for"]
@@ -195,7 +195,7 @@ def save_cascade(
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m tracking.detection.dpm.cascade_fit", description=__doc__.split("\n\n")[0]
+        prog="python -m devtools.cascade_fit", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("--model", required=True, help="voc-release5 model file (.mat)")
     parser.add_argument(

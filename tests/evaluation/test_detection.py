@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracking.detection.metrics import (
+from tracking.evaluation.detection import (
     average_precision,
     detection_curve,
     log_average_miss_rate,

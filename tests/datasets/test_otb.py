@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tracking.evaluation.otb import (
+from tracking.datasets.otb import (
     OtbSequence,
     SequenceError,
     find_otb_sequences,

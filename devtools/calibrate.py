@@ -1,15 +1,15 @@
 """Fit a detector's score calibration on MOTChallenge sequences with ground truth.
 
-    python -m tracking.detection.calibrate --detector dpm --model PATH \\
+    python -m devtools.calibrate --detector dpm --model PATH \\
         --sequences DIR [DIR ...] [--out PATH] [--step N] [--threshold T] [--upscale U]
         [--workers N]
-    python -m tracking.detection.calibrate --detector cnn --model PATH.xml|PATH.onnx \\
+    python -m devtools.calibrate --detector cnn --model PATH.xml|PATH.onnx \\
         --sequences DIR [DIR ...] [--out PATH] [--step N] [--threshold T] [--workers N]
-    python -m tracking.detection.calibrate --detector default --sequences DIR ... --out PATH
+    python -m devtools.calibrate --detector default --sequences DIR ... --out PATH
 
 The detector runs on every ``step``-th frame of each sequence at a threshold below its operating
 one (so that the fit sees the scores around it); each detection is labelled by matching it to
-the ground truth (:func:`tracking.detection.metrics.match_frame`: IoU >= 0.5 with a ground-truth
+the ground truth (:func:`tracking.evaluation.detection.match_frame`: IoU >= 0.5 with a ground-truth
 box not yet matched, greedily by score), and a logistic ``p = 1 / (1 + exp(-(a s + b)))`` is
 fitted to (score, label) by maximum likelihood
 (:func:`tracking.detection.calibration.fit_logistic`).
@@ -33,12 +33,12 @@ from pathlib import Path
 
 import numpy as np
 
+from tracking.datasets.mot import MotSequence
 from tracking.detection.calibration import LogisticCalibration, calibration_path, fit_logistic
 from tracking.detection.cnn import MODEL_SUFFIXES, CnnConfig, CnnDetector, load_network
 from tracking.detection.dpm.detector import DpmConfig, DpmDetector
 from tracking.detection.hog_people import HogPeopleConfig, HogPeopleDetector
-from tracking.detection.metrics import match_frame
-from tracking.detection.sequences import MotSequence
+from tracking.evaluation.detection import match_frame
 from tracking.output_paths import output_file
 
 __all__ = ["calibrate", "main"]
@@ -83,7 +83,7 @@ def calibrate(
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m tracking.detection.calibrate",
+        prog="python -m devtools.calibrate",
         description="Fit a detector's score-to-probability calibration on MOTChallenge data.",
     )
     parser.add_argument("--detector", choices=("dpm", "cnn", "default"), required=True)
