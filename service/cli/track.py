@@ -8,12 +8,13 @@ lines (:class:`~service.outputs.box_rows.BoxRowWriter`).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import sys
 from pathlib import Path
 from typing import Literal
 
+from api_schemas.common import FirstBox
+from api_schemas.jobs import JobOptions
 from service.cli.common import (
     QUIET_HELP,
     W2C_HELP,
@@ -29,6 +30,7 @@ from service.cli.common import (
 )
 from service.frames import FrameSource, ReadProgress, frame_size_problem, is_greyscale
 from service.outputs.box_rows import BoxRowWriter
+from service.pipelines import PipelineResources, build_pipeline, check_options
 from tracking.correlation import DEFAULT_PRESET, PRESETS
 from tracking.output_paths import output_file, staged_output
 from tracking.pipeline import SingleTargetPipeline
@@ -104,15 +106,17 @@ def _track(args: argparse.Namespace) -> int:
         where = "--box" if args.box else f"the ground truth's box of frame {first}"
         print(f"vtrack: {where} {problem}", file=sys.stderr)
         return 2
-    config = PRESETS[args.preset]
     warn_unused_table(args.w2c, args.preset)
     # a file named .json gets JSON lines unless --format says otherwise
     json_name = args.out is not None and args.out.suffix.lower() in (".json", ".jsonl")
     fmt: Literal["csv", "json"] = args.format or ("json" if json_name else "csv")
     try:
-        if color_names := color_names_file(args.w2c):
-            config = dataclasses.replace(config, color_names_path=str(color_names))
-        pipeline = SingleTargetPipeline(box, config)
+        # the preset and the Color Names table as a job's options are planned
+        first_box = FirstBox(x=box.x, y=box.y, w=box.w, h=box.h)
+        options = JobOptions(mode="single_target", preset=args.preset, first_box=first_box)
+        plan = check_options(options, PipelineResources(color_names=color_names_file(args.w2c)))
+        pipeline = build_pipeline(plan)
+        assert isinstance(pipeline, SingleTargetPipeline)  # a single target's plan
         target, partial = staged_output(output_file(args.out)) if args.out else (None, None)
         out_file = open(partial or target, "w") if target else sys.stdout  # noqa: SIM115
     except (ValueError, OSError) as error:
