@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from api_schemas.common import BoxModel, RulesAcrossFields, equal
+from api_schemas.common import BoxModel, Pixels, RulesAcrossFields, equal
 
 # strict numbers, as every option's: true or "1" is no coordinate
 Coordinate = Annotated[float, Field(strict=True)]
@@ -143,7 +143,7 @@ class AnalyticsEvent(BaseModel):
     track_id: int = Field(ge=0)
     timestamp: float = Field(description="Capture time of the frame, in seconds.")
     frame_index: int = Field(ge=0, description="The frame, 0-based.")
-    position: tuple[float, float] = Field(description="The person's ground point [x, y].")
+    position: tuple[Pixels, Pixels] = Field(description="The person's ground point [x, y].")
     box: BoxModel
     direction: Literal["in", "out"] | None = Field(
         default=None, description="For line_crossed: 'in' from the line's left to its right."

@@ -402,7 +402,7 @@ def check_options(
             # The CNN's boxes fit the people (the public detections and the HOG and DPM
             # detectors pad theirs, which the tracker's 0.41 aspect undoes): the tracks keep
             # their shape. Measured with its detections on PETS09-S2L1 and TUD-Stadtmitte,
-            # HOTA 62.0 against 61.4 (3 seeds; docs/benchmarks.md).
+            # HOTA 62.0 against 61.4 (3 seeds; docs/benchmarks-history.md).
             config = dataclasses.replace(config, box_aspect=None)
     return JobPlan(
         options=options,
