@@ -404,6 +404,7 @@ def _analyze(args: argparse.Namespace) -> int:
         return 2
     # the trackers and detectors (most of the command's imports) once the options are good
     from service.analysis import analyze, publish
+    from service.outputs.base import ANALYTICS_FILE
     from service.pipelines import PipelineResources, check_options
 
     try:
@@ -496,4 +497,6 @@ def _analyze(args: argparse.Namespace) -> int:
         )
     for fmt, path in files.items():
         print(f"{fmt.value}\t{path}")
+    if result.analytics_file is not None:  # the events and counts of the zones and lines
+        print(f"analytics\t{args.out_dir / ANALYTICS_FILE}")
     return 0

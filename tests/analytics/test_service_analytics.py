@@ -136,3 +136,20 @@ def test_zones_and_lines_that_cannot_be_watched_are_refused_naming_the_field(
         response = submit(client, pets_cut, {**FAST_OPTIONS, "analytics": analytics})
     body = error_of(response, type)
     assert [error["loc"] for error in body["errors"]] == [loc], body
+
+
+def test_vtrack_analyze_writes_the_analytics_beside_the_results(pets_cut, tmp_path):
+    import subprocess
+    import sys
+
+    from api_schemas.analytics import AnalyticsResult
+
+    options = {"analytics": ANALYTICS, "detector": {"name": "default"}}
+    command = [sys.executable, "-m", "service.cli", "analyze", str(pets_cut), "--quiet"]
+    command += ["--format", "json", "--options", json.dumps(options), "--out-dir", str(tmp_path)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    listed = dict(line.split("\t") for line in done.stdout.splitlines())
+    assert listed["analytics"] == str(tmp_path / "analytics.json")
+    saved = AnalyticsResult.model_validate_json((tmp_path / "analytics.json").read_text())
+    assert saved.counts.zones["all"].entered == sum(e.type == "zone_entered" for e in saved.events)
