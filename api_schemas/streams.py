@@ -27,7 +27,7 @@ from typing import Any, Literal, TypedDict
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from api_schemas.analytics import AnalyticsOptions
+from api_schemas.analytics import AnalyticsCounts, AnalyticsOptions
 from api_schemas.common import RulesAcrossFields, equal
 from api_schemas.jobs import DetectorOptions, PeopleTrackerOptions, field_name, stored
 from api_schemas.tracks import FrameTracksMessage
@@ -369,6 +369,12 @@ class StreamStatus(BaseModel):
         description="The tracker options the stream's worker runs: its spec's with 'pose' and "
         "'reid' resolved (true or false) and their models named; None when they cannot run "
         "(see error).",
+    )
+    analytics: AnalyticsCounts | None = Field(
+        default=None,
+        description="The counts of the stream's zones and lines over the current run of its "
+        "tracker (since it started, or the camera started over or changed resolution); None: "
+        "it watches none, or has placed them on no frame yet.",
     )
     spec: StreamSpec
 

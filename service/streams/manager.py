@@ -656,6 +656,7 @@ class StreamManager:
             detector=None if choice is None else choice.options,
             detector_warning=None if choice is None else choice.warning,
             tracker=tracker,
+            analytics=report.get("analytics"),
             id=record.id,
             camera=record.spec.camera,
             state=self._state(stream),

@@ -466,6 +466,7 @@ class StreamWorker:
             "last_frame_at": last_frame,
             "errors": errors,
             "tracks": self._current_json.decode() if self._current_json else None,
+            "analytics": self._zones.counts(),
         }
 
     def report(self, force: bool = False) -> None:

@@ -7,7 +7,7 @@ import collections
 import logging
 import uuid
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
@@ -55,6 +55,12 @@ class ZoneEvents:
     def config(self) -> AnalyticsConfig | None:
         """The zones and lines of this run, in pixels (None: none, or not placed yet)."""
         return None if self._analytics is None else self._analytics.config
+
+    def counts(self) -> dict[str, Any] | None:
+        """This run's counts as plain data (None: no zones or lines placed)."""
+        if self._analytics is None:
+            return None
+        return self._analytics.counts().model_dump(mode="json", by_alias=True)
 
     def open(self, session: zenoh.Session) -> None:
         """Declare the events' publisher and open the outbox (when there is anything to do)."""

@@ -66,6 +66,7 @@ def test_stream_events_go_out_on_zenoh_and_to_the_mqtt_broker(server, broker, sh
             all_taken(client, camera, 40)  # no event comes after these
             wait_for(lambda: len(on_mqtt) == len(on_zenoh) > 0, 30, "the events at the broker")
             seen = metrics(client)
+            counts = client.get(f"/v1/streams/{camera}").json()["analytics"]
             assert client.delete(f"/v1/streams/{camera}").status_code == 200
     finally:
         subscriber.undeclare()
@@ -83,3 +84,6 @@ def test_stream_events_go_out_on_zenoh_and_to_the_mqtt_broker(server, broker, sh
     assert {"zone_entered", "dwell"} <= {e["type"] for e in on_zenoh}
     assert all(e["topic"] == f"site/cameras/{camera}/events/{e['type']}" for e in on_mqtt)
     assert seen['vtrack_events_delivered_total{sink="mqtt"}'] >= 1
+    # the stream's status counts what went out
+    entered = sum(e["type"] == "zone_entered" for e in on_zenoh)
+    assert counts["zones"]["all"]["entered"] == entered
