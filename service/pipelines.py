@@ -162,7 +162,7 @@ def choose_detector(options: DetectorOptions, resources: PipelineResources) -> D
         options = options.model_copy(update={"name": "cnn"})
     if options.name != "cnn":
         return DetectorChoice(options)
-    path = cnn_model_file(options.model, resources)
+    path = model_file(CNN_OPTION, options.model, resources)
     return DetectorChoice(options.model_copy(update={"model": options.model or path.stem}), path)
 
 
@@ -184,13 +184,6 @@ POSE_OPTION = ModelOption(
 REID_OPTION = ModelOption(
     "tracker.reid true", "tracker.reid_model", REID_SETTING, "leave tracker.reid unset or false"
 )
-
-
-def cnn_model_file(model: str | None, resources: PipelineResources) -> Path:
-    """The network file of a 'cnn' job: ``model`` in the models folder (a catalog name or a
-    path inside it), or the service's own model. Raises :class:`OptionsError` saying how to
-    get it."""
-    return model_file(CNN_OPTION, model, resources)
 
 
 def model_file(kind: ModelOption, model: str | None, resources: PipelineResources) -> Path:
