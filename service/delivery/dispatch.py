@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Sequence
 
 from service.delivery.outbox import Outbox, OutboxEvent
@@ -20,6 +21,9 @@ from service.jobs.database import DATABASE_ERRORS
 __all__ = ["Dispatcher", "backoff"]
 
 log = logging.getLogger(__name__)
+
+TIDY_INTERVAL = 60.0
+"""Seconds between looks for events too old for their sink, and delivered ones to forget."""
 
 
 def backoff(failures: int, first: float = 0.5, largest: float = 60.0) -> float:
@@ -83,15 +87,14 @@ class Dispatcher:
             sink.close()
 
     def _run(self, sink: Sink) -> None:
-        failures, tidied = 0, 0.0
+        failures, tidy_at = 0, 0.0
         while not self._stop.is_set():
             try:
-                if sink is self.sinks[0] and tidied <= 0:  # one thread tidies for all
+                if sink is self.sinks[0] and time.monotonic() >= tidy_at:  # one tidies for all
                     self.outbox.expire(self.max_age, self.keep_delivered)
-                    tidied = 60.0
+                    tidy_at = time.monotonic() + TIDY_INTERVAL
                 events = self.outbox.claim(sink.name, self.batch, self.lease)
                 if not events:
-                    tidied -= self.poll
                     self._stop.wait(self.poll)
                     continue
                 failures = self._send(sink, events, failures)
