@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from api_schemas.analytics import AnalyticsOptions
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
-from service.analytics import analytics_config
+from service.analytics import analytics_config, engine_counts
 from service.models.catalog import DEFAULT_DETECTOR, DEFAULT_POSE, DEFAULT_REID, model_path
 from service.pipelines import PipelineResources
 from tracking.analytics import AnalyticsConfig, AnalyticsEngine, Counts, ground_points
@@ -96,10 +96,7 @@ def service_counts(sequence: Path, models: Path) -> tuple[Counts, float, int]:
     with tempfile.TemporaryDirectory() as scratch:
         result = analyze(sequence / "img1", options, Path(scratch) / "run", resources=resources)
     assert result.analytics is not None
-    counts = Counts(
-        lines={n: c.model_dump(by_alias=True) for n, c in result.analytics.lines.items()},
-        zones={n: c.model_dump() for n, c in result.analytics.zones.items()},
-    )
+    counts = engine_counts(result.analytics)
     return counts, result.seconds, result.frames_processed
 
 

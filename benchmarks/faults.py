@@ -88,14 +88,13 @@ import httpx
 # package.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from devtools.clips import cut_video
 from devtools.testing import Server, try_get, wait_for
 
 try:  # run as a script: benchmarks/ is on sys.path
-    from _clips import cut_video
     from _paths import SHARED_DATA
     from _report import finite, print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
-    from benchmarks._clips import cut_video
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import finite, print_json
 

@@ -94,6 +94,7 @@ import zenoh
 # package.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from devtools.clips import cut_video
 from devtools.testing import Server, free_port, try_get, wait_for
 from service.streams.keys import StreamKeys
 from service.streams.manager import ARBITRATION_INTERVAL, _owner_of
@@ -102,11 +103,9 @@ from service.streams.tools import member_session, trackers_of, watch_trackers
 from tests.postgres import PostgresServer, running_postgres
 
 try:  # run as a script: benchmarks/ is on sys.path
-    from _clips import cut_video
     from _paths import SHARED_DATA
     from _report import finite, print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
-    from benchmarks._clips import cut_video
     from benchmarks._paths import SHARED_DATA
     from benchmarks._report import finite, print_json
 

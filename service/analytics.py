@@ -37,6 +37,7 @@ __all__ = [
     "FrameAnalytics",
     "analytics_config",
     "counts_model",
+    "engine_counts",
 ]
 
 
@@ -149,6 +150,16 @@ def event_model(event: Event, frame_index: int) -> AnalyticsEvent:
         direction=event.direction,
         dwell_seconds=event.dwell_seconds,
         lost=event.lost,
+    )
+
+
+def engine_counts(counts: AnalyticsCounts) -> Counts:
+    """The totals of ``counts`` as the engine keeps them (:func:`counts_model` undone, the
+    buckets aside): for holding a job's counts against others' with
+    :func:`tracking.evaluation.counting.count_error`."""
+    return Counts(
+        lines={name: c.model_dump(by_alias=True) for name, c in counts.lines.items()},
+        zones={name: c.model_dump() for name, c in counts.zones.items()},
     )
 
 

@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 
 from api_schemas.tracks import Trajectories
+from devtools.clips import cut_video
 from devtools.testing import Server, wait_for
 from tests.conftest import REPO_ROOT
-from tests.service.conftest import PETS_VIDEO, cut_video
+from tests.service.conftest import PETS_VIDEO
 
 PETS = ("mot", "PETS09-S2L1")
 

@@ -4,38 +4,26 @@ from __future__ import annotations
 
 import pytest
 
-from api_schemas.analytics import AnalyticsOptions, AnalyticsResult
+from api_schemas.analytics import AnalyticsResult
 from api_schemas.jobs import JobOptions
 from service.analysis import analyze
-from service.analytics import analytics_config
-from tracking.analytics import Counts
+from service.analytics import analytics_config, engine_counts
+from tests.conftest import benchmark_module
 from tracking.detection.external import MotDetections
 from tracking.evaluation.counting import count_error, count_rows
 from tracking.evaluation.mot import ground_truth_rows, read_sequence_info
 
 pytestmark = pytest.mark.slow
 
-# the rule of benchmarks/analytics.py: fitted to no sequence
-RULE = {
-    "coordinates": "normalized",
-    "lines": [
-        {"name": "vertical", "points": [[0.5, 0.0], [0.5, 1.0]]},
-        {"name": "horizontal", "points": [[0.0, 0.6], [1.0, 0.6]]},
-    ],
-    "zones": [
-        {
-            "name": "centre",
-            "polygon": [[0.25, 0.25], [0.75, 0.25], [0.75, 0.75], [0.25, 0.75]],
-            "min_dwell": 2.0,
-        }
-    ],
-}
+with benchmark_module("analytics") as benchmark:
+    RULE = benchmark.RULE
+    """The lines and zone of benchmarks/analytics.py: one rule for every sequence."""
 
 
 def test_line_and_zone_counts_agree_with_the_ground_truth(shared_data, tmp_path):
     sequence = shared_data / "mot" / "PETS09-S2L1"
     info = read_sequence_info(sequence)
-    config = analytics_config(AnalyticsOptions.model_validate(RULE), (info.width, info.height))
+    config = analytics_config(RULE, (info.width, info.height))
     truth = count_rows(ground_truth_rows(sequence / "gt" / "gt.txt"), config, info.frame_rate)
     # 30 crossings of the vertical line, 18 of the horizontal one, 25 entries into the centre
     assert truth.lines == {"vertical": {"in": 17, "out": 13}, "horizontal": {"in": 7, "out": 11}}
@@ -45,10 +33,7 @@ def test_line_and_zone_counts_agree_with_the_ground_truth(shared_data, tmp_path)
     options = JobOptions(formats=["json"], analytics=RULE)
     result = analyze(sequence / "img1", options, tmp_path / "run", detections=public.for_frame)
     assert result.analytics is not None
-    ours = Counts(
-        lines={n: c.model_dump(by_alias=True) for n, c in result.analytics.lines.items()},
-        zones={n: c.model_dump() for n, c in result.analytics.zones.items()},
-    )
+    ours = engine_counts(result.analytics)
     error, total = count_error(ours, truth)
     # measured: 15 of 73 (20.5 %, as ByteTrack's trajectories on the same detections;
     # docs/benchmarks.md, counting): a tracker that loses or swaps people fails this

@@ -153,3 +153,35 @@ def test_vtrack_analyze_writes_the_analytics_beside_the_results(pets_cut, tmp_pa
     assert listed["analytics"] == str(tmp_path / "analytics.json")
     saved = AnalyticsResult.model_validate_json((tmp_path / "analytics.json").read_text())
     assert saved.counts.zones["all"].entered == sum(e.type == "zone_entered" for e in saved.events)
+
+
+def test_the_annotated_video_draws_the_zones_and_lines(pets_cut, tmp_path):
+    import cv2
+    import numpy as np
+
+    from api_schemas.jobs import JobOptions
+    from service.analysis import analyze
+    from service.outputs.zones import LINE_RGB, ZONE_RGB
+
+    def first_frame(analytics: dict | None, folder: str) -> np.ndarray:
+        options = JobOptions.model_validate(
+            {**FAST_OPTIONS, "formats": ["mp4"], "analytics": analytics}
+        )
+        result = analyze(pets_cut, options, tmp_path / folder)
+        capture = cv2.VideoCapture(str(result.files["mp4"]))
+        ok, frame = capture.read()
+        capture.release()
+        assert ok
+        return cv2.cvtColor(frame, cv2.COLOR_BGR2RGB).astype(float)
+
+    drawn = first_frame(
+        {
+            "lines": [{"name": "middle", "points": [[240, 20], [240, 340]]}],
+            "zones": [{"name": "box", "polygon": [[40, 40], [120, 40], [120, 120], [40, 120]]}],
+        },
+        "drawn",
+    )
+    plain = first_frame(None, "plain")
+    # the line's column and the zone's top edge take their colours (H.264 blurs them a little)
+    for where, colour in (((slice(100, 300), 240), LINE_RGB), ((40, slice(60, 100)), ZONE_RGB)):
+        assert np.abs(drawn[where] - colour).mean() < 40 < np.abs(plain[where] - colour).mean()

@@ -14,12 +14,12 @@ from itertools import islice
 from pathlib import Path
 
 import av
-import cv2
 import httpx
 import numpy as np
 import pytest
 
 from api_schemas.common import ERROR_STATUS, ErrorResponse, ErrorType
+from devtools.clips import cut_video
 from devtools.testing import Server, wait_for
 from service.frames import open_frames
 from tests.conftest import REPO_ROOT
@@ -30,29 +30,6 @@ PETS_VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
 # 120 frames), since it then finds none of the clip's 40-55 px people and the tracker has little
 # to do either.
 FAST_OPTIONS = {"formats": ["json"], "detector": {"name": "default", "upscale": 1.0}}
-
-
-def cut_video(source: Path, target: Path, frames: int, start: int = 0) -> Path:
-    """The first ``frames`` frames (from ``start``) of ``source`` as an MJPG AVI at its rate."""
-    capture = cv2.VideoCapture(str(source))
-    fps = capture.get(cv2.CAP_PROP_FPS) or 10.0
-    writer = None
-    try:
-        for index in range(start + frames):
-            ok, frame = capture.read()
-            if not ok:
-                raise RuntimeError(f"{source} has fewer than {start + frames} frames")
-            if index < start:
-                continue
-            if writer is None:
-                size = (frame.shape[1], frame.shape[0])
-                writer = cv2.VideoWriter(str(target), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
-            writer.write(frame)
-    finally:
-        capture.release()
-        if writer is not None:
-            writer.release()
-    return target
 
 
 @pytest.fixture(scope="session")

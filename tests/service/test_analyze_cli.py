@@ -17,10 +17,11 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
+from devtools.clips import cut_video
 from devtools.testing import wait_for
 from service.frames import open_frames
 from tests.conftest import REPO_ROOT
-from tests.service.conftest import PETS_VIDEO, cut_video, schema_for, write_gray
+from tests.service.conftest import PETS_VIDEO, schema_for, write_gray
 from tests.service.test_cli import vtrack_interrupted
 
 DPM_MODEL = Path("dpm") / "INRIA" / "inriaperson_final.mat"
