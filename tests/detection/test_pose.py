@@ -232,3 +232,67 @@ def test_a_model_without_heatmaps_and_fields_is_refused(shared_data: Path):
     detector = shared_data / "models" / "person-detection-0200/FP16/person-detection-0200.xml"
     with pytest.raises(CnnModelError, match="not an OpenPose network"):
         PoseEstimator.from_file(detector, PoseConfig(threads=1))
+
+
+# -- crops around people ------------------------------------------------------------------------
+
+
+def test_crops_are_used_while_they_feed_the_network_fewer_pixels_than_the_frame(
+    estimator: PoseEstimator,
+):
+    network_input = 768 * 576  # a 576-line frame's, at its size
+    assert estimator.config.crop_size == (96, 192)
+    most = (network_input - 1) // (96 * 192)
+    assert estimator.crops_cheaper((576, 768, 3), most)
+    assert not estimator.crops_cheaper((576, 768, 3), most + 1)
+    no_crops = PoseEstimator(estimator.network, PoseConfig(crop_size=None))
+    assert not no_crops.crops_cheaper((576, 768, 3), 1)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"crop_size": (100, 192)}, {"crop_size": (96,)}, {"crop_margin": -0.1}, {"max_batch": 0}],
+)
+def test_crop_options_that_cannot_work_are_refused(options):
+    with pytest.raises(ValueError):
+        PoseConfig(**options)
+
+
+def test_crops_put_each_person_s_skeleton_where_the_whole_frame_does(
+    estimator: PoseEstimator, pets: MotSequence
+):
+    """The crops' keypoints come back in frame pixels: on 21 PETS people (one crop each, in
+    batches of 4 and 1), the skeleton that fills a crop's box has its neck within a tenth of
+    the person's height of the whole frame's skeleton's neck; both find nearly everyone."""
+    from tracking.people.keypoints import skeletons_in_crops
+
+    in_crops = in_frame = close = 0
+    for index in (100, 200, 700):
+        frame, people = pets.read_frame(index), pets.gt[index]
+        crops = estimator.estimate_crops(frame, people)
+        assert len(crops) == len(people)
+        keypoints, _, owner = skeletons_in_crops(
+            [(c.keypoints, c.scores) for c in crops], KEYPOINT_NAMES, people, 0.6
+        )
+        whole = estimator.estimate(frame)
+        in_crops += int((owner >= 0).sum())
+        in_frame += int(_people_with_a_skeleton(whole, people).sum())
+        for person, neck in zip(people, keypoints[:, 1], strict=True):
+            distance = np.linalg.norm(whole.keypoints[:, 1] - neck, axis=1)
+            if np.isfinite(neck).all() and np.nanmin(distance, initial=np.inf) < 0.1 * person[3]:
+                close += 1
+    assert in_crops >= 19 and in_frame >= 19, (in_crops, in_frame)  # of 21
+    assert close >= 0.8 * in_frame, (close, in_frame)
+
+
+def test_boxes_without_a_crop_get_no_skeleton(estimator: PoseEstimator, pets: MotSequence):
+    frame = pets.read_frame(100)
+    person = pets.gt[100][0]
+    boxes = np.array([[np.nan, 0, 10, 10], [5, 5, 10, 0], person, [-40, -80, 30, 90]])
+    crops = estimator.estimate_crops(frame, boxes)
+    assert [len(c) for c in crops[:2]] == [0, 0]
+    assert len(crops[2]) >= 1  # the real person
+    assert len(crops) == 4  # a box off the frame's corner is a black crop, not an error
+    grey = estimator.estimate_crops(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY), person[None])
+    assert len(grey[0]) >= 1
+    assert estimator.estimate_crops(frame, np.zeros((0, 4))) == []

@@ -183,3 +183,23 @@ def test_effective_sample_size_and_degenerate_weights():
     assert effective_sample_size(np.full(10, 0.1)) == pytest.approx(10)
     assert effective_sample_size(np.eye(10)[0]) == pytest.approx(1)
     np.testing.assert_allclose(normalize_log_weights(np.full(4, -np.inf)), 0.25)
+
+
+def test_kalman_update_of_two_dimensional_measurements_in_a_batch():
+    """The body parts' 2D measurements take a closed-form inverse: a batch of them gives the
+    textbook update of each, as the general path does."""
+    rng = np.random.default_rng(1)
+    a = rng.standard_normal((5, 7, 4, 4))
+    cov = a @ np.swapaxes(a, -1, -2) + np.eye(4)
+    mean = rng.standard_normal((5, 7, 4))
+    h = np.hstack([np.eye(2), np.zeros((2, 2))])
+    r = np.diag([0.3, 0.7])
+    z = rng.standard_normal((5, 7, 2))
+    new_mean, new_cov, log_lik = kalman_update(mean, cov, z, h, r)
+    for i, j in np.ndindex(5, 7):
+        s = h @ cov[i, j] @ h.T + r
+        k = cov[i, j] @ h.T @ np.linalg.inv(s)
+        np.testing.assert_allclose(new_mean[i, j], mean[i, j] + k @ (z[i, j] - h @ mean[i, j]))
+        np.testing.assert_allclose(new_cov[i, j], (np.eye(4) - k @ h) @ cov[i, j], atol=1e-12)
+        expected = multivariate_normal(h @ mean[i, j], s).logpdf(z[i, j])
+        assert log_lik[i, j] == pytest.approx(expected)

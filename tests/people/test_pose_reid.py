@@ -133,3 +133,20 @@ def test_people_hidden_for_two_seconds_keep_their_ids(shared_data, pets):
 def _most_common(ids: list[int]) -> int:
     values, counts = np.unique([i for i in ids if i], return_counts=True)
     return int(values[counts.argmax()]) if len(values) else 0
+
+
+def test_each_crop_gives_the_skeleton_of_its_own_person():
+    """A crop shows its person and part of a neighbour: the one filling the crop's box is
+    chosen; a crop with nobody's skeleton gives none."""
+    from tracking.people.keypoints import skeletons_in_crops
+
+    left, right = (100.0, 50.0, 40.0, 100.0), (125.0, 60.0, 40.0, 100.0)
+    both = np.stack([_skeleton(right), _skeleton(left)])
+    scores = np.stack([np.full(len(KEYPOINT_NAMES), 0.3), np.full(len(KEYPOINT_NAMES), 0.9)])
+    crops = [(both, scores), (both[::-1], scores[::-1]), (both[:0], scores[:0])]
+    boxes = np.array([left, right, (400.0, 50.0, 40.0, 100.0)])
+    keypoints, chosen, owner = skeletons_in_crops(crops, KEYPOINT_NAMES, boxes, 0.6)
+    np.testing.assert_array_equal(keypoints[0], both[1])
+    np.testing.assert_array_equal(keypoints[1], both[0])
+    np.testing.assert_array_equal(chosen[:2], scores[[1, 0]])
+    assert owner.tolist() == [0, 1, -1] and np.isnan(keypoints[2]).all()

@@ -20,9 +20,12 @@ first keypoint to its second along the limb. Decoding follows Cao et al., *Realt
    skeletons, tree edge by tree edge from the neck;
 4. :func:`decode_openpose` maps the keypoints back to frame pixels.
 
-:class:`PoseEstimator` feeds whole frames at their aspect, the shorter side kept in 576-1080
-pixels like the CNN person detector: on PETS09-S2L1 the model placed a skeleton on 229 of 232
-people at 576x768 but on 154 at its native 256x456 (``../shared/data/models/README.md``).
+:meth:`PoseEstimator.estimate` feeds whole frames at their aspect, the shorter side kept in
+576-1080 pixels like the CNN person detector: on PETS09-S2L1 the model placed a skeleton on 229
+of 232 people at 576x768 but on 154 at its native 256x456 (``../shared/data/models/README.md``).
+:meth:`PoseEstimator.estimate_crops` feeds a crop around each of a tracker's people instead,
+each brought to one size (the person 128 px high): cheaper than the frame for a few people, and
+small people are seen larger (docs/benchmarks.md, "Pose and re-identification").
 """
 
 from __future__ import annotations
@@ -181,15 +184,19 @@ def find_peaks(
     if maps.ndim != 3:
         raise ValueError(f"heatmaps must be (K, H, W), got shape {np.shape(heatmaps)}")
     size = 2 * radius + 1
-    # -inf outside: a peak at the border is compared with its inside neighbours only
     kernel = np.ones((size, size), dtype=np.uint8)
     # dilation's border is -inf: a peak at the edge is compared with its inside neighbours only
     maps = np.ascontiguousarray(maps)
     largest = np.empty_like(maps)
     for m, out in zip(maps, largest, strict=True):
         cv2.dilate(m, kernel, dst=out)
-    kinds, ys, xs = np.nonzero((maps == largest) & (maps > threshold))
-    values = maps[kinds, ys, xs]
+    # the few pixels above the threshold first (a flat index: np.nonzero over the whole stack
+    # of maps took half the decoding's time), then which of them are their window's maximum
+    flat, flat_largest = maps.reshape(-1), largest.reshape(-1)
+    candidates = np.flatnonzero(flat > threshold)
+    candidates = candidates[flat[candidates] == flat_largest[candidates]]
+    kinds, ys, xs = np.unravel_index(candidates, maps.shape)
+    values = flat[candidates]
     peaks = []
     for kind in range(len(maps)):
         mine = kinds == kind
@@ -412,6 +419,15 @@ class PoseConfig:
         (0.05); a limb needs more than ``min_agreeing`` (0.8) of its 10 samples agreeing.
     min_keypoints, min_mean_score:
         A skeleton needs this many keypoints (3) and this score per keypoint (0.2).
+    crop_size:
+        ``(width, height)`` each person's crop is brought to by
+        :meth:`PoseEstimator.estimate_crops` (a multiple of 8; the person about 2/3 of its
+        height, as tall as in the network's native 256-px input); ``None`` disables crops.
+    crop_margin:
+        The crop around a box: ``crop_margin`` of its height above and below it, centred on it
+        at ``crop_size``'s aspect.
+    max_batch:
+        Crops per inference (a batch padded to a power of two, so that a few shapes compile).
     threads:
         Inference threads; 0: OpenVINO's choice.
     """
@@ -427,11 +443,21 @@ class PoseConfig:
     min_agreeing: float = 0.8
     min_keypoints: int = 3
     min_mean_score: float = 0.2
+    crop_size: tuple[int, int] | None = (96, 192)
+    crop_margin: float = 0.25
+    max_batch: int = 4
     threads: int = 0
 
     def __post_init__(self) -> None:
         check_input_rule(self.input_size, self.input_heights, self.max_upscale)
-        for name in ("stride", "upsample", "max_peaks", "min_keypoints"):
+        if self.crop_size is not None and (
+            len(self.crop_size) != 2
+            or not all(is_int(side) and side >= 8 and side % 8 == 0 for side in self.crop_size)
+        ):
+            raise ValueError(f"crop_size must be two multiples of 8, got {self.crop_size}")
+        if not (math.isfinite(self.crop_margin) and self.crop_margin >= 0):
+            raise ValueError(f"crop_margin must be finite and >= 0, got {self.crop_margin}")
+        for name in ("stride", "upsample", "max_peaks", "min_keypoints", "max_batch"):
             if not is_int(getattr(self, name)) or getattr(self, name) < 1:
                 raise ValueError(f"{name} must be a positive int, got {getattr(self, name)}")
         if self.stride % 8:
@@ -488,13 +514,26 @@ def decode_openpose(
         raise ValueError(
             f"heatmaps (19, h, w) and pafs (38, h, w), got {heat.shape}, {fields.shape}"
         )
+    poses = _group(_peaks_in_cells(heat[:kinds], config), fields, config)
+    sx, sy = scale if isinstance(scale, tuple) else (scale, scale)
+    return _cells_to_frame(poses, stride, (sx, sy), (0.0, 0.0))
+
+
+def _peaks_in_cells(heatmaps: np.ndarray, config: PoseConfig) -> list[np.ndarray]:
+    """:func:`find_peaks` of the heatmaps enlarged ``config.upsample`` times, placed back in
+    map cells: enlargement puts pixel ``u`` at cell ``(u + 0.5) / upsample - 0.5``."""
     up = config.upsample
     # the reference's window: 7x7 at 4 times enlarged maps (p = round(6/7 upsample))
     radius = max(1, round(6 / 7 * up))
-    peaks = find_peaks(_enlarge(heat[:kinds], up), config.peak_threshold, radius, config.max_peaks)
+    peaks = find_peaks(_enlarge(heatmaps, up), config.peak_threshold, radius, config.max_peaks)
     for found in peaks:
         found[:, :2] = (found[:, :2] + 0.5) / up - 0.5
-    poses = group_people(
+    return peaks
+
+
+def _group(peaks: list[np.ndarray], fields: np.ndarray, config: PoseConfig) -> Poses:
+    """:func:`group_people` with ``config``'s thresholds."""
+    return group_people(
         peaks,
         fields,
         min_paf_score=config.min_paf_score,
@@ -502,10 +541,19 @@ def decode_openpose(
         min_keypoints=config.min_keypoints,
         min_mean_score=config.min_mean_score,
     )
-    sx, sy = scale if isinstance(scale, tuple) else (scale, scale)
+
+
+def _cells_to_frame(
+    poses: Poses, stride: float, scale: tuple[float, float], origin: tuple[float, float]
+) -> Poses:
+    """Skeletons from map cells to frame pixels: cell ``f`` is input pixel ``stride f +
+    stride / 2 - 0.5``, which is frame pixel ``(input + 0.5) / scale - 0.5`` from ``origin``
+    (the top-left corner of the part of the frame the input shows)."""
     keypoints = poses.keypoints.copy()
-    keypoints[..., 0] = (stride * keypoints[..., 0] + stride / 2) / sx - 0.5
-    keypoints[..., 1] = (stride * keypoints[..., 1] + stride / 2) / sy - 0.5
+    for axis in (0, 1):
+        keypoints[..., axis] = (
+            (stride * keypoints[..., axis] + stride / 2) / scale[axis] - 0.5 + origin[axis]
+        )
     return Poses(keypoints, poses.scores, poses.person_scores)
 
 
@@ -572,6 +620,71 @@ class PoseEstimator:
         stride = size[1] / heatmaps.shape[2]
         scale = (size[0] / image.shape[1], size[1] / image.shape[0])
         return decode_openpose(heatmaps, pafs, scale, stride, self.config)
+
+    def crops_cheaper(self, frame_shape: tuple[int, ...], count: int) -> bool:
+        """Whether ``count`` crops (:meth:`estimate_crops`) feed the network fewer pixels than
+        the whole frame (:meth:`estimate`) would: the network's time follows its input's
+        pixels, so a few people are cheaper in crops and a crowd in the frame."""
+        crop = self.config.crop_size
+        if crop is None or not self.network.reshapeable:
+            return False
+        width, height = self.config.input_for(frame_shape)
+        return count * crop[0] * crop[1] < width * height
+
+    def estimate_crops(self, frame: np.ndarray, boxes: np.ndarray) -> list[Poses]:
+        """The skeletons in a crop around each box ``x, y, w, h`` of ``frame``, in frame pixels.
+
+        Each crop spans its box's height and ``config.crop_margin`` of it above and below, at
+        ``config.crop_size``'s aspect around the box's centre, and is resized to that size
+        (outside the frame: black), so that a person of any size is seen about as tall as the
+        network saw people in training; the crops go through the network in batches. The
+        network is bottom-up, so a crop may hold skeletons of other people too: which one is
+        the box's person is the caller's choice. A box that is not finite or not positive gets
+        no skeleton.
+        """
+        image = validate_uint8_frame(frame, "the pose estimator")
+        code = cv2.COLOR_GRAY2BGR if image.ndim == 2 else cv2.COLOR_RGB2BGR
+        image = cv2.cvtColor(image, code)
+        boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+        if self.config.crop_size is None:
+            raise ValueError("crops are disabled (PoseConfig.crop_size is None)")
+        width, height = self.config.crop_size
+        usable = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > 0) & (boxes[:, 3] > 0)
+        # input pixels per frame pixel (1 for boxes without a crop), and the crop's top-left
+        # corner in the frame
+        tall = np.where(usable, boxes[:, 3], height / (1 + 2 * self.config.crop_margin))
+        scale = height / (tall * (1 + 2 * self.config.crop_margin))
+        left = boxes[:, 0] + boxes[:, 2] / 2 - width / 2 / scale
+        top = boxes[:, 1] + boxes[:, 3] / 2 - height / 2 / scale
+        rows = np.flatnonzero(usable)
+        crops = np.empty((len(rows), 3, height, width), dtype=np.float32)
+        for crop, i in zip(crops, rows, strict=True):
+            # input pixel u shows frame pixel (u + 0.5) / scale - 0.5 + left (decode_openpose's
+            # convention), so the forward map is u = scale (x - left + 0.5) - 0.5
+            s = scale[i]
+            warp = np.array(
+                [[s, 0.0, s * (0.5 - left[i]) - 0.5], [0.0, s, s * (0.5 - top[i]) - 0.5]]
+            )
+            resized = cv2.warpAffine(image, warp, (width, height), flags=cv2.INTER_LINEAR)
+            crop[...] = resized.transpose(2, 0, 1)
+        heatmaps, pafs = [], []
+        per_batch = self.config.max_batch
+        for start in range(0, len(rows), per_batch):
+            chunk = crops[start : start + per_batch]
+            size = min(1 << (len(chunk) - 1).bit_length(), per_batch)
+            batch = np.zeros((size, 3, height, width), dtype=np.float32)
+            batch[: len(chunk)] = chunk
+            outputs = self.network.infer_all(batch)
+            heatmaps.append(outputs[self._heatmap_output][: len(chunk), : len(KEYPOINT_NAMES)])
+            pafs.append(outputs[self._paf_output][: len(chunk)])
+        out = [Poses.empty() for _ in boxes]
+        if len(rows):
+            heat, fields = np.concatenate(heatmaps), np.concatenate(pafs)
+            stride = height / heat.shape[2]
+            for tile, i in enumerate(rows):
+                poses = _group(_peaks_in_cells(heat[tile], self.config), fields[tile], self.config)
+                out[i] = _cells_to_frame(poses, stride, (scale[i], scale[i]), (left[i], top[i]))
+        return out
 
 
 def _output_indices(network: Network) -> tuple[int, int]:

@@ -72,6 +72,41 @@ def assign_skeletons(
     return out
 
 
+def skeletons_in_crops(
+    crops: list[tuple[np.ndarray, np.ndarray]],
+    names: tuple[str, ...],
+    boxes: np.ndarray,
+    min_share: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each person's skeleton from the crop around its box: of the crop's skeletons (it may
+    show neighbours too), the one :func:`assign_skeletons` gives the crop's box.
+
+    Parameters
+    ----------
+    crops:
+        Per box, the crop's skeletons ``(S_i, K, 2)`` in frame pixels and their ``(S_i, K)``
+        heatmap values.
+    names, boxes, min_share:
+        As for :func:`assign_skeletons`; ``boxes`` ``(T, 4)``, one per crop.
+
+    Returns
+    -------
+    keypoints, scores, skeleton_of
+        ``(T, K, 2)`` (NaN rows for none), ``(T, K)``, and ``(T,)``: ``t`` where person ``t``
+        has its skeleton in row ``t``, -1 where none.
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    k = len(names)
+    keypoints = np.full((len(boxes), k, 2), np.nan)
+    scores = np.zeros((len(boxes), k))
+    skeleton_of = np.full(len(boxes), -1, dtype=np.int64)
+    for t, (points, values) in enumerate(crops):
+        chosen = assign_skeletons(points, names, boxes[t : t + 1], min_share)[0]
+        if chosen >= 0:
+            keypoints[t], scores[t], skeleton_of[t] = points[chosen], values[chosen], t
+    return keypoints, scores, skeleton_of
+
+
 def _nanmean(points: np.ndarray, found: np.ndarray) -> np.ndarray:
     """``(S, 2)`` mean of each skeleton's found points ``(S, K, 2)`` (NaN for none)."""
     total = np.where(found[..., None], points, 0.0).sum(axis=1)

@@ -20,7 +20,7 @@ from tracking.people.association import assign
 from tracking.people.body import EMBEDDED_BODY, POSE_BODY, BodyModel
 from tracking.people.config import PeopleTrackerConfig
 from tracking.people.identity import colour_signatures, signature_similarity
-from tracking.people.keypoints import assign_skeletons, keypoint_measurements
+from tracking.people.keypoints import assign_skeletons, keypoint_measurements, skeletons_in_crops
 from tracking.people.likelihoods import (
     dense_score_log_likelihood,
     detection_log_likelihood,
@@ -455,7 +455,8 @@ class MultiPersonTracker:
     def _keypoint_measurements(
         self, current: _Frame, state: RbpfState, pose: PoseEstimator
     ) -> dict[str, np.ndarray]:
-        """Part measurements from the pose network: the frame's skeletons assigned to the
+        """Part measurements from the pose network: the frame's skeletons (of the whole frame,
+        or of a crop around each person when that costs the network less) assigned to the
         people (each person's associated detection box, else its predicted box), each keypoint
         measuring the part of its name with a noise from its heatmap value. The grouping of
         keypoints into skeletons decides whose a keypoint is, so a keypoint inside a nearer
@@ -464,19 +465,24 @@ class MultiPersonTracker:
         from tracking.detection.pose import KEYPOINT_NAMES
 
         c = self.config
-        poses = pose.estimate(current.image)
         boxes = current.predicted.copy()
         for i, track in enumerate(self._tracks):
             if track.measured:
                 boxes[i] = current.detections.boxes[track.detection]
-        skeleton_of = assign_skeletons(poses.keypoints, KEYPOINT_NAMES, boxes, c.skeleton_min_share)
+        if pose.crops_cheaper(current.image.shape, len(boxes)):
+            crops = pose.estimate_crops(current.image, boxes)
+            keypoints, scores, skeleton_of = skeletons_in_crops(
+                [(crop.keypoints, crop.scores) for crop in crops],
+                KEYPOINT_NAMES,
+                boxes,
+                c.skeleton_min_share,
+            )
+        else:
+            poses = pose.estimate(current.image)
+            keypoints, scores = poses.keypoints, poses.scores
+            skeleton_of = assign_skeletons(keypoints, KEYPOINT_NAMES, boxes, c.skeleton_min_share)
         z, found, sigma = keypoint_measurements(
-            self._body,
-            KEYPOINT_NAMES,
-            poses.keypoints,
-            poses.scores,
-            skeleton_of,
-            c.keypoint_sigma,
+            self._body, KEYPOINT_NAMES, keypoints, scores, skeleton_of, c.keypoint_sigma
         )
         for track, placed, has in zip(self._tracks, found, skeleton_of >= 0, strict=True):
             track.parts_measured = placed

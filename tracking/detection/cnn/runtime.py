@@ -80,7 +80,8 @@ class Network:
             raise ValueError(f"{self.path.name} takes input {self.input_shape} only, got {shape}")
         compiled = self._compiled_for(shape)
         request = compiled.create_infer_request()
-        request.infer({0: batch})
+        # the batch is wrapped, not copied (it is the caller's, alive until infer returns)
+        request.infer({0: np.ascontiguousarray(batch, dtype=np.float32)}, share_inputs=True)
         return [
             np.array(request.get_output_tensor(i).data, copy=True)
             for i in range(len(compiled.outputs))
