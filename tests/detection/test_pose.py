@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+import tracking.detection.pose as pose_module
 from tracking.datasets.mot import MotSequence
 from tracking.detection.cnn import CnnModelError
 from tracking.detection.pose import (
@@ -98,6 +99,20 @@ def test_two_people_with_consistent_fields_are_two_whole_skeletons():
     np.testing.assert_allclose(poses.keypoints, np.stack(people))
     np.testing.assert_allclose(poses.scores, 0.9)
     assert np.all(poses.person_scores > 18 * 0.9)  # keypoints plus limb scores
+
+
+def test_limbs_scored_in_several_passes_group_as_in_one(monkeypatch):
+    """A crowd's candidate limbs are scored in passes of bounded size: the skeletons are the
+    same whatever the bound."""
+    people = [_person(12, 5), _person(40, 8), _person(26, 11)]
+    _, pafs = _maps(people)
+    peaks = _peaks(people)
+    once = group_people(peaks, pafs)
+    monkeypatch.setattr(pose_module, "_PAIRS_PER_PASS", 1)  # one limb type per pass
+    passes = group_people(peaks, pafs)
+    np.testing.assert_array_equal(passes.keypoints, once.keypoints)
+    np.testing.assert_array_equal(passes.person_scores, once.person_scores)
+    assert len(once) == 3
 
 
 def test_a_missing_keypoint_is_nan_and_scores_zero():

@@ -116,7 +116,7 @@ def _twenty_boxes(sequence: MotSequence) -> tuple[np.ndarray, np.ndarray]:
 def test_a_batch_beyond_max_batch_equals_one_box_at_a_time(shared_data, fast_embedder):
     sequence = MotSequence.open(shared_data / "mot" / "PETS09-S2L1")
     frame, boxes = _twenty_boxes(sequence)
-    assert fast_embedder.config.max_batch < 20  # 16 + 4: two inferences
+    assert fast_embedder.config.max_batch < 20  # several inferences
     together = fast_embedder.embed(frame, boxes)
     alone = np.concatenate([fast_embedder.embed(frame, box[None]) for box in boxes])
     agreement = np.einsum("kd,kd->k", together, alone)

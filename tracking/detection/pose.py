@@ -103,6 +103,7 @@ LIMBS = (
 two (shoulder-ear) are the redundant connections OpenPose adds for robustness."""
 
 _SAMPLES = 10  # points of the PAF line integral (eq. 11), the reference's
+_PAIRS_PER_PASS = 20_000  # candidate limbs scored at once: 20,000 x 10 samples, a few MB
 
 
 @dataclass(frozen=True)
@@ -235,14 +236,70 @@ def limb_scores(
         ``(n, m)`` each, the mean agreeing projection (plus the length prior) and the fraction
         of agreeing samples.
     """
-    height = paf.shape[1]
-    vectors = ends[None, :, :] - starts[:, None, :]  # (n, m, 2)
+    firsts, seconds = _every_pair(starts, ends)
+    channels = np.zeros(len(firsts), np.intp)
+    scores, agreeing = _pair_scores(firsts, seconds, paf, channels, min_paf_score)
+    return scores.reshape(len(starts), len(ends)), agreeing.reshape(len(starts), len(ends))
+
+
+def _every_pair(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every start with every end, start by start: ``(n m, 2)`` each."""
+    return np.repeat(starts, len(ends), axis=0), np.tile(ends, (len(starts), 1))
+
+
+def _limb_type_scores(
+    peaks: list[np.ndarray], fields: np.ndarray, min_paf_score: float
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`limb_scores` of every limb type of :data:`LIMBS`, ``(n, m)`` scores and
+    agreeing fractions each, in as few passes as :data:`_PAIRS_PER_PASS` allows (a pass per
+    type cost most of a small crop's decoding; the bound keeps a crowd's memory small)."""
+    sizes = [len(peaks[first]) * len(peaks[second]) for first, second, _ in LIMBS]
+    out: list[tuple[np.ndarray, np.ndarray]] = []
+    start = 0
+    while start < len(LIMBS):
+        stop = start + 1
+        while stop < len(LIMBS) and sum(sizes[start : stop + 1]) <= _PAIRS_PER_PASS:
+            stop += 1
+        limbs = LIMBS[start:stop]
+        pairs = [
+            _every_pair(peaks[first][:, :2], peaks[second][:, :2]) for first, second, _ in limbs
+        ]
+        channels = np.repeat([channel for _, _, channel in limbs], sizes[start:stop])
+        scores, agreeing = _pair_scores(
+            np.concatenate([p[0] for p in pairs]).reshape(-1, 2),
+            np.concatenate([p[1] for p in pairs]).reshape(-1, 2),
+            fields,
+            channels,
+            min_paf_score,
+        )
+        ends = np.cumsum(sizes[start:stop])[:-1]
+        for (first, second, _), s, a in zip(
+            limbs, np.split(scores, ends), np.split(agreeing, ends), strict=True
+        ):
+            shape = (len(peaks[first]), len(peaks[second]))
+            out.append((s.reshape(shape), a.reshape(shape)))
+        start = stop
+    return out
+
+
+def _pair_scores(
+    starts: np.ndarray,
+    ends: np.ndarray,
+    pafs: np.ndarray,
+    channels: np.ndarray,
+    min_paf_score: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`limb_scores` of ``P`` segments ``starts`` to ``ends`` ``(P, 2)``, each along its own
+    field: channels ``channels[p]`` and the next (x, y) of ``pafs`` ``(C, H, W)``. One pass for
+    the candidate limbs of every limb type (:func:`group_people`): ``(P,)`` each."""
+    height = pafs.shape[1]
+    vectors = ends - starts  # (P, 2)
     lengths = np.linalg.norm(vectors, axis=-1)
     units = vectors / np.maximum(lengths, 1e-6)[..., None]  # a zero-length limb scores 0
     steps = np.linspace(0.0, 1.0, _SAMPLES)
-    points = starts[:, None, None, :] + steps[None, None, :, None] * vectors[:, :, None, :]
-    field = _bilinear(paf, points[..., 0], points[..., 1])  # (2, n, m, samples)
-    projection = field[0] * units[..., 0, None] + field[1] * units[..., 1, None]
+    points = starts[:, None, :] + steps[None, :, None] * vectors[:, None, :]  # (P, samples, 2)
+    field = _bilinear(pafs, points[..., 0], points[..., 1], channels[:, None])  # (2, P, samples)
+    projection = field[0] * units[:, 0, None] + field[1] * units[:, 1, None]
     agree = projection > min_paf_score
     count = agree.sum(axis=-1)
     mean = np.where(agree, projection, 0.0).sum(axis=-1) / np.maximum(count, 1)
@@ -250,9 +307,9 @@ def limb_scores(
     return mean + prior, count / _SAMPLES
 
 
-def _bilinear(maps: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``maps`` ``(C, H, W)`` read at points ``x, y`` (any shape, clamped to the maps) by
-    bilinear interpolation: ``(C, *x.shape)``."""
+def _bilinear(maps: np.ndarray, x: np.ndarray, y: np.ndarray, channels: np.ndarray) -> np.ndarray:
+    """Two maps of ``maps`` ``(C, H, W)``, ``channels`` and the next (broadcast with ``x``),
+    read at points ``x, y`` (clamped to the maps) by bilinear interpolation: ``(2, *x.shape)``."""
     height, width = maps.shape[1:]
     x = np.clip(x, 0.0, width - 1.0)
     y = np.clip(y, 0.0, height - 1.0)
@@ -263,8 +320,9 @@ def _bilinear(maps: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     x1 = np.minimum(x0 + 1, width - 1)
     y1 = np.minimum(y0 + 1, height - 1)
     fx, fy = x - x0, y - y0
-    top = maps[:, y0, x0] * (1 - fx) + maps[:, y0, x1] * fx
-    bottom = maps[:, y1, x0] * (1 - fx) + maps[:, y1, x1] * fx
+    pair = np.stack([channels, channels + 1])  # (2, ...)
+    top = maps[pair, y0, x0] * (1 - fx) + maps[pair, y0, x1] * fx
+    bottom = maps[pair, y1, x0] * (1 - fx) + maps[pair, y1, x1] * fx
     return top * (1 - fy) + bottom * fy
 
 
@@ -312,13 +370,9 @@ def group_people(
     # skeletons as rows: which candidate (index into its type's list, -1: none) per type
     members = np.zeros((0, kinds), dtype=np.intp)
     totals: list[float] = []
-    for first, second, channel in LIMBS:
+    limb_types = _limb_type_scores(peaks, fields, min_paf_score)
+    for (first, second, _), (scores, agreeing) in zip(LIMBS, limb_types, strict=True):
         a, b = peaks[first], peaks[second]
-        if len(a) == 0 or len(b) == 0:
-            continue
-        scores, agreeing = limb_scores(
-            a[:, :2], b[:, :2], fields[channel : channel + 2], min_paf_score
-        )
         ia, ib = np.nonzero((scores > 0) & (agreeing > min_agreeing))
         if len(ia) == 0:
             continue
