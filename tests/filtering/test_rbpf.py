@@ -203,3 +203,30 @@ def test_kalman_update_of_two_dimensional_measurements_in_a_batch():
         np.testing.assert_allclose(new_cov[i, j], (np.eye(4) - k @ h) @ cov[i, j], atol=1e-12)
         expected = multivariate_normal(h @ mean[i, j], s).logpdf(z[i, j])
         assert log_lik[i, j] == pytest.approx(expected)
+
+
+def test_every_block_in_order_updates_as_the_same_blocks_shuffled():
+    """The parts' filters measured all at once, in order (the pose network's slots), give what
+    the same measurements in another order give (the gathered path)."""
+    rng = np.random.default_rng(5)
+    blocks, n = 4, 6
+    a = rng.standard_normal((n, blocks, 2, 2))
+    state = RbpfState(
+        rng.standard_normal((n, 1)),
+        np.full(n, 1 / n),
+        rng.standard_normal((n, blocks, 2)),
+        a @ np.swapaxes(a, -1, -2) + np.eye(2),
+    )
+    z = rng.standard_normal((blocks, 2))
+    noise = np.stack([np.eye(2) * 0.5, np.full((2, 2), np.inf), np.eye(2), np.eye(2) * 2])
+    order = np.array([2, 0, 3, 1])
+    ordered = update(
+        state, blocks=np.arange(blocks), measurement=z, observation=np.eye(2), noise=noise
+    )
+    shuffled = update(
+        state, blocks=order, measurement=z[order], observation=np.eye(2), noise=noise[order]
+    )
+    np.testing.assert_allclose(ordered.mean, shuffled.mean)
+    np.testing.assert_allclose(ordered.cov, shuffled.cov)
+    np.testing.assert_allclose(ordered.weights, shuffled.weights)
+    np.testing.assert_allclose(ordered.mean[:, 1], state.mean[:, 1])  # the infinite noise's

@@ -137,8 +137,16 @@ def update(
         if measurement is None or observation is None or noise is None:
             raise ValueError("blocks need their measurement, observation and noise")
         index = np.broadcast_to(blocks[..., None, :], (*state.weights.shape, blocks.shape[-1]))
-        picked_mean = np.take_along_axis(mean, index[..., None], axis=-2)
-        picked_cov = np.take_along_axis(cov, index[..., None, None], axis=-3)
+        # every block in its order (the pose network's keypoints, one slot per part): the
+        # blocks are the filters themselves, with no gather and scatter
+        in_order = index.shape[-1] == mean.shape[-2] and bool(
+            np.all(index == np.arange(mean.shape[-2]))
+        )
+        if in_order:
+            picked_mean, picked_cov = mean, cov
+        else:
+            picked_mean = np.take_along_axis(mean, index[..., None], axis=-2)
+            picked_cov = np.take_along_axis(cov, index[..., None, None], axis=-3)
         z = np.expand_dims(measurement, -3)  # one measurement for every particle
         informative = np.all(np.isfinite(noise), axis=(-1, -2))
         safe_noise = np.where(np.isfinite(noise), noise, 1.0)
@@ -149,9 +157,12 @@ def update(
         log_w = log_w + evidence_weight * np.sum(np.where(informative, log_evidence, 0.0), axis=-1)
         new_mean = np.where(informative[..., None], new_mean, picked_mean)
         new_cov = np.where(informative[..., None, None], new_cov, picked_cov)
-        mean, cov = mean.copy(), cov.copy()
-        np.put_along_axis(mean, index[..., None], new_mean, axis=-2)
-        np.put_along_axis(cov, index[..., None, None], new_cov, axis=-3)
+        if in_order:
+            mean, cov = new_mean, new_cov
+        else:
+            mean, cov = mean.copy(), cov.copy()
+            np.put_along_axis(mean, index[..., None], new_mean, axis=-2)
+            np.put_along_axis(cov, index[..., None, None], new_cov, axis=-3)
     return replace(state, weights=normalize_log_weights(log_w), mean=mean, cov=cov)
 
 
