@@ -721,23 +721,16 @@ class PoseEstimator:
             )
             resized = cv2.warpAffine(image, warp, (width, height), flags=cv2.INTER_LINEAR)
             crop[...] = resized.transpose(2, 0, 1)
-        heatmaps, pafs = [], []
-        per_batch = self.config.max_batch
-        for start in range(0, len(rows), per_batch):
-            chunk = crops[start : start + per_batch]
-            size = min(1 << (len(chunk) - 1).bit_length(), per_batch)
-            batch = np.zeros((size, 3, height, width), dtype=np.float32)
-            batch[: len(chunk)] = chunk
-            outputs = self.network.infer_all(batch)
-            heatmaps.append(outputs[self._heatmap_output][: len(chunk), : len(KEYPOINT_NAMES)])
-            pafs.append(outputs[self._paf_output][: len(chunk)])
         out = [Poses.empty() for _ in boxes]
-        if len(rows):
-            heat, fields = np.concatenate(heatmaps), np.concatenate(pafs)
-            stride = height / heat.shape[2]
-            for tile, i in enumerate(rows):
-                poses = _group(_peaks_in_cells(heat[tile], self.config), fields[tile], self.config)
-                out[i] = _cells_to_frame(poses, stride, (scale[i], scale[i]), (left[i], top[i]))
+        if len(rows) == 0:
+            return out
+        outputs = self.network.infer_batches(crops, self.config.max_batch)
+        heat = outputs[self._heatmap_output][:, : len(KEYPOINT_NAMES)]  # the background's aside
+        fields = outputs[self._paf_output]
+        stride = height / heat.shape[2]
+        for tile, i in enumerate(rows):
+            poses = _group(_peaks_in_cells(heat[tile], self.config), fields[tile], self.config)
+            out[i] = _cells_to_frame(poses, stride, (scale[i], scale[i]), (left[i], top[i]))
         return out
 
 

@@ -220,26 +220,19 @@ class ReidEmbedder:
         return crops
 
     def _infer(self, crops: list[np.ndarray]) -> np.ndarray:
-        """``(len(crops), D)`` raw embeddings of RGB or greyscale crops, ``max_batch`` per
-        inference (a model of fixed shape: its own batch size), each batch padded to a power of
-        two."""
-        n, _, height, width = self.network.input_shape
-        per_batch = self.config.max_batch if self.network.reshapeable else n
-        out = []
-        for start in range(0, len(crops), per_batch):
-            chunk = crops[start : start + per_batch]
-            size = n
-            if self.network.reshapeable:
-                size = min(1 << (len(chunk) - 1).bit_length(), self.config.max_batch)
-            batch = np.zeros((size, height, width, 3), dtype=np.float32)
-            for i, crop in enumerate(chunk):
-                # stretched to the input whatever its aspect, bilinear, as the demos do; then
-                # BGR (a greyscale crop repeated), 0-255 (the network normalises inside)
-                resized = cv2.resize(crop, (width, height), interpolation=cv2.INTER_LINEAR)
-                batch[i] = resized[..., None] if resized.ndim == 2 else resized[..., ::-1]
-            result = self.network.infer(np.ascontiguousarray(batch.transpose(0, 3, 1, 2)))
-            out.append(np.asarray(result, dtype=np.float32).reshape(size, -1)[: len(chunk)])
-        return np.concatenate(out)
+        """``(len(crops), D)`` raw embeddings of RGB or greyscale crops, in batches of at most
+        ``max_batch`` (:meth:`~tracking.detection.cnn.runtime.Network.infer_batches`)."""
+        _, _, height, width = self.network.input_shape
+        batch = np.empty((len(crops), height, width, 3), dtype=np.float32)
+        for i, crop in enumerate(crops):
+            # stretched to the input whatever its aspect, bilinear, as the demos do; then
+            # BGR (a greyscale crop repeated), 0-255 (the network normalises inside)
+            resized = cv2.resize(crop, (width, height), interpolation=cv2.INTER_LINEAR)
+            batch[i] = resized[..., None] if resized.ndim == 2 else resized[..., ::-1]
+        embeddings = self.network.infer_batches(batch.transpose(0, 3, 1, 2), self.config.max_batch)[
+            0
+        ]
+        return np.asarray(embeddings, dtype=np.float32).reshape(len(crops), -1)
 
 
 def cosine_similarity(a: ArrayLike, b: ArrayLike) -> np.ndarray:

@@ -87,6 +87,22 @@ class Network:
             for i in range(len(compiled.outputs))
         ]
 
+    def infer_batches(self, inputs: np.ndarray, max_batch: int) -> list[np.ndarray]:
+        """Every output for ``inputs`` ``(N, 3, H, W)``, concatenated over ``N``: at most
+        ``max_batch`` per inference, each batch padded to a power of two so that a video
+        compiles a few shapes only (a model of fixed shape: batches of its own size)."""
+        per_batch = max_batch if self.reshapeable else self.input_shape[0]
+        chunks: list[list[np.ndarray]] = []
+        for start in range(0, len(inputs), per_batch):
+            chunk = inputs[start : start + per_batch]
+            size = per_batch
+            if self.reshapeable:
+                size = min(1 << (len(chunk) - 1).bit_length(), per_batch)
+            batch = np.zeros((size, *inputs.shape[1:]), dtype=np.float32)
+            batch[: len(chunk)] = chunk
+            chunks.append([output[: len(chunk)] for output in self.infer_all(batch)])
+        return [np.concatenate(outputs) for outputs in zip(*chunks, strict=True)]
+
     def _compiled_for(self, shape: tuple[int, ...]):
         with self._lock:
             compiled = self._compiled.get(shape)
