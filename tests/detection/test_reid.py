@@ -113,9 +113,12 @@ def _twenty_boxes(sequence: MotSequence) -> tuple[np.ndarray, np.ndarray]:
     return frame, many
 
 
-def test_a_batch_beyond_max_batch_equals_one_box_at_a_time(shared_data, fast_embedder):
+@pytest.mark.parametrize("count", [20, 7, 5, 1])
+def test_a_batch_beyond_max_batch_equals_one_box_at_a_time(shared_data, fast_embedder, count):
+    """Several rounds of requests (20), a padded last request (7, 5), one crop."""
     sequence = MotSequence.open(shared_data / "mot" / "PETS09-S2L1")
     frame, boxes = _twenty_boxes(sequence)
+    boxes = boxes[:count]
     assert fast_embedder.config.max_batch < 20  # several inferences
     together = fast_embedder.embed(frame, boxes)
     alone = np.concatenate([fast_embedder.embed(frame, box[None]) for box in boxes])

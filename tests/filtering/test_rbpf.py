@@ -230,3 +230,54 @@ def test_every_block_in_order_updates_as_the_same_blocks_shuffled():
     np.testing.assert_allclose(ordered.cov, shuffled.cov)
     np.testing.assert_allclose(ordered.weights, shuffled.weights)
     np.testing.assert_allclose(ordered.mean[:, 1], state.mean[:, 1])  # the infinite noise's
+
+
+def test_one_dimensional_blocks_filter_as_the_axes_of_diagonal_two_dimensional_ones():
+    """The body parts' x and y as 1-D blocks (elementwise updates) give what 2-D blocks with
+    diagonal matrices give (the matrix path), per particle, with the evidence summed."""
+    rng = np.random.default_rng(7)
+    people, n, parts = 3, 5, 4
+    variance = rng.uniform(0.5, 2.0, (people, n, parts, 2))
+    deviation = rng.standard_normal((people, n, parts, 2))
+    a, q = rng.uniform(0.5, 1.0, (parts, 2)), rng.uniform(0.1, 0.3, (parts, 2))
+    h = rng.uniform(20.0, 80.0, (people, n))  # the particles' heights
+    offset = rng.standard_normal((people, n, parts, 2))
+    z = rng.standard_normal((people, parts, 2))
+    r = rng.uniform(0.5, 3.0, (people, parts, 2))
+    r[0, 1] = np.inf  # a part without a measurement
+    square = RbpfState(
+        rng.standard_normal((people, n, 1)),
+        np.full((people, n), 1 / n),
+        deviation,
+        variance[..., None] * np.eye(2),
+    )
+    square = predict(square, lambda p: p, a[..., None] * np.eye(2), q[..., None] * np.eye(2))
+    square = update(
+        square,
+        blocks=np.broadcast_to(np.arange(parts), (people, parts)),
+        measurement=z,
+        observation=h[..., None, None, None] * np.eye(2),
+        offset=offset,
+        noise=np.where(np.eye(2, dtype=bool), r[:, None, :, :, None], 0.0),
+    )
+    flat = RbpfState(
+        square.particles,
+        np.full((people, n), 1 / n),
+        deviation.reshape(people, n, 2 * parts, 1),
+        variance.reshape(people, n, 2 * parts, 1, 1),
+    )
+    flat = predict(flat, lambda p: p, a.reshape(-1, 1, 1), q.reshape(-1, 1, 1))
+    flat = update(
+        flat,
+        blocks=np.broadcast_to(np.arange(2 * parts), (people, 2 * parts)),
+        measurement=z.reshape(people, 2 * parts, 1),
+        observation=h[..., None, None, None],
+        offset=offset.reshape(people, n, 2 * parts, 1),
+        noise=r.reshape(people, 1, 2 * parts, 1, 1),
+    )
+    np.testing.assert_allclose(flat.mean.reshape(deviation.shape), square.mean)
+    np.testing.assert_allclose(
+        flat.cov.reshape(variance.shape), np.diagonal(square.cov, axis1=-2, axis2=-1)
+    )
+    np.testing.assert_allclose(flat.weights, square.weights)
+    assert np.all(square.cov[..., 0, 1] == 0)  # diagonal stays diagonal

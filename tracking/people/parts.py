@@ -1,7 +1,12 @@
-"""Body parts in the particle filter: one 2-D Kalman filter per part and particle
-(docs/architecture.md §5). The linear state of part ``p`` is its offset's deviation ``delta``
-from the body-model mean ``mu_p``, in heights; its image position is
-``centre + h (mu_p + delta)``."""
+"""Body parts in the particle filter: Kalman filters per part and particle (docs/architecture.md
+§5). The linear state of part ``p`` is its offset's deviation ``delta`` from the body-model mean
+``mu_p``, in heights; its image position is ``centre + h (mu_p + delta)``.
+
+Every matrix of the model is diagonal (the prior, the AR(1) pull and its noise, ``H = h I``,
+the measurement noise), so a part's x and y deviations are independent: the filter holds them
+as ``2P`` blocks of one dimension, part ``p``'s x at block ``2p`` and y at ``2p + 1`` (the same
+memory as ``(P, 2)``). The updates are then elementwise, and exactly those of ``P`` 2-D blocks.
+"""
 
 from __future__ import annotations
 
@@ -21,35 +26,30 @@ if TYPE_CHECKING:
 
 
 def prior(body: BodyModel) -> tuple[np.ndarray, np.ndarray]:
-    """Mean ``(P, 2)`` and covariance ``(P, 2, 2)`` of the deviations at a person's birth: the
+    """Mean ``(2P, 1)`` and variance ``(2P, 1, 1)`` of the deviations at a person's birth: the
     body model's own spread (the deformation prior)."""
-    cov = np.zeros((len(body), 2, 2))
-    cov[:, 0, 0] = body.std[:, 0] ** 2
-    cov[:, 1, 1] = body.std[:, 1] ** 2
-    return np.zeros((len(body), 2)), cov
+    return np.zeros((2 * len(body), 1)), (body.std**2).reshape(-1, 1, 1)
 
 
 def transition(
     body: BodyModel, dt: float, config: PeopleTrackerConfig
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``A`` and ``Q`` ``(P, 2, 2)`` of the deviations over ``dt`` seconds.
+    """``A`` and ``Q`` ``(2P, 1, 1)`` of the deviations over ``dt`` seconds.
 
     An AR(1) pull towards the body-model mean, ``delta' = a delta + w`` with
     ``a = exp(-gain dt)``, whose noise keeps the stationary spread at the body model's
     (``std^2 (1 - a^2)``) plus a small random walk (``part_process_noise^2 dt``).
     """
     a = math.exp(-config.part_prior_gain * max(dt, 0.0))
-    transition_ = np.broadcast_to(a * np.eye(2), (len(body), 2, 2))
     variance = body.std**2 * (1.0 - a * a) + config.part_process_noise**2 * max(dt, 0.0)
-    noise = np.zeros((len(body), 2, 2))
-    noise[:, 0, 0], noise[:, 1, 1] = variance[:, 0], variance[:, 1]
-    return transition_, noise
+    return np.full((2 * len(body), 1, 1), a), variance.reshape(-1, 1, 1)
 
 
 def positions(body: BodyModel, state: RbpfState) -> np.ndarray:
     """Estimated image positions ``(T, P, 2)``: the weighted mean over particles of
     ``centre + h (mu + delta)``."""
-    per_particle = _particle_positions(body, state.particles, state.mean)
+    deviation = state.mean.reshape(*state.mean.shape[:-2], len(body), 2)
+    per_particle = _particle_positions(body, state.particles, deviation)
     return np.einsum("tn,tnpd->tpd", state.weights, per_particle)
 
 
@@ -97,8 +97,8 @@ def filter_arguments(
     The measurement of part ``p`` is ``z = centre + h mu_p + h delta_p + e``: linear in the
     deviation ``delta_p`` with ``H = h I`` and offset ``centre + h mu_p`` per particle, noise
     ``e`` with a standard deviation of ``sigma`` heights, per person ``(T,)`` or per person and
-    part ``(T, P)``. Every person has one slot per part; slots without a measurement carry
-    infinite noise, which the filter skips.
+    part ``(T, P)``. Every person has a slot per part and axis; slots without a measurement
+    carry infinite noise, which the filter skips.
     """
     if not np.any(found):
         return {}
@@ -106,14 +106,13 @@ def filter_arguments(
     roots = np.einsum("tn,tnd->td", state.weights, state.particles)
     sigma = np.broadcast_to(np.asarray(sigma, dtype=np.float64).reshape(people, -1), found.shape)
     variance = (sigma * np.exp(roots[:, LOG_H])[:, None]) ** 2  # (T, P)
+    variance = np.where(found, variance, np.inf)  # infinite: no measurement
     height = np.exp(state.particles[..., LOG_H])  # (T, N)
-    r = np.zeros((people, 1, parts, 2, 2))
-    r[..., 0, 0] = r[..., 1, 1] = variance[:, None, :]
-    r[~found[:, None, :]] = np.inf
-    return {
-        "blocks": np.broadcast_to(np.arange(parts), (people, parts)),
-        "measurement": z,
-        "observation": height[..., None, None, None] * np.eye(2),
-        "offset": state.particles[..., None, [CX, CY]] + height[..., None, None] * body.mean,
-        "noise": r,
+    offset = state.particles[..., None, [CX, CY]] + height[..., None, None] * body.mean
+    return {  # the blocks of x and y (the module's docstring)
+        "blocks": np.broadcast_to(np.arange(2 * parts), (people, 2 * parts)),
+        "measurement": z.reshape(people, 2 * parts, 1),
+        "observation": height[..., None, None, None],
+        "offset": offset.reshape(*offset.shape[:2], 2 * parts, 1),
+        "noise": np.repeat(variance, 2, axis=1).reshape(people, 1, 2 * parts, 1, 1),
     }

@@ -151,7 +151,8 @@ class CnnDetector:
             size = self.config.input_for(image.shape)
             blob = cv2.resize(image, size, interpolation=_interpolation(image.shape, size))
             scale = (size[0] / image.shape[1], size[1] / image.shape[0])
-            batch = blob.transpose(2, 0, 1)[None].astype(np.float32)
+            batch = np.empty((1, 3, size[1], size[0]), dtype=np.float32)
+            batch[0] = blob.transpose(2, 0, 1)  # planar float in one pass, contiguous
         else:
             batch, s = self._letterboxed([image])
             scale = (s[0], s[0])

@@ -23,6 +23,7 @@ MODEL_SUFFIXES = (".xml", ".onnx")
 """Model files the runtime reads: OpenVINO IR (with its ``.bin`` beside it) and ONNX."""
 
 _MAX_SHAPES = 8  # compiled shapes kept per model: the frame's, and a few batch sizes of regions
+_STREAMS = 2  # concurrent requests of Network.infer_batches (see there)
 
 
 class CnnModelError(ValueError):
@@ -88,29 +89,50 @@ class Network:
         ]
 
     def infer_batches(self, inputs: np.ndarray, max_batch: int) -> list[np.ndarray]:
-        """Every output for ``inputs`` ``(N, 3, H, W)``, concatenated over ``N``: at most
-        ``max_batch`` per inference, each batch padded to a power of two so that a video
-        compiles a few shapes only (a model of fixed shape: batches of its own size)."""
-        per_batch = max_batch if self.reshapeable else self.input_shape[0]
-        chunks: list[list[np.ndarray]] = []
-        for start in range(0, len(inputs), per_batch):
-            chunk = inputs[start : start + per_batch]
-            size = per_batch
-            if self.reshapeable:
-                size = min(1 << (len(chunk) - 1).bit_length(), per_batch)
-            batch = np.zeros((size, *inputs.shape[1:]), dtype=np.float32)
-            batch[: len(chunk)] = chunk
-            chunks.append([output[: len(chunk)] for output in self.infer_all(batch)])
-        return [np.concatenate(outputs) for outputs in zip(*chunks, strict=True)]
+        """Every output for ``inputs`` ``(N, 3, H, W)``, concatenated over ``N``.
 
-    def _compiled_for(self, shape: tuple[int, ...]):
+        The inputs go as :data:`_STREAMS` requests of one size at a time, each at most
+        ``max_batch`` (a model of fixed shape: its own batch size), run at once on as many CPU
+        streams (OpenVINO's throughput mode), the last request padded. A small network on a
+        small batch keeps one core busy per request better than cores share one request:
+        6 re-identification crops took 7.2 ms as two requests of 3 against 11.6 ms as
+        batches of 4 and 2 on one stream of two threads, 6 pose crops 5.7 against 7.2 ms.
+        """
+        count = len(inputs)
+        size = self.input_shape[0]
+        if self.reshapeable:  # the streams share the inputs: ceil(count / streams) each
+            size = max(1, min(-(-count // _STREAMS), max_batch))
+        padded = np.zeros((-(-count // size) * size, *inputs.shape[1:]), dtype=np.float32)
+        padded[:count] = inputs
+        compiled = self._compiled_for((size, *inputs.shape[1:]), streams=_STREAMS)
+        requests = [compiled.create_infer_request() for _ in range(min(_STREAMS, count))]
+        outputs: list[list[np.ndarray]] = [[] for _ in compiled.outputs]
+        for first in range(0, len(padded), size * _STREAMS):
+            running = requests[: (len(padded) - first) // size]
+            for k, request in enumerate(running):
+                start = first + k * size
+                request.start_async({0: padded[start : start + size]}, share_inputs=True)
+            for request in running:
+                request.wait()
+                for i, parts in enumerate(outputs):
+                    parts.append(np.array(request.get_output_tensor(i).data))
+        return [np.concatenate(parts)[:count] for parts in outputs]
+
+    def _compiled_for(self, shape: tuple[int, ...], streams: int = 1):
+        """The model compiled for input ``shape`` on ``streams`` CPU streams (1: latency
+        mode, every thread on one request), once per process."""
+        key = (shape, streams)
         with self._lock:
-            compiled = self._compiled.get(shape)
+            compiled = self._compiled.get(key)
             if compiled is not None:
-                self._compiled.move_to_end(shape)
+                self._compiled.move_to_end(key)
                 return compiled
             model = self._model.clone()
-            config: dict[str, str | int] = {"PERFORMANCE_HINT": "LATENCY"}
+            config: dict[str, str | int] = (
+                {"PERFORMANCE_HINT": "LATENCY"}
+                if streams == 1
+                else {"PERFORMANCE_HINT": "THROUGHPUT", "NUM_STREAMS": streams}
+            )
             if self.threads:
                 config["INFERENCE_NUM_THREADS"] = self.threads
             try:
@@ -122,7 +144,7 @@ class Network:
                     f"{self.path.name} does not compile on the CPU for input {shape} "
                     f"({_first_line(error)})"
                 ) from None
-            self._compiled[shape] = compiled
+            self._compiled[key] = compiled
             if len(self._compiled) > _MAX_SHAPES:
                 self._compiled.popitem(last=False)
             return compiled
