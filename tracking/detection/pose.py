@@ -481,7 +481,8 @@ class PoseConfig:
         The crop around a box: ``crop_margin`` of its height above and below it, centred on it
         at ``crop_size``'s aspect.
     max_batch:
-        Crops per inference (a batch padded to a power of two, so that a few shapes compile).
+        Crops per inference request: two requests run at once, each of ``ceil(crops / 2)``
+        up to this (``Network.infer_batches``).
     threads:
         Inference threads; 0: OpenVINO's choice.
     """

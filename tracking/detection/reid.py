@@ -73,10 +73,10 @@ class ReidConfig:
     threads:
         Inference threads; 0: OpenVINO's choice.
     max_batch:
-        Crops per inference; more boxes go in several inferences. Batches are padded to a
-        power of two (at most this), so a video compiles a few input shapes only; 4 wastes
-        less on padding than larger batches gain (6 people: 13.7 ms in batches of 4 and 2,
-        14.7 ms in one of 8).
+        Crops per inference request; more boxes go in several. Two requests run at once,
+        each of ``ceil(boxes / 2)`` crops up to this
+        (:meth:`~tracking.detection.cnn.runtime.Network.infer_batches`), so a video compiles
+        a few input shapes only.
     min_box_side:
         A box whose part inside the frame is narrower or lower than this many pixels gets no
         embedding (a NaN row): a crop of a few pixels stretched to 256x128 says nothing about
