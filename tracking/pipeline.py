@@ -40,6 +40,11 @@ class FramePipeline(Protocol):
         """Pairs of :attr:`part_names` joined by a limb, for drawing (empty: none)."""
         ...
 
+    def prepare(self) -> None:
+        """Do now the one-off work the first frames would do (compiling networks for the
+        shapes they will take), for a live stream that would drop frames meanwhile."""
+        ...
+
     def process(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
     ) -> FrameTracks:
@@ -88,6 +93,9 @@ class SingleTargetPipeline:
     @property
     def skeleton(self) -> tuple[tuple[str, str], ...]:
         return ()
+
+    def prepare(self) -> None:
+        """Nothing: the correlation tracker compiles nothing."""
 
     def process(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None
@@ -153,6 +161,9 @@ class PeoplePipeline:
     @property
     def skeleton(self) -> tuple[tuple[str, str], ...]:
         return self._tracker.skeleton
+
+    def prepare(self) -> None:
+        self._tracker.prepare()
 
     def process(
         self, frame: np.ndarray, timestamp: float, detections: Detections | None = None

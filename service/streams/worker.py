@@ -253,6 +253,9 @@ class StreamWorker:
         # planned again at each start: the service's models may have changed since the last
         plan = check_options(job_options(self.spec), self.context.resources)
         pipeline = build_pipeline(plan)
+        # the networks compiled for every batch of people now, not on the frames where a new
+        # number of people first shows (each compile would drop the frames behind it)
+        pipeline.prepare()
         # a recording holds one run of tracks, and says what ran
         self._recording.new_run(pipeline.part_names, pipeline.skeleton, plan.options)
         self._zones.new_run()  # the zones are placed on the new run's first frame

@@ -3,6 +3,8 @@ built by hand, and Open Model Zoo's human-pose-estimation-0001 on real PETS09-S2
 
 from __future__ import annotations
 
+import dataclasses
+from collections import OrderedDict
 from pathlib import Path
 
 import cv2
@@ -311,3 +313,21 @@ def test_boxes_without_a_crop_get_no_skeleton(estimator: PoseEstimator, pets: Mo
     grey = estimator.estimate_crops(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY), person[None])
     assert len(grey[0]) >= 1
     assert estimator.estimate_crops(frame, np.zeros((0, 4))) == []
+
+
+def test_after_prepare_crops_no_number_of_people_compiles_anything(
+    estimator: PoseEstimator, pets: MotSequence
+):
+    """A live stream compiles every batch of crops up front (PoseEstimator.prepare_crops):
+    the crops of 1 to 9 people then find every shape compiled."""
+    network = dataclasses.replace(estimator.network, _compiled=OrderedDict())
+    fresh = PoseEstimator(network, estimator.config)
+    fresh.prepare_crops()
+    prepared = list(network._compiled)
+    assert len(prepared) == fresh.config.max_batch
+    frame, people = pets.read_frame(100), pets.gt[100]
+    for count in range(1, 10):
+        fresh.estimate_crops(frame, people[:count])
+    assert sorted(network._compiled) == sorted(prepared)
+    PoseEstimator(network, dataclasses.replace(estimator.config, crop_size=None)).prepare_crops()
+    assert sorted(network._compiled) == sorted(prepared)  # crops off: nothing to prepare

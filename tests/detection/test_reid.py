@@ -4,6 +4,7 @@ person-reidentification-retail networks on real PETS09-S2L1 frames."""
 from __future__ import annotations
 
 import dataclasses
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -172,3 +173,17 @@ def test_cosine_similarity_is_nan_for_rows_without_an_embedding():
 def test_config_refuses_nonsense(options):
     with pytest.raises(ValueError):
         ReidConfig(**options)
+
+
+def test_after_prepare_no_number_of_people_compiles_anything(shared_data, fast_embedder):
+    """A live stream compiles every batch of crops up front: embedding 1 to 9 people then
+    finds every shape compiled (each compile would have cost a tenth of a second or more)."""
+    network = dataclasses.replace(fast_embedder.network, _compiled=OrderedDict())
+    embedder = ReidEmbedder(network, fast_embedder.config)
+    embedder.prepare()
+    prepared = list(network._compiled)
+    assert len(prepared) == embedder.config.max_batch
+    frame, boxes = _twenty_boxes(MotSequence.open(shared_data / "mot" / "PETS09-S2L1"))
+    for count in range(1, 10):
+        embedder.embed(frame, boxes[:count])
+    assert sorted(network._compiled) == sorted(prepared)

@@ -676,6 +676,13 @@ class PoseEstimator:
         scale = (size[0] / image.shape[1], size[1] / image.shape[0])
         return decode_openpose(heatmaps, pafs, scale, stride, self.config)
 
+    def prepare_crops(self) -> None:
+        """Compile the network for every batch of crops now (``Network.prepare_batches``),
+        not on the frames that first need each; nothing when crops are off."""
+        if self.config.crop_size is not None and self.network.reshapeable:
+            width, height = self.config.crop_size
+            self.network.prepare_batches((3, height, width), self.config.max_batch)
+
     def crops_cheaper(self, frame_shape: tuple[int, ...], count: int) -> bool:
         """Whether ``count`` crops (:meth:`estimate_crops`) feed the network fewer pixels than
         the whole frame (:meth:`estimate`) would: the network's time follows its input's

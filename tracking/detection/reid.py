@@ -163,6 +163,11 @@ class ReidEmbedder:
         default = KNOWN_REID_CALIBRATIONS["person-reidentification-retail-0287"]
         return KNOWN_REID_CALIBRATIONS.get(self.model_name, default)
 
+    def prepare(self) -> None:
+        """Compile the network for every batch of crops now (``Network.prepare_batches``),
+        not on the frames that first need each."""
+        self.network.prepare_batches(self.network.input_shape[1:], self.config.max_batch)
+
     @property
     def embedding_size(self) -> int:
         """``D``: the length of each embedding (256 for Open Model Zoo's networks)."""

@@ -153,6 +153,14 @@ class MultiPersonTracker:
         """Pairs of :attr:`part_names` joined by a limb (the body model's, for drawing)."""
         return self._body.skeleton
 
+    def prepare(self) -> None:
+        """Compile the pose and re-identification networks for every batch of crops now, not
+        on the frames that first need each (a live stream would drop the frames behind)."""
+        if self._pose is not None:
+            self._pose.prepare_crops()
+        if self._reid is not None:
+            self._reid.prepare()
+
     def reset(self) -> None:
         """Forget every person; ids start again at 1, frame indices at 0."""
         self._frames_tracked = 0  # frames reported so far: the next one's index

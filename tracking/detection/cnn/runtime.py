@@ -118,6 +118,15 @@ class Network:
                     parts.append(np.array(request.get_output_tensor(i).data))
         return [np.concatenate(parts)[:count] for parts in outputs]
 
+    def prepare_batches(self, item_shape: tuple[int, int, int], max_batch: int) -> None:
+        """Compile now every request size :meth:`infer_batches` may use for inputs of
+        ``item_shape`` ``(3, H, W)`` (a tenth to a quarter of a second each, which a live
+        stream would otherwise spend on the frames where a new number of people first shows,
+        dropping the frames behind them)."""
+        sizes = range(1, max_batch + 1) if self.reshapeable else (self.input_shape[0],)
+        for size in sizes:
+            self._compiled_for((size, *item_shape), streams=_STREAMS)
+
     def _compiled_for(self, shape: tuple[int, ...], streams: int = 1):
         """The model compiled for input ``shape`` on ``streams`` CPU streams (1: latency
         mode, every thread on one request), once per process."""
