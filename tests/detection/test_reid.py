@@ -187,3 +187,8 @@ def test_after_prepare_no_number_of_people_compiles_anything(shared_data, fast_e
     for count in range(1, 10):
         embedder.embed(frame, boxes[:count])
     assert sorted(network._compiled) == sorted(prepared)
+
+
+def test_no_input_is_refused_plainly(fast_embedder):
+    with pytest.raises(ValueError, match="at least one input"):
+        fast_embedder.network.infer_batches(np.zeros((0, 3, 256, 128), np.float32), 4)
