@@ -186,8 +186,7 @@ def test_effective_sample_size_and_degenerate_weights():
 
 
 def test_kalman_update_of_two_dimensional_measurements_in_a_batch():
-    """The body parts' 2D measurements take a closed-form inverse: a batch of them gives the
-    textbook update of each, as the general path does."""
+    """A batch of 2-D measurements of 4-D states gives the textbook update of each."""
     rng = np.random.default_rng(1)
     a = rng.standard_normal((5, 7, 4, 4))
     cov = a @ np.swapaxes(a, -1, -2) + np.eye(4)

@@ -704,12 +704,12 @@ class PoseEstimator:
         the box's person is the caller's choice. A box that is not finite or not positive gets
         no skeleton.
         """
+        if self.config.crop_size is None:
+            raise ValueError("crops are disabled (PoseConfig.crop_size is None)")
         image = validate_uint8_frame(frame, "the pose estimator")
         code = cv2.COLOR_GRAY2BGR if image.ndim == 2 else cv2.COLOR_RGB2BGR
         image = cv2.cvtColor(image, code)
         boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-        if self.config.crop_size is None:
-            raise ValueError("crops are disabled (PoseConfig.crop_size is None)")
         width, height = self.config.crop_size
         usable = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > 0) & (boxes[:, 3] > 0)
         # input pixels per frame pixel (1 for boxes without a crop), and the crop's top-left

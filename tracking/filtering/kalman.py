@@ -68,13 +68,14 @@ def kalman_update(
     h_t = np.swapaxes(observation, -1, -2)
     innovation = measurement - (np.einsum("...ij,...j->...i", observation, mean) + offset)
     s = observation @ cov @ h_t + noise  # S = H P H' + R
-    s_inv, log_det = _inverse_and_log_det(s)
+    s_inv = np.linalg.inv(s)
     gain = cov @ h_t @ s_inv  # K = P H' S^-1
     mean = mean + np.einsum("...ij,...j->...i", gain, innovation)  # x = x + K (z - H x - c)
     cov = cov - gain @ observation @ cov  # P = (I - K H) P
     cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))  # keep it symmetric against rounding
     m = innovation.shape[-1]
     mahalanobis = np.einsum("...i,...ij,...j->...", innovation, s_inv, innovation)
+    log_det = np.linalg.slogdet(s)[1]
     log_likelihood = -0.5 * (mahalanobis + log_det + m * np.log(2.0 * np.pi))
     return mean, cov, log_likelihood
 
@@ -97,15 +98,3 @@ def _scalar_update(
     p = p - gain * h * p  # P = (I - K H) P
     log_likelihood = -0.5 * (innovation**2 / s + np.log(s) + np.log(2.0 * np.pi))
     return mean, p[..., None], log_likelihood[..., 0]
-
-
-def _inverse_and_log_det(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``S^-1`` and ``log |det S|`` of a stack ``(..., m, m)``; in closed form for ``m = 2``,
-    the body parts' image positions, where LAPACK's call per matrix cost more than the rest of
-    the update."""
-    if s.shape[-1] != 2:
-        return np.linalg.inv(s), np.linalg.slogdet(s)[1]
-    a, b, c, d = s[..., 0, 0], s[..., 0, 1], s[..., 1, 0], s[..., 1, 1]
-    det = a * d - b * c
-    inverse = np.stack([np.stack([d, -b], axis=-1), np.stack([-c, a], axis=-1)], axis=-2)
-    return inverse / det[..., None, None], np.log(np.abs(det))

@@ -24,7 +24,7 @@ __all__ = ["MODEL_SUFFIXES", "CnnModelError", "Network", "load_network"]
 MODEL_SUFFIXES = (".xml", ".onnx")
 """Model files the runtime reads: OpenVINO IR (with its ``.bin`` beside it) and ONNX."""
 
-_MAX_SHAPES = 8  # compiled shapes kept per model: the frame's, and a few batch sizes of regions
+_MAX_SHAPES = 8  # compiled shapes kept per model: the frame's, a few batch sizes of crops
 _STREAMS = 2  # concurrent requests of Network.infer_batches (see there)
 
 
