@@ -3,15 +3,18 @@ keypoints as part measurements, people hidden for 2 s who keep their ids (issue 
 
 from __future__ import annotations
 
+import dataclasses
+
+import cv2
 import numpy as np
 import pytest
 
 from tracking.datasets.mot import MotSequence, read_mot_rows
-from tracking.detection import make_detector
+from tracking.detection import detections_from_arrays, make_detector
 from tracking.detection.nms import box_iou
 from tracking.detection.pose import KEYPOINT_NAMES, PoseEstimator
 from tracking.detection.reid import ReidEmbedder
-from tracking.people import POSE_BODY, MultiPersonTracker
+from tracking.people import POSE_BODY, MultiPersonTracker, PeopleTrackerConfig
 from tracking.people.keypoints import assign_skeletons, keypoint_measurements
 
 MODELS = "models"
@@ -128,6 +131,52 @@ def test_people_hidden_for_two_seconds_keep_their_ids(shared_data, pets):
         before, after = _most_common(ids[20:30]), _most_common(ids[48:62])
         kept[person] = before == after != 0
     assert sum(kept.values()) >= 4, kept
+
+
+@pytest.mark.parametrize(("person", "other"), [(15, 9), (9, 19)])
+def test_a_person_whose_place_shows_someone_else_does_not_take_that_detection(
+    shared_data, pets, person, other
+):
+    """PETS09-S2L1 with its ground-truth boxes as detections. For frames 18-20 the pixels of
+    ``person``'s box show ``other`` (copied from ``other``'s box of that frame), and the
+    detection there stays: a neighbour seen where the person was. The embeddings give it a
+    probability below ``reid_gate`` of being the person, so the person's track takes no
+    detection then and has its id back on its own person afterwards; with no gate it takes
+    the stranger's. The colours' gate is off, so that the embeddings alone decide."""
+    truth = read_mot_rows(pets.path / "gt" / "gt.txt")
+    reid = ReidEmbedder.from_file(shared_data / MODELS / REID)
+    frames, detections, place = [], [], []
+    for index in range(26):
+        rows = truth[truth[:, 0] == index + 1]
+        boxes = {int(r[1]): np.array([r[2] - 1, r[3] - 1, r[4], r[5]]) for r in rows}
+        frame = pets.read_frame(index).copy()
+        if 18 <= index < 21:
+            x, y, w, h = boxes[person].astype(int)
+            ox, oy, ow, oh = boxes[other].astype(int)
+            frame[y : y + h, x : x + w] = cv2.resize(frame[oy : oy + oh, ox : ox + ow], (w, h))
+        frames.append(frame)
+        ordered = np.array(list(boxes.values()))
+        confidence = np.full(len(ordered), 0.9)
+        detections.append(detections_from_arrays(ordered, np.ones(len(ordered)), confidence))
+        place.append(boxes[person])
+    # the premise: the stranger's crop is not the person by the embeddings
+    before = reid.embed(frames[17], place[17][None])
+    swapped = reid.embed(frames[18], place[18][None])
+    same = reid.calibration.probability(float(np.sum(before * swapped)))
+    config = PeopleTrackerConfig(identity_gate=0.0)
+    assert same < config.reid_gate
+
+    def ids_at_the_person(gate: float) -> list[int]:
+        tracker = MultiPersonTracker(dataclasses.replace(config, reid_gate=gate), reid=reid)
+        return [
+            _track_on(tracker.update(frame, index / FPS, found), box)
+            for index, (frame, found, box) in enumerate(zip(frames, detections, place, strict=True))
+        ]
+
+    ids = ids_at_the_person(config.reid_gate)
+    assert ids[17] != 0 and ids[18:21] == [0, 0, 0] and ids[21:] == [ids[17]] * 5, ids
+    ungated = ids_at_the_person(0.0)
+    assert ungated[18:21] == [ungated[17]] * 3, ungated
 
 
 def _most_common(ids: list[int]) -> int:

@@ -183,19 +183,19 @@ class PeopleTrackerConfig:
     reid_gate:
         Least calibrated probability that a detection shows the person (by the embeddings'
         cosine) for them to be associated. Below 0.1, a person whose own detection is missing
-        (covered in a group, or gone) takes another's that the embeddings give a probability of
-        0.06-0.27 (traced on TUD-Stadtmitte), and from then on follows that person. Measured with ``ours+reid`` on the public
-        detections and ``ours+detbox+reid`` on the CNN's, PETS09-S2L1 and TUD-Stadtmitte, 5
-        seeds (``benchmarks/mot.py`` protocol), HOTA of both sequences together, public / CNN:
-        53.6 / 61.7 at 0.01, 54.5 / 62.1 at 0.05, 54.9 / 63.8 at 0.1, 53.9 / 62.7 at 0.2,
-        53.8 / 61.3 at 0.5. 0.1 gains on PETS09-S2L1 (CNN: HOTA +2.5, IDF1 +4.8) and loses
-        nothing on TUD-Stadtmitte (CNN +0.3 / -0.3, public +0.6 / +2.4). Tried beside it and
-        not kept: a stricter gate (0.5, 0.9) for a person who missed the previous frame, as
-        StrongSORT's cascade matches such tracks by appearance only (TUD-Stadtmitte's CNN HOTA
-        61.3, but PETS09-S2L1's 63.0 against 64.8: its people come back from occlusions
-        looking different); a gallery that learns only detections it recognises (probability
-        0.5 or 0.9: HOTA down 0.6-1.5); ``reid_weight`` 2 or ``identity_weight`` 15 (within
-        0.2 HOTA).
+        (covered in a group, or gone) takes another's that the embeddings give a probability
+        of 0.06-0.27 (traced on TUD-Stadtmitte), and from then on follows that person.
+        Measured with ``ours+reid`` on the public detections and ``ours+detbox+reid`` on the
+        CNN's, PETS09-S2L1 and TUD-Stadtmitte, 5 seeds (``benchmarks/mot.py`` protocol), HOTA
+        of both sequences together, public / CNN: 53.6 / 61.7 at 0.01, 54.5 / 62.1 at 0.05,
+        54.9 / 63.8 at 0.1, 53.9 / 62.7 at 0.2, 53.8 / 61.3 at 0.5. 0.1 gains on PETS09-S2L1
+        (CNN: HOTA +2.5, IDF1 +4.8) and loses nothing on TUD-Stadtmitte (CNN +0.3 / -0.3,
+        public +0.6 / +2.4). Tried beside it and not kept: a stricter gate (0.5, 0.9) for a
+        person who missed the previous frame, as StrongSORT's cascade matches such tracks by
+        appearance only (TUD-Stadtmitte's CNN HOTA 61.3, but PETS09-S2L1's 63.0 against
+        64.8: its people come back from occlusions looking different); a gallery that learns
+        only detections it recognises (probability 0.5 or 0.9: HOTA down 0.6-1.5);
+        ``reid_weight`` 2 or ``identity_weight`` 15 (within 0.2 HOTA).
     reid_gallery:
         Embeddings kept per person (the latest, taken only while the person is detected,
         confident and unoccluded); a detection is compared with the most similar.
