@@ -99,7 +99,7 @@ class PeopleTrackerConfig:
         Least calibrated probability of a detection that may start a track. BoT-SORT's 0.7
         (5 seeds, with re-identification): public TUD-Stadtmitte's false positives fall from
         70 to 46 (small boxes of unannotated people far behind), but PETS09-S2L1 loses a HOTA
-        point on both the public and the CNN's detections; 0.8 loses more.
+        point on both the public and the CNN's detections; 0.8 is no better.
     confirm_hits:
         Associations needed, within ``confirm_window`` seconds of its start, before a track is
         reported.
