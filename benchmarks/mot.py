@@ -1608,6 +1608,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         help=f"write a PNG of our tracks on a {PICTURE_SEQUENCE} frame to this path (default: "
         "no picture)",
     )
+    parser.add_argument(
+        "--score",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="score the results with TrackEval (default on; --no-score: the result files only, "
+        "for a script that scores them itself, as benchmarks/holdout_people.py does)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     parser.add_argument("--list", action="store_true", help="list the tracker names and exit")
     args = parser.parse_args(argv)
@@ -1925,9 +1932,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
 
     write_results(outcome, results)
-    scored, unscored = score(python, outcome, results)
+    scored, unscored = score(python, outcome, results) if args.score else ({}, None)
     report = summarize(outcome, scored, results)
-    if not scored_trackers(report):  # a run that scored nothing has not measured anything
+    if args.score and not scored_trackers(report):  # a run that scored nothing has not measured anything
         report["error"] = f"no tracker was scored: {unscored or 'see the notes and errors'}"
     if args.picture is not None:
         drawn = make_picture(outcome, args.picture)
