@@ -1934,7 +1934,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_results(outcome, results)
     scored, unscored = score(python, outcome, results) if args.score else ({}, None)
     report = summarize(outcome, scored, results)
-    if args.score and not scored_trackers(report):  # a run that scored nothing has not measured anything
+    # a run that scored nothing has not measured anything
+    if args.score and not scored_trackers(report):
         report["error"] = f"no tracker was scored: {unscored or 'see the notes and errors'}"
     if args.picture is not None:
         drawn = make_picture(outcome, args.picture)
