@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.conftest import benchmark_module
+from tests.conftest import benchmark_module, documented_commands
 from tracking.datasets.otb import find_otb_sequences
 from tracking.evaluation.mot import read_mot_rows, read_sequence_info
 
@@ -77,3 +77,10 @@ def test_the_benchmark_scores_ours_on_the_laid_out_sequences(holdout, tmp_path, 
     mean = report["summary"]["ours"]
     assert 0 <= mean["kept"] <= mean["covered"] <= 1
     assert mean["covered"] > 0.5  # the CNN's people followed in the first second
+
+
+def test_the_documented_command_is_accepted(holdout):
+    commands = documented_commands("holdout_people.py")
+    assert commands  # docs/benchmarks.md gives the command of its table
+    for argv in commands:
+        assert holdout.parse_args(argv).seeds >= 1
