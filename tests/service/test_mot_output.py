@@ -98,7 +98,7 @@ def test_a_jobs_mot_file_is_byte_for_byte_the_benchmarks(shared_data, tmp_path):
         runs = {"ours": {info.name: SimpleNamespace(rows=rows)}}
         mot.write_results(SimpleNamespace(runs=runs), tmp_path / "benchmark")
     job = (out / "tracks_mot.txt").read_bytes()
-    assert job.count(b"\n") > 200
+    assert job.count(b"\n") > 150  # three to five people in each of the 56 frames
     assert job == (tmp_path / "benchmark" / "ours" / "PETS09-S2L1.txt").read_bytes()
 
 
