@@ -76,8 +76,8 @@ class CameraMotion:
         # A static camera's estimates wander by 0.05-0.5 pixels (PETS09-S2L1, TUD-Stadtmitte):
         # noise, which would only jostle the particles.
         height, width = frame.shape[:2]
-        corners = np.array([[0, 0, 1], [width, 0, 1], [0, height, 1], [width, height, 1]])
-        moves = corners @ similarity.T - corners[:, :2]
+        frame_corners = np.array([[0, 0, 1], [width, 0, 1], [0, height, 1], [width, height, 1]])
+        moves = frame_corners @ similarity.T - frame_corners[:, :2]
         if np.max(np.hypot(moves[:, 0], moves[:, 1])) < _MIN_MOTION:
             return None
         return similarity
