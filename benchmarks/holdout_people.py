@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from tracking.datasets.otb import OtbSequence, find_otb_sequences
+from tracking.evaluation.metrics import iou
 from tracking.evaluation.mot import read_mot_rows
 from tracking.people.tracker import _normalised
 
@@ -117,14 +118,6 @@ def mot_folder(sequence: OtbSequence, root: Path, frame_rate: float = FRAME_RATE
     return folder
 
 
-def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection over union of ``a[i]`` and ``b[i]`` (``x, y, w, h`` rows)."""
-    width = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
-    height = np.minimum(a[:, 1] + a[:, 3], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
-    inter = np.clip(width, 0, None) * np.clip(height, 0, None)
-    return inter / (a[:, 2] * a[:, 3] + b[:, 2] * b[:, 3] - inter)
-
-
 def target_identity(truth: np.ndarray, rows: np.ndarray) -> dict[str, float]:
     """How one annotated person is followed: ``truth`` its rows (``frame, id, x, y, w, h``),
     ``rows`` a tracker's (the same units); see the module's docstring for the figures."""
@@ -137,7 +130,7 @@ def target_identity(truth: np.ndarray, rows: np.ndarray) -> dict[str, float]:
     rows = rows[index[rows[:, 0].astype(np.int64)] >= 0]
     person = _normalised(truth[index[rows[:, 0].astype(np.int64)], 2:6], COMMON_ASPECT)
     tracked = _normalised(rows[:, 2:6], COMMON_ASPECT)
-    overlap = paired_iou(person, tracked)
+    overlap = iou(tracked, person)  # per row, the tracking metrics' own overlap
     good = rows[overlap >= MATCH_IOU]
     overlap = overlap[overlap >= MATCH_IOU]
     # per frame, the track that overlaps most
