@@ -22,10 +22,10 @@ from pathlib import Path
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _paths import SHARED_DATA
-    from _report import print_json
+    from _report import machine, print_json
 except ImportError:  # python -m benchmarks.parts from the repository root
     from benchmarks._paths import SHARED_DATA
-    from benchmarks._report import print_json
+    from benchmarks._report import machine, print_json
 
 GROUPS = {
     "head": ("nose", "right_eye", "left_eye", "right_ear", "left_ear"),
@@ -84,6 +84,7 @@ def measure(sequence: Path, models: Path, frames: int | None) -> dict[str, objec
         "seconds": round(seconds, 2),
         "ms_per_frame": round(1000 * seconds / max(count, 1), 1),
         "ratio_to_real_time": round(seconds / (count / info.frame_rate), 3),
+        "machine": machine(),
     }
 
 

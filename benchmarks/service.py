@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import tempfile
 import time
@@ -57,10 +56,10 @@ from tracking.evaluation.mot import ground_truth_rows, mot_to_image_boxes
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _paths import SHARED_DATA
-    from _report import print_json
+    from _report import machine, print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
     from benchmarks._paths import SHARED_DATA
-    from benchmarks._report import print_json
+    from benchmarks._report import machine, print_json
 
 DEFAULT_VIDEO = SHARED_DATA / "video" / "pets09_s2l1_480x360.avi"
 DEFAULT_GROUND_TRUTH = SHARED_DATA / "mot" / "PETS09-S2L1" / "gt" / "gt.txt"
@@ -181,7 +180,7 @@ def run(
         # the first job's results, the ones scored (every job tracks the same video alike)
         "result_bytes": {fmt: len(content) for fmt, content in results[0].items()},
         **accuracy,
-        "cpu_count": os.cpu_count(),
+        "machine": machine(),
     }
 
 

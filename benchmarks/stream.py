@@ -74,10 +74,10 @@ from tracking.evaluation.mot import ground_truth_rows
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _paths import SHARED_DATA
-    from _report import print_json
+    from _report import machine, print_json
 except ImportError:  # python -m benchmarks.<name> from the repository root
     from benchmarks._paths import SHARED_DATA
-    from benchmarks._report import print_json
+    from benchmarks._report import machine, print_json
 
 VIDEO = Path("video") / "pets09_s2l1_480x360.avi"
 SEQUENCE = Path("mot") / "PETS09-S2L1"
@@ -393,7 +393,7 @@ def _cell(figures: dict, label: str, key: str | None, fmt: str | None) -> str:
 def print_table(result: dict) -> None:
     print(
         f"{result['video']}: {result['frames']} frames published at {result['fps']:g} fps, "
-        f"{result['cpu_count']} CPUs"
+        f"{result['machine']['cpu_count']} CPUs ({result['machine']['cpu']})"
     )
     names = list(result["configs"])
     cells = {
@@ -430,7 +430,7 @@ def run(
         "fps": fps,
         "frames": frames,
         "payload": payload,
-        "cpu_count": os.cpu_count(),
+        "machine": machine(),
         "configs": {},
     }
     with tempfile.TemporaryDirectory(prefix="vtrack-stream-bench-") as scratch:

@@ -25,6 +25,12 @@ def test_the_benchmark_counts_measured_parts_of_unoccluded_people(parts, capsys)
         assert 0 <= figures["measured_all"][group] <= figures["measured_any"][group] <= 1
     assert figures["measured_any"]["hips"] > 0.5  # the pose network finds PETS people's hips
     assert figures["ratio_to_real_time"] > 0
+    # the machine the speed was measured on, so that two machines' figures are told apart
+    machine = figures["machine"]
+    assert machine["cpu"] and machine["cpu_count"] >= 1 and machine["openvino"]
+    assert set(machine["cpu_flags"]) <= {
+        "avx2", "avx512f", "avx512_vnni", "avx512_bf16", "amx_bf16", "amx_int8"
+    }  # fmt: skip
 
 
 def test_missing_models_are_an_argument_error(parts, tmp_path, capsys):
