@@ -46,7 +46,7 @@ import numpy as np
 from tracking.datasets.otb import OtbSequence, find_otb_sequences
 from tracking.evaluation.metrics import iou
 from tracking.evaluation.mot import read_mot_rows
-from tracking.people.tracker import _normalised
+from tracking.people.motion import PEDESTRIAN_ASPECT, with_aspect
 
 try:  # run as a script: benchmarks/ is on sys.path
     from _paths import REPO_ROOT, SHARED_DATA
@@ -63,10 +63,8 @@ FRAME_RATE = 30.0
 videos; ours' times are in seconds, the peers count frames)."""
 
 MATCH_IOU = 0.5
-"""Least overlap of a track's box with the person's, both at :data:`COMMON_ASPECT`."""
-
-COMMON_ASPECT = 0.41
-"""Width / height both boxes are set to before they are compared (the pedestrian aspect)."""
+"""Least overlap of a track's box with the person's, both set to the pedestrian aspect
+(:data:`~tracking.people.motion.PEDESTRIAN_ASPECT`) before they are compared."""
 
 _SEED = re.compile(r"_seed\d+")
 
@@ -128,8 +126,8 @@ def target_identity(truth: np.ndarray, rows: np.ndarray) -> dict[str, float]:
     index = np.full(max(frames.max(), int(rows[:, 0].max())) + 1, -1)
     index[frames] = np.arange(len(frames))
     rows = rows[index[rows[:, 0].astype(np.int64)] >= 0]
-    person = _normalised(truth[index[rows[:, 0].astype(np.int64)], 2:6], COMMON_ASPECT)
-    tracked = _normalised(rows[:, 2:6], COMMON_ASPECT)
+    person = with_aspect(truth[index[rows[:, 0].astype(np.int64)], 2:6], PEDESTRIAN_ASPECT)
+    tracked = with_aspect(rows[:, 2:6], PEDESTRIAN_ASPECT)
     overlap = iou(tracked, person)  # per row, the tracking metrics' own overlap
     good = rows[overlap >= MATCH_IOU]
     overlap = overlap[overlap >= MATCH_IOU]

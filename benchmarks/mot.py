@@ -93,7 +93,7 @@ Box parity rows (``--parity``, the default). Our tracker reports boxes of a fixe
 (``PeopleTrackerConfig.box_aspect``, 0.41: width set to 0.41 x height about the box centre, the
 height kept), the peers the detector's boxes, and box shape alone moves the scores. So for
 every peer and source there is also ``<peer>+aspect@<source>``: the peer's rows through
-:func:`aspect_rows`, which calls our tracker's own rule (``tracking.people.tracker._normalised``,
+:func:`aspect_rows`, which calls our tracker's own rule (``tracking.people.motion.with_aspect``,
 with the ``box_aspect`` ours runs with); its speed is the peer's. And for ours
 ``ours+detbox@<source>`` (with its seeds): ``MultiPersonTracker`` with ``box_aspect=None``,
 which reports the associated detections' smoothed aspect.
@@ -669,14 +669,14 @@ def run_peers(
 def aspect_rows(rows: np.ndarray, aspect: float) -> np.ndarray:
     """Result rows (``frame, id, x, y, w, h, ...``) with our tracker's box post-processing:
     each box set to width ``aspect * h`` about its centre, its height kept. The rule is ours,
-    imported (``tracking.people.tracker._normalised``, what ``MultiPersonTracker`` reports
+    imported (``tracking.people.motion.with_aspect``, what ``MultiPersonTracker`` reports
     with ``box_aspect``), not a copy. It moves no centre, so it is the same in 1-based file
     units as in the tracker's 0-based ones."""
-    from tracking.people.tracker import _normalised
+    from tracking.people import motion
 
     out = np.array(rows, dtype=np.float64, copy=True).reshape(-1, np.shape(rows)[-1])
     if len(out):
-        out[:, 2:6] = _normalised(out[:, 2:6], aspect)
+        out[:, 2:6] = motion.with_aspect(out[:, 2:6], aspect)
     return out
 
 
@@ -696,7 +696,7 @@ def add_parity_rows(outcome: Outcome, aspect: float) -> None:
             "base": details["base"] + ASPECT,
             "of": tracker,
             "postprocess": f"box width set to {aspect} x height about its centre, height kept "
-            "(tracking.people.tracker._normalised, ours' box_aspect)",
+            "(tracking.people.motion.with_aspect, ours' box_aspect)",
         }
         for sequence, run in outcome.runs[tracker].items():
             rows = aspect_rows(run.rows, aspect)

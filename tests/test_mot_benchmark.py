@@ -388,8 +388,8 @@ def test_the_documented_commands_are_accepted(mot, drawing_packages):
 
 def test_parity_rows_are_the_peers_rows_through_our_own_box_rule(mot, monkeypatch) -> None:
     """<peer>+aspect@<source>: the peer's rows with each box through the function our tracker
-    reports its boxes with (tracking.people.tracker._normalised), nothing else changed."""
-    import tracking.people.tracker as tracker_module
+    reports its boxes with (tracking.people.motion.with_aspect), nothing else changed."""
+    import tracking.people.motion as motion_module
 
     rng = np.random.default_rng(3)
     rows = np.column_stack([
@@ -400,13 +400,13 @@ def test_parity_rows_are_the_peers_rows_through_our_own_box_rule(mot, monkeypatc
     outcome.details["sort@cnn"] = {"family": "peer", "base": "sort", "detection_source": "cnn"}
     outcome.add("sort@cnn", "S", mot.Run(rows, [0.5], 2))
     calls = []
-    rule = tracker_module._normalised
+    rule = motion_module.with_aspect
 
-    def spy(boxes, aspect=0.41):
+    def spy(boxes, aspect):
         calls.append(aspect)
         return rule(boxes, aspect)
 
-    monkeypatch.setattr(tracker_module, "_normalised", spy)
+    monkeypatch.setattr(motion_module, "with_aspect", spy)
     mot.add_parity_rows(outcome, 0.41)
     assert calls == [0.41]  # our tracker's rule, called, not a copy of it
     parity = outcome.runs["sort+aspect@cnn"]["S"]
@@ -552,7 +552,9 @@ def test_every_tracker_of_a_source_gets_the_same_detections(mot, shared_data, tm
             raw = np.loadtxt(results / f"{peer}@{source}" / "TUD-Stadtmitte.txt", delimiter=",")
             fair = np.loadtxt(results / f"{peer}+aspect@{source}" / "TUD-Stadtmitte.txt",
                               delimiter=",")  # fmt: skip
-            np.testing.assert_allclose(fair[:, :7], mot.aspect_rows(raw[:, :7], 0.41), atol=0.01)
+            # both files round to 0.01: x' = x + (w - 0.41 h) / 2 carries x's, half w's and
+            # 0.41 half h's rounding, and the file rounds x' again (at most 0.0135 apart)
+            np.testing.assert_allclose(fair[:, :7], mot.aspect_rows(raw[:, :7], 0.41), atol=0.0136)
         best = report["best_peer"][source]["TUD-Stadtmitte"]
         assert best["HOTA"]["tracker"] in {f"{p}@{source}" for p in peers}
         raw_best = report["best_raw_peer"][source]["TUD-Stadtmitte"]["HOTA"]

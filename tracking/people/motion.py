@@ -9,6 +9,10 @@ import numpy as np
 CX, CY, LOG_H, VX, VY = range(5)
 ROOT_DIM = 5
 
+PEDESTRIAN_ASPECT = 0.41
+"""Width / height of a standing person's box (Dollar, Wojek, Schiele, Perona, PAMI 2012, who
+normalise every pedestrian box to it for evaluation): boxes are compared at this aspect."""
+
 
 def propagate(
     particles: np.ndarray,
@@ -57,4 +61,18 @@ def boxes_from_roots(roots: np.ndarray, aspect: np.ndarray) -> np.ndarray:
     width = height * aspect
     return np.stack(
         [roots[..., CX] - width / 2, roots[..., CY] - height / 2, width, height], axis=-1
+    )
+
+
+def with_aspect(boxes: np.ndarray, aspect: float) -> np.ndarray:
+    """Boxes ``(N, 4)`` x, y, w, h of the same centre and height with width ``aspect * h``.
+
+    The tracker reports its boxes so (``PeopleTrackerConfig.box_aspect``) and compares
+    detections with predictions so (a detector's box width follows the arms and the stride,
+    not the body); the fair MOT benchmark passes the peers' boxes through this same function.
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    width = aspect * boxes[:, 3]
+    return np.stack(
+        [boxes[:, 0] + (boxes[:, 2] - width) / 2, boxes[:, 1], width, boxes[:, 3]], axis=1
     )

@@ -27,7 +27,18 @@ from tracking.people.likelihoods import (
     detection_log_likelihood,
     predictive_log_likelihood,
 )
-from tracking.people.motion import CX, CY, LOG_H, ROOT_DIM, VX, VY, boxes_from_roots, propagate
+from tracking.people.motion import (
+    CX,
+    CY,
+    LOG_H,
+    PEDESTRIAN_ASPECT,
+    ROOT_DIM,
+    VX,
+    VY,
+    boxes_from_roots,
+    propagate,
+    with_aspect,
+)
 from tracking.people.occlusion import covered_share, hidden_points, occluders
 from tracking.people.part_trackers import PartTrackers
 from tracking.people.scheduling import DetectionScheduler, widened
@@ -320,7 +331,10 @@ class MultiPersonTracker:
         """
         c = self.config
         dets = current.detections
-        overlap = box_iou(_normalised(current.predicted), _normalised(dets.boxes))
+        overlap = box_iou(
+            with_aspect(current.predicted, PEDESTRIAN_ASPECT),
+            with_aspect(dets.boxes, PEDESTRIAN_ASPECT),
+        )
         fit = current.fit = predictive_log_likelihood(
             _known(self._state, "the people's particles").particles,
             dets.boxes,
@@ -624,7 +638,9 @@ class MultiPersonTracker:
         existing = self._predicted_boxes()
         covered = np.zeros(len(dets), dtype=bool)
         if len(existing):
-            covered = box_iou(_normalised(dets.boxes), _normalised(existing)).max(axis=1)
+            covered = box_iou(
+                with_aspect(dets.boxes, PEDESTRIAN_ASPECT), with_aspect(existing, PEDESTRIAN_ASPECT)
+            ).max(axis=1)
             covered = covered >= c.match_iou
             # A box around a group holds most of two or more smaller tracked people (one could
             # be a farther person behind a new nearer one). Detectors give these where people
@@ -672,7 +688,7 @@ class MultiPersonTracker:
             track_id=0,
             appearance=appearance,
             base_height=h,
-            aspect=w / h if c.box_aspect is None else 0.41,
+            aspect=w / h if c.box_aspect is None else PEDESTRIAN_ASPECT,
             born=current.timestamp,
             last_seen=current.timestamp,
             score=probability,
@@ -812,7 +828,7 @@ class MultiPersonTracker:
         roots, _ = estimate(self._state)
         aspect = np.array([t.aspect for t in self._tracks])
         boxes = boxes_from_roots(roots, aspect)
-        report_boxes = boxes if c.box_aspect is None else _normalised(boxes, c.box_aspect)
+        report_boxes = boxes if c.box_aspect is None else with_aspect(boxes, c.box_aspect)
         positions = part_model.positions(self._body, self._state)  # (T, P, 2)
         cover = occluders(boxes, c.occlusion_overlap)
         hidden = hidden_points(positions, cover, boxes)
@@ -867,15 +883,6 @@ class MultiPersonTracker:
             part_visible=visible,
             part_measured=measured,
         )
-
-
-def _normalised(boxes: np.ndarray, aspect: float = 0.41) -> np.ndarray:
-    """Boxes of the same centre and height with width ``aspect * height``."""
-    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    width = aspect * boxes[:, 3]
-    return np.stack(
-        [boxes[:, 0] + (boxes[:, 2] - width) / 2, boxes[:, 1], width, boxes[:, 3]], axis=1
-    )
 
 
 def _known(value: _T | None, what: str) -> _T:
