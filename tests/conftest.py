@@ -155,12 +155,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     most tests first, which put the live stream modules early). A realtime test in the middle
     of the run waits for the test running on the other worker (the Dockerfile replay: over a
     minute) while neither core does anything else, and the other worker then waits for it.
-    Last, they wait only for each other. Modules marked ``long`` (the twenty kills: two
-    minutes) go first, so that the first realtime test does not wait for one of them."""
+    Last, they wait only for each other."""
     realtime = {item.path for item in items if item.get_closest_marker("realtime")}
-    long = {item.path for item in items if item.get_closest_marker("long")}
-    # stable: each module keeps its order
-    items.sort(key=lambda item: (item.path in realtime, item.path not in long))
+    items.sort(key=lambda item: item.path in realtime)  # stable: each module keeps its order
 
 
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)

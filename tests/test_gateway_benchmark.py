@@ -12,8 +12,6 @@ import pytest
 
 from tests.conftest import BENCHMARKS, REPO_ROOT
 
-pytestmark = pytest.mark.long  # sent out first (tests/conftest.py)
-
 
 @pytest.mark.slow
 def test_prints_cpu_and_size_per_frame_for_each_payload(shared_data):

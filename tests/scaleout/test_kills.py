@@ -15,7 +15,7 @@ import pytest
 from devtools.testing import Server, wait_for
 from tests.service.conftest import FAST_OPTIONS, submit, wait_for_state
 
-pytestmark = [pytest.mark.scaleout, pytest.mark.long]
+pytestmark = pytest.mark.scaleout
 
 KILLS = 20
 LEASE = 2.0

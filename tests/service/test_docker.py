@@ -35,8 +35,6 @@ import yaml
 from devtools.testing import free_port, try_get, wait_for
 from tests.conftest import REPO_ROOT
 
-pytestmark = pytest.mark.long  # sent out first (tests/conftest.py)
-
 DOCKER = REPO_ROOT / "docker"
 
 
