@@ -162,6 +162,17 @@ def test_peaks_are_local_maxima_above_the_threshold_one_per_plateau():
     np.testing.assert_allclose(peaks[1], [[10, 10, 0.6], [29, 19, 0.4]], rtol=1e-6)
 
 
+def test_equal_peaks_apart_all_stay_and_each_map_keeps_its_best_few():
+    heat = np.zeros((3, 20, 30), dtype=np.float32)  # map 0: nobody
+    heat[1, 4, 4] = heat[1, 4, 9] = 0.5  # equal, 5 apart: both windows' maxima
+    heat[1, 5, 11] = 0.5  # equal to the one 2 columns and a row before it: a plateau, goes
+    heat[2, 2, 2], heat[2, 10, 10], heat[2, 18, 28] = 0.3, 0.9, 0.6
+    peaks = find_peaks(heat, threshold=0.1, radius=3, max_peaks=2)
+    assert [len(p) for p in peaks] == [0, 2, 2]
+    np.testing.assert_allclose(peaks[1], [[4, 4, 0.5], [9, 4, 0.5]])  # raster order
+    np.testing.assert_allclose(peaks[2], [[10, 10, 0.9], [28, 18, 0.6]], rtol=1e-6)
+
+
 def test_decode_maps_keypoints_back_to_frame_pixels():
     people = [_person(12, 5), _person(40, 8)]
     heat, pafs = _maps(people)

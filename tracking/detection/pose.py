@@ -198,22 +198,33 @@ def find_peaks(
     candidates = candidates[flat[candidates] == flat_largest[candidates]]
     kinds, ys, xs = np.unravel_index(candidates, maps.shape)
     values = flat[candidates]
-    peaks = []
-    for kind in range(len(maps)):
-        mine = kinds == kind
-        x, y, v = xs[mine], ys[mine], values[mine]
-        if len(v) > 1:
-            # a maximum has no larger value in its window, only equal ones (a plateau): drop
-            # each that has an equal, earlier (raster order) peak within the window
-            near = (np.abs(x[:, None] - x[None]) <= radius) & (
-                np.abs(y[:, None] - y[None]) <= radius
-            )
-            earlier = np.tri(len(v), k=-1, dtype=bool)  # [i, j]: j before i
-            keep = ~(near & earlier).any(axis=1)
-            x, y, v = x[keep], y[keep], v[keep]
-        order = np.argsort(-v, kind="stable")[:max_peaks]
-        peaks.append(np.column_stack([x[order], y[order], v[order]]).astype(np.float64))
-    return peaks
+    # A maximum has no larger value in its window, only equal ones (a plateau; two peaks of a
+    # map within a window of each other are equal): each that has an earlier peak (raster
+    # order) in its window goes. Only maps with two peaks of one value can hold such a pair;
+    # there, each peak's window's earliest peak is a min filter of the peaks' raster indices.
+    by_value = np.lexsort((values, kinds))
+    tie = (np.diff(kinds[by_value]) == 0) & (np.diff(values[by_value]) == 0)
+    keep = np.ones(len(values), dtype=bool)
+    if tie.any():
+        width = maps.shape[2]
+        raster = (ys * width + xs).astype(np.float32)  # exact below 2**24 pixels
+        index = np.full(maps.shape, np.inf, dtype=np.float32)
+        index[kinds, ys, xs] = raster
+        plateaus = np.unique(kinds[by_value[1:][tie]])
+        earliest = index.copy()
+        for kind in plateaus:  # the few maps with a plateau; outside a map: +inf
+            cv2.erode(index[kind], kernel, dst=earliest[kind])
+        keep = earliest[kinds, ys, xs] == raster
+    kinds, xs, ys, values = kinds[keep], xs[keep], ys[keep], values[keep]
+    # map by map, the best first (a stable sort: equal scores in raster order), at most
+    # max_peaks of each
+    order = np.lexsort((-values, kinds))
+    kinds = kinds[order]
+    counts = np.bincount(kinds, minlength=len(maps))
+    rank = np.arange(len(kinds)) - np.repeat(np.cumsum(counts) - counts, counts)
+    kept = order[rank < max_peaks]
+    found = np.column_stack([xs[kept], ys[kept], values[kept]]).astype(np.float64)
+    return np.split(found, np.cumsum(np.minimum(counts, max_peaks))[:-1])
 
 
 def limb_scores(
@@ -736,8 +747,12 @@ class PoseEstimator:
         heat = outputs[self._heatmap_output][:, : len(KEYPOINT_NAMES)]  # the background's aside
         fields = outputs[self._paf_output]
         stride = height / heat.shape[2]
+        kinds = heat.shape[1]
+        # every crop's candidates at once; the grouping is each crop's own
+        peaks = _peaks_in_cells(heat.reshape(-1, *heat.shape[2:]), self.config)
         for tile, i in enumerate(rows):
-            poses = _group(_peaks_in_cells(heat[tile], self.config), fields[tile], self.config)
+            mine = peaks[tile * kinds : (tile + 1) * kinds]
+            poses = _group(mine, fields[tile], self.config)
             out[i] = _cells_to_frame(poses, stride, (scale[i], scale[i]), (left[i], top[i]))
         return out
 
