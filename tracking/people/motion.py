@@ -64,7 +64,7 @@ def boxes_from_roots(roots: np.ndarray, aspect: np.ndarray) -> np.ndarray:
     )
 
 
-def with_aspect(boxes: np.ndarray, aspect: float) -> np.ndarray:
+def with_aspect(boxes: np.ndarray, aspect: float = PEDESTRIAN_ASPECT) -> np.ndarray:
     """Boxes ``(N, 4)`` x, y, w, h of the same centre and height with width ``aspect * h``.
 
     The tracker reports its boxes so (``PeopleTrackerConfig.box_aspect``) and compares

@@ -331,10 +331,7 @@ class MultiPersonTracker:
         """
         c = self.config
         dets = current.detections
-        overlap = box_iou(
-            with_aspect(current.predicted, PEDESTRIAN_ASPECT),
-            with_aspect(dets.boxes, PEDESTRIAN_ASPECT),
-        )
+        overlap = box_iou(with_aspect(current.predicted), with_aspect(dets.boxes))
         fit = current.fit = predictive_log_likelihood(
             _known(self._state, "the people's particles").particles,
             dets.boxes,
@@ -638,9 +635,7 @@ class MultiPersonTracker:
         existing = self._predicted_boxes()
         covered = np.zeros(len(dets), dtype=bool)
         if len(existing):
-            covered = box_iou(
-                with_aspect(dets.boxes, PEDESTRIAN_ASPECT), with_aspect(existing, PEDESTRIAN_ASPECT)
-            ).max(axis=1)
+            covered = box_iou(with_aspect(dets.boxes), with_aspect(existing)).max(axis=1)
             covered = covered >= c.match_iou
             # A box around a group holds most of two or more smaller tracked people (one could
             # be a farther person behind a new nearer one). Detectors give these where people
